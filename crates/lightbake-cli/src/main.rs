@@ -1,0 +1,260 @@
+//! `bake`: bake lightmaps for a glTF scene.
+//!
+//! ```text
+//! bake assets/cornell_box.gltf -o baked/cornell_box
+//! bake scene.glb -o out --quality high --format exr,ktx2
+//! ```
+//!
+//! Exit status: 0 on success, 1 when the bake fails (the cause on one line on stderr),
+//! 2 for a bad command line.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
+
+use clap::{Parser, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use lightbake::plan::BakePlan;
+use lightbake::progress::Progress;
+use lightbake::scene::gltf_import::import_gltf;
+use lightbake::settings::{BakeSettings, LightConvention, Quality};
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum QualityArg {
+    Preview,
+    Medium,
+    High,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum FormatArg {
+    Exr,
+    Hdr,
+    Ktx2,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ConventionArg {
+    /// The glTF specification: linear light colours, no range = infinite.
+    Gltf,
+    /// What Bevy 0.19's glTF loader does: sRGB light colours, no range = 20 m.
+    Bevy,
+}
+
+/// Bake lightmaps for a glTF scene: xatlas unwrap, texel patches, shadow-ray direct light;
+/// HDR lightmaps, a baked glTF (with TEXCOORD_1), manifest.json and report.json out.
+#[derive(Debug, Parser)]
+#[command(name = "bake", version)]
+struct Args {
+    /// The scene: a .gltf or .glb file.
+    scene: PathBuf,
+    /// Output directory (created if needed; files in it are replaced atomically).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Preset for density and samples; the options below override it.
+    #[arg(long, value_enum, default_value = "medium")]
+    quality: QualityArg,
+    /// Lightmap texels per metre (overrides the preset and the scene's own hint).
+    #[arg(long)]
+    texel_density: Option<f32>,
+    /// Samples per texel for direct light (footprint points × one sample per light).
+    #[arg(long)]
+    samples: Option<u32>,
+    /// Sky rays per texel.
+    #[arg(long)]
+    sky_samples: Option<u32>,
+    /// Empty texels between charts.
+    #[arg(long)]
+    padding: Option<u32>,
+    /// Largest atlas page, texels per side.
+    #[arg(long)]
+    max_page_size: Option<u32>,
+    /// HDR formats to write, comma separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "exr")]
+    format: Vec<FormatArg>,
+    /// Do not write the tonemapped PNG previews.
+    #[arg(long)]
+    no_preview: bool,
+    /// Unwrap every mesh with xatlas, even those with their own TEXCOORD_1.
+    #[arg(long)]
+    reunwrap: bool,
+    /// Worker threads (0 = every core). The result does not depend on it.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Seed of the sample sequences.
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// Uniform sky luminance R,G,B in nits (overrides the scene's).
+    #[arg(long, value_delimiter = ',', num_args = 3)]
+    sky: Option<Vec<f32>>,
+    /// Refuse bakes estimated to need more memory than this (MiB).
+    #[arg(long)]
+    memory_budget: Option<u64>,
+    /// How glTF punctual lights are read.
+    #[arg(long, value_enum, default_value = "gltf")]
+    light_convention: ConventionArg,
+    /// Print the plan and exit without baking.
+    #[arg(long)]
+    plan_only: bool,
+    /// No progress bars.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn settings_from(args: &Args) -> BakeSettings {
+    let mut s = BakeSettings::preset(match args.quality {
+        QualityArg::Preview => Quality::Preview,
+        QualityArg::Medium => Quality::Medium,
+        QualityArg::High => Quality::High,
+    });
+    if let Some(d) = args.texel_density {
+        s.texel_density = d;
+        s.texel_density_from_scene = false;
+    }
+    if let Some(v) = args.samples {
+        s.samples_per_texel = v;
+    }
+    if let Some(v) = args.sky_samples {
+        s.sky_samples = v;
+    }
+    if let Some(v) = args.padding {
+        s.padding = v;
+    }
+    if let Some(v) = args.max_page_size {
+        s.max_page_size = v;
+    }
+    if let Some(v) = args.memory_budget {
+        s.memory_budget_mib = v;
+    }
+    s.formats.exr = args.format.iter().any(|f| matches!(f, FormatArg::Exr));
+    s.formats.hdr = args.format.iter().any(|f| matches!(f, FormatArg::Hdr));
+    s.formats.ktx2 = args.format.iter().any(|f| matches!(f, FormatArg::Ktx2));
+    s.formats.png_preview = !args.no_preview;
+    s.reunwrap = args.reunwrap;
+    s.threads = args.threads;
+    s.seed = args.seed;
+    s.light_convention = match args.light_convention {
+        ConventionArg::Gltf => LightConvention::GltfSpec,
+        ConventionArg::Bevy => LightConvention::BevyGltfLoader,
+    };
+    s
+}
+
+fn run(args: Args) -> Result<(), String> {
+    let settings = settings_from(&args);
+    settings.validate().map_err(|e| e.to_string())?;
+    let mut imported =
+        import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
+    if let Some(sky) = &args.sky {
+        imported.scene.sky = glam::Vec3::new(sky[0], sky[1], sky[2]);
+    }
+    let scene = &imported.scene;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    let plan = BakePlan::new(scene, &settings);
+    println!(
+        "{}: {} meshes, {} instances, {} triangles, {} lights",
+        args.scene.display(),
+        scene.meshes.len(),
+        scene.instances.len(),
+        scene.instanced_triangle_count(),
+        scene.lights.len()
+    );
+    print!("plan:\n{}", plan.describe());
+    if args.plan_only {
+        return Ok(());
+    }
+
+    let progress = Arc::new(Progress::new());
+    let worker = {
+        let progress = Arc::clone(&progress);
+        let scene = imported.scene.clone();
+        let settings = settings.clone();
+        std::thread::spawn(move || lightbake::bake(&scene, &settings, &progress))
+    };
+    watch(&progress, &worker, args.quiet);
+    let output = worker
+        .join()
+        .map_err(|_| "the bake thread panicked".to_string())?
+        .map_err(|e| e.to_string())?;
+    let written = lightbake::output::write_outputs(
+        &args.output,
+        &output,
+        &imported.scene,
+        Some(&imported.source),
+        &settings,
+    )
+    .map_err(|e| e.to_string())?;
+    println!();
+    print!("{}", output.report.table());
+    println!(
+        "{} page(s), {} texel patches ({} moved out of geometry, {} invalid filled)",
+        output.report.texels.pages,
+        output.report.texels.patches,
+        output.report.texels.moved,
+        output.report.texels.filled
+    );
+    for w in &output.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if written.clamped_channels > 0 {
+        eprintln!(
+            "warning: {} texel channels clamped to the half-float maximum 65504",
+            written.clamped_channels
+        );
+    }
+    println!(
+        "wrote {} files to {}:",
+        written.files.len(),
+        args.output.display()
+    );
+    for f in &written.files {
+        println!("  {}", f.display());
+    }
+    Ok(())
+}
+
+/// Draws one progress bar per stage until the bake thread finishes.
+fn watch<T>(progress: &Progress, worker: &std::thread::JoinHandle<T>, quiet: bool) {
+    let style =
+        ProgressStyle::with_template("{prefix:>10} [{bar:32}] {pos}/{len} {elapsed_precise}")
+            .expect("valid template")
+            .progress_chars("=> ");
+    let mut bar: Option<ProgressBar> = None;
+    let mut index = 0;
+    while !worker.is_finished() {
+        let snap = progress.snapshot();
+        if !quiet {
+            if snap.stage_index != index {
+                if let Some(b) = bar.take() {
+                    b.finish();
+                }
+                index = snap.stage_index;
+                let b = ProgressBar::new(snap.total.max(1)).with_style(style.clone());
+                b.set_prefix(snap.stage.clone());
+                bar = Some(b);
+            }
+            if let Some(b) = &bar {
+                b.set_position(snap.done.min(snap.total.max(1)));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    if let Some(b) = bar {
+        b.set_position(b.length().unwrap_or(0));
+        b.finish();
+    }
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,184 @@
+//! The `bake` command: a successful bake writes every output; bad input exits non-zero with a
+//! one-line cause naming the problem.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bake(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_bake"))
+        .args(args)
+        .output()
+        .expect("run bake")
+}
+
+fn asset(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets")
+        .join(name)
+}
+
+fn stderr_line(out: &Output) -> String {
+    let text = String::from_utf8_lossy(&out.stderr).into_owned();
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "expected one error line, got: {text}");
+    errors[0].to_string()
+}
+
+#[test]
+fn bakes_the_cornell_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = bake(&[
+        asset("cornell_box.gltf").to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--quality",
+        "preview",
+        "--texel-density",
+        "64",
+        "--format",
+        "exr,hdr,ktx2",
+        "--quiet",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in [
+        "cornell_box.gltf",
+        "cornell_box.bin",
+        "manifest.json",
+        "report.json",
+        "lightmaps/lightmap_0.exr",
+        "lightmaps/lightmap_0.hdr",
+        "lightmaps/lightmap_0.ktx2",
+        "lightmaps/lightmap_0.preview.png",
+    ] {
+        assert!(out_dir.join(f).exists(), "{f} missing\n{stdout}");
+    }
+    // The plan and the summary table are printed.
+    assert!(
+        stdout.contains("area lights    run") && stdout.contains("direct lights  skip"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("Mrays/s") && stdout.contains("total"),
+        "{stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+    assert!(
+        report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["name"] == "direct" && s["rays"].as_u64().unwrap() > 0)
+    );
+    assert!(
+        report["plan"]["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["name"] == "sky" && s["run"] == false)
+    );
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out_dir = d.join("out");
+    let out = out_dir.to_str().unwrap();
+
+    let r = bake(&[d.join("nope.gltf").to_str().unwrap(), "-o", out]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr_line(&r).contains("nope.gltf"));
+
+    let bad = d.join("bad.gltf");
+    std::fs::write(&bad, b"{\"asset\": 3}").unwrap();
+    let r = bake(&[bad.to_str().unwrap(), "-o", out]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr_line(&r).contains("not a valid glTF"));
+
+    // No triangles: only an asset header.
+    let empty = d.join("empty.gltf");
+    std::fs::write(
+        &empty,
+        br#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}"#,
+    )
+    .unwrap();
+    let r = bake(&[empty.to_str().unwrap(), "-o", out]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr_line(&r).contains("no triangles"));
+
+    // NaN vertex data.
+    let nan = d.join("nan.gltf");
+    let bin: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, f32::NAN, 0.0, 1.0]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    std::fs::write(d.join("nan.bin"), &bin).unwrap();
+    std::fs::write(
+        &nan,
+        br#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"name": "tri", "mesh": 0}],
+            "meshes": [{"name": "broken", "primitives": [{"attributes": {"POSITION": 0}}]}],
+            "buffers": [{"uri": "nan.bin", "byteLength": 36}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 0, 1]}]}"#,
+    )
+    .unwrap();
+    let r = bake(&[nan.to_str().unwrap(), "-o", out]);
+    assert_eq!(r.status.code(), Some(1));
+    let line = stderr_line(&r);
+    assert!(
+        line.contains("broken") && line.contains("vertex 2") && line.contains("NaN"),
+        "{line}"
+    );
+
+    // Unwritable output: the output directory is a file.
+    let blocker = d.join("file");
+    std::fs::write(&blocker, b"x").unwrap();
+    let r = bake(&[
+        asset("cornell_box.gltf").to_str().unwrap(),
+        "-o",
+        blocker.to_str().unwrap(),
+        "--quality",
+        "preview",
+        "--quiet",
+    ]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr_line(&r).contains("cannot write"));
+
+    // A bad setting names the flag's field.
+    let r = bake(&[
+        asset("cornell_box.gltf").to_str().unwrap(),
+        "-o",
+        out,
+        "--padding",
+        "0",
+    ]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr_line(&r).contains("padding"));
+}
+
+#[test]
+fn plan_only_does_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let r = bake(&[
+        asset("sunlit_room.gltf").to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--plan-only",
+    ]);
+    assert!(r.status.success());
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        stdout.contains("sky            run")
+            && stdout.contains("area lights    skip no emissive surfaces"),
+        "{stdout}"
+    );
+    assert!(!out_dir.exists());
+}

@@ -1,0 +1,250 @@
+//! The pipeline: plan → memory check → unwrap → texel patches → BVH → validity → direct
+//! light → pages (fill, dilate). Each stage runs only when the plan says the scene needs it.
+//!
+//! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
+//! writes it. Work runs on a rayon pool of `settings.threads` threads; the result does not
+//! depend on the thread count.
+
+use std::time::Instant;
+
+use glam::Vec3;
+
+use crate::bvh::RayScene;
+use crate::direct::{Emitters, direct_light};
+use crate::error::{BakeError, Result};
+use crate::lightmap::{LightmapPage, assemble};
+use crate::memory;
+use crate::plan::BakePlan;
+use crate::progress::Progress;
+use crate::raster::Patches;
+use crate::report::{BakeReport, StageStats, TexelStats};
+use crate::scene::Scene;
+use crate::settings::BakeSettings;
+use crate::unwrap::{Layout, unwrap_scene};
+
+/// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
+/// the texel patches, the settings and the plan.
+#[derive(Clone, Copy)]
+pub struct BakeContext<'a> {
+    /// The unwrapped scene ([`Layout::apply`]).
+    pub scene: &'a Scene,
+    /// Lightmap layout.
+    pub layout: &'a Layout,
+    /// Ray queries.
+    pub rays: &'a RayScene,
+    /// Texel patches (validated).
+    pub patches: &'a Patches,
+    /// Settings.
+    pub settings: &'a BakeSettings,
+    /// The plan.
+    pub plan: &'a BakePlan,
+}
+
+/// Everything a bake produces, in memory.
+#[derive(Clone, Debug)]
+pub struct BakeOutput {
+    /// The lightmap layout: per-mesh UVs and per-instance rectangles.
+    pub layout: Layout,
+    /// The scene as baked: meshes split along seams, `uv1` set.
+    pub baked_scene: Scene,
+    /// Lightmap pages (E/π, linear RGB).
+    pub pages: Vec<LightmapPage>,
+    /// Timings, counts, plan and warnings.
+    pub report: BakeReport,
+}
+
+/// Bakes `scene` with `settings`, reporting progress to (and obeying cancellation from)
+/// `progress`.
+///
+/// # Errors
+/// Invalid settings or scene ([`BakeError::BadSetting`] and the scene errors),
+/// [`BakeError::OverMemoryBudget`], [`BakeError::Unwrap`], [`BakeError::Cancelled`].
+pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<BakeOutput> {
+    settings.validate()?;
+    scene.validate()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| BakeError::BadSetting {
+            name: "threads",
+            value: settings.threads.to_string(),
+            message: e.to_string(),
+        })?;
+    pool.install(|| bake_in_pool(scene, settings, progress, pool.current_num_threads()))
+}
+
+struct Stages {
+    list: Vec<StageStats>,
+}
+
+impl Stages {
+    fn run<T>(
+        &mut self,
+        name: &str,
+        progress: &Progress,
+        total: u64,
+        f: impl FnOnce() -> Result<(T, u64, String)>,
+    ) -> Result<T> {
+        progress.begin(name, total);
+        let start = Instant::now();
+        let (value, rays, note) = f()?;
+        self.list.push(StageStats {
+            name: name.to_string(),
+            seconds: start.elapsed().as_secs_f64(),
+            rays,
+            note,
+        });
+        if progress.is_cancelled() {
+            return Err(BakeError::Cancelled);
+        }
+        Ok(value)
+    }
+}
+
+fn bake_in_pool(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    threads: usize,
+) -> Result<BakeOutput> {
+    let start = Instant::now();
+    let mut stages = Stages { list: Vec::new() };
+    let mut warnings = scene.warnings.clone();
+
+    // Plan, and refuse early when the texel count alone would not fit.
+    let plan = stages.run("plan", progress, 1, || {
+        let plan = BakePlan::new(scene, settings);
+        let note = format!("{} texels/m", plan.texel_density);
+        Ok((plan, 0, note))
+    })?;
+    let estimate = memory::estimate_from_area(scene, plan.texel_density);
+    estimate.check(settings.memory_budget_mib)?;
+
+    // Unwrap.
+    let layout = stages.run("unwrap", progress, scene.meshes.len() as u64, || {
+        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        let note = format!(
+            "{} mesh(es) xatlas, {} kept, {} page(s)",
+            plan.meshes_to_unwrap,
+            plan.meshes_keeping_uv1,
+            layout.pages.len()
+        );
+        Ok((layout, 0, note))
+    })?;
+    warnings.extend(layout.warnings.iter().cloned());
+    let estimate = memory::estimate_from_layout(scene, &layout);
+    estimate.check(settings.memory_budget_mib)?;
+    let baked_scene = layout.apply(scene);
+
+    let mut texels = TexelStats {
+        pages: layout.pages.len(),
+        page_texels: layout.page_texels(),
+        ..TexelStats::default()
+    };
+    let pages = if plan.nothing_to_bake {
+        layout
+            .pages
+            .iter()
+            .map(|p| LightmapPage::black(p.width, p.height))
+            .collect()
+    } else {
+        let rays = stages.run("bvh", progress, 1, || {
+            let rays = RayScene::build(&baked_scene);
+            let note = format!("{} triangles", rays.bvh_triangle_count());
+            Ok((rays, 0, note))
+        })?;
+        let mut patches = stages.run("raster", progress, 1, || {
+            let p = Patches::build(&baked_scene, &layout, &rays);
+            let note = format!("{} texel patches", p.patches.len());
+            Ok((p, 0, note))
+        })?;
+        stages.run("validity", progress, patches.patches.len() as u64, || {
+            patches.fix_validity(&rays, settings.seed);
+            let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
+            Ok(((), patches.rays, note))
+        })?;
+        texels.patches = patches.patches.len();
+        texels.moved = patches.moved;
+        texels.invalid = patches.invalid;
+        let emitters = Emitters::collect(&baked_scene, &rays);
+        let ctx = BakeContext {
+            scene: &baked_scene,
+            layout: &layout,
+            rays: &rays,
+            patches: &patches,
+            settings,
+            plan: &plan,
+        };
+        let irradiance = stages.run("direct", progress, patches.patches.len() as u64, || {
+            let r = direct_light(&ctx, &emitters, progress);
+            let note = format!(
+                "{} spp, {} light(s), {} emitter triangle(s){}",
+                settings.samples_per_texel,
+                plan.lights.iter().filter(|l| l.instances > 0).count(),
+                emitters.list.len(),
+                if plan.sky {
+                    format!(", {} sky rays/texel", settings.sky_samples)
+                } else {
+                    String::new()
+                }
+            );
+            Ok((r.irradiance, r.rays, note))
+        })?;
+        if let Some(bad) = irradiance.iter().position(|e| !e.is_finite()) {
+            // An internal error: report it rather than write garbage.
+            return Err(BakeError::BadSetting {
+                name: "scene",
+                value: format!("patch {bad}"),
+                message: format!(
+                    "direct light produced a non-finite value {:?}",
+                    irradiance[bad]
+                ),
+            });
+        }
+        stages.run("dilate", progress, 1, || {
+            let (pages, st) = assemble(&layout, &patches, &irradiance, settings.padding + 2);
+            texels.filled = st.filled;
+            texels.dilated = st.dilated;
+            if st.unfilled > 0 {
+                warnings.push(format!(
+                    "{} texels inside geometry had no valid neighbour in their chart and were left black",
+                    st.unfilled
+                ));
+            }
+            let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
+            Ok((pages, 0, note))
+        })?
+    };
+    let max = pages
+        .iter()
+        .flat_map(|p| p.texels.iter())
+        .fold(Vec3::ZERO, |m, t| m.max(*t));
+    let report = BakeReport {
+        lightbake_version: env!("CARGO_PKG_VERSION"),
+        scene: scene.name.clone(),
+        settings: settings.clone(),
+        plan,
+        stages: stages.list,
+        texels,
+        triangles: scene.instanced_triangle_count(),
+        threads,
+        memory: estimate,
+        warnings: {
+            if max.max_element() > crate::output::images::HALF_MAX {
+                warnings.push(format!(
+                    "the brightest texel ({:.3e}) exceeds the half-float range; EXR and KTX2 outputs clamp it to 65504",
+                    max.max_element()
+                ));
+            }
+            warnings
+        },
+        total_seconds: start.elapsed().as_secs_f64(),
+        outputs: Vec::new(),
+    };
+    Ok(BakeOutput {
+        layout,
+        baked_scene,
+        pages,
+        report,
+    })
+}

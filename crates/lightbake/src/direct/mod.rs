@@ -1,0 +1,525 @@
+//! Direct light at every texel patch: punctual lights, the sun, the sky and emissive
+//! triangles, each with shadow rays, averaged over `samples_per_texel` points of the texel's
+//! footprint so shadow edges are antialiased.
+//!
+//! Irradiance E is computed in lux (linear RGB); the lightmap stores E/π (see
+//! [`crate::lightmap`]).
+//!
+//! * **Point / spot** (glTF `KHR_lights_punctual`, as Bevy shades them): E = I·cosθ/d² ·
+//!   W(d) · S(cd), with Bevy's range window W(d) = saturate(1 − (d/range)⁴)² and
+//!   d² clamped below at 10⁻⁴ m², and the glTF spot falloff
+//!   S = saturate(cd·scale + offset)², scale = 1/max(cos θᵢ − cos θₒ, 10⁻⁴),
+//!   offset = −cos θₒ·scale, cd the cosine to the spot axis.
+//! * **Directional** (sun): E = E⊥·cosθ, with directions sampled uniformly in the sun's cone
+//!   when it has an angular radius (soft shadows).
+//! * **Sky**: uniform luminance L: E = π·L·(fraction of cosine-distributed rays that escape).
+//! * **Emissive triangles**: with at most `max_closed_form_emitters` emitting triangles, the
+//!   unoccluded irradiance is evaluated in closed form ([`polygon`]) and shadow rays estimate
+//!   only the visible fraction with a ratio estimator: the emitter is sampled in proportion to
+//!   each triangle's closed-form contribution, uniformly in area within it, and
+//!   E ≈ E_unoccluded · Σ wᵢVᵢ / Σ wᵢ with wᵢ = f(yᵢ)/p(yᵢ). This is exact wherever the
+//!   emitter is fully visible or fully hidden. With more emitters, triangles are picked by
+//!   power and the plain Monte Carlo estimator f·V/p is used.
+
+pub mod polygon;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use crate::bake::BakeContext;
+use crate::bvh::RayScene;
+use crate::plan::BakePlan;
+use crate::progress::Progress;
+use crate::raster::{Patch, Patches, Surface, SurfacePoint};
+use crate::sampling::{
+    cosine_hemisphere, hash, sobol_02, uniform_cone, uniform_triangle, unit_float,
+};
+use crate::scene::{LightKind, Scene};
+use crate::settings::BakeSettings;
+use crate::unwrap::Layout;
+use polygon::point_to_polygon_form_factor;
+
+/// Random-number streams of a texel (mixed into its key).
+mod stream {
+    pub const FOOTPRINT: u32 = 1;
+    pub const FOOTPRINT_RETRY: u32 = 2;
+    pub const SKY: u32 = 3;
+    pub const EMITTER: u32 = 4;
+    pub const EMITTER_PICK: u32 = 5;
+    pub const LIGHT: u32 = 100;
+}
+
+/// An emissive triangle, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emitter {
+    /// Global triangle index.
+    pub triangle: u32,
+    /// World vertices.
+    pub vertices: [Vec3; 3],
+    /// Unit normal (front side).
+    pub normal: Vec3,
+    /// Area, m².
+    pub area: f32,
+    /// Emitted luminance, nits, linear RGB.
+    pub radiance: Vec3,
+    /// Emits from both faces (double-sided material).
+    pub two_sided: bool,
+}
+
+/// Every emissive triangle of the scene, with a power CDF for sampling.
+#[derive(Clone, Debug, Default)]
+pub struct Emitters {
+    /// The triangles.
+    pub list: Vec<Emitter>,
+    /// Cumulative power (luminance-weighted radiance × area × sides), normalised to end at 1.
+    cdf: Vec<f32>,
+}
+
+/// Luminance weights of linear Rec.709 RGB.
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+impl Emitters {
+    /// Collects emissive triangles of every instance (baked or not).
+    pub fn collect(scene: &Scene, rays: &RayScene) -> Self {
+        let mut list = Vec::new();
+        for (g, info) in rays.triangles.iter().enumerate() {
+            if info.area <= 0.0 {
+                continue;
+            }
+            let inst = &scene.instances[info.instance as usize];
+            let material = scene.material_of(inst.mesh);
+            if !material.is_emissive() {
+                continue;
+            }
+            let mesh = &scene.meshes[inst.mesh];
+            let [a, b, c] = mesh.triangle(info.local as usize);
+            let mut radiance = material.emissive;
+            if let (Some(t), Some(uv0)) = (material.emissive_texture, mesh.uv0.as_ref()) {
+                let tex = &scene.textures[t.texture];
+                let centroid = (uv0[a] + uv0[b] + uv0[c]) / 3.0;
+                let mean = [uv0[a], uv0[b], uv0[c], centroid]
+                    .iter()
+                    .map(|&uv| tex.sample_srgb(uv).truncate())
+                    .sum::<Vec3>()
+                    / 4.0;
+                radiance *= mean;
+            }
+            if radiance.max_element() <= 0.0 {
+                continue;
+            }
+            list.push(Emitter {
+                triangle: g as u32,
+                vertices: [a, b, c].map(|i| inst.transform.transform_point3(mesh.positions[i])),
+                normal: info.normal,
+                area: info.area,
+                radiance,
+                two_sided: material.double_sided,
+            });
+        }
+        let mut total = 0.0f64;
+        let mut cdf: Vec<f32> = list
+            .iter()
+            .map(|e| {
+                total += (luminance(e.radiance).max(1e-20)
+                    * e.area
+                    * if e.two_sided { 2.0 } else { 1.0 }) as f64;
+                total as f32
+            })
+            .collect();
+        if total > 0.0 {
+            for c in &mut cdf {
+                *c /= total as f32;
+            }
+        }
+        Self { list, cdf }
+    }
+
+    /// Whether there is nothing to sample.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// Picks an emitter by power: (index, probability).
+    fn pick(&self, u: f32) -> (usize, f32) {
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .min(self.list.len() - 1);
+        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (i, self.cdf[i] - prev)
+    }
+}
+
+/// Irradiance of one point light at `sp`, before visibility, and the shadow-ray target.
+fn punctual(light: &crate::scene::Light, sp: &SurfacePoint) -> Option<(Vec3, Vec3, f32)> {
+    let to_light = light.position - sp.position;
+    let d2 = to_light.length_squared();
+    if d2 <= 0.0 {
+        return None;
+    }
+    let d = d2.sqrt();
+    let l = to_light / d;
+    let cos = sp.normal.dot(l);
+    if cos <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
+        return None;
+    }
+    let window = match light.range {
+        Some(r) => {
+            let f = d2 / (r * r);
+            let s = (1.0 - f * f).clamp(0.0, 1.0);
+            s * s
+        }
+        None => 1.0,
+    };
+    let cone = match light.kind {
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => {
+            let (ci, co) = (inner_cone_angle.cos(), outer_cone_angle.cos());
+            let scale = 1.0 / (ci - co).max(1e-4);
+            let offset = -co * scale;
+            let cd = light.direction.dot(-l);
+            let a = (cd * scale + offset).clamp(0.0, 1.0);
+            a * a
+        }
+        _ => 1.0,
+    };
+    let e = light.color * (light.intensity * cos * window * cone / d2.max(1e-4));
+    (e.max_element() > 0.0).then_some((e, l, d))
+}
+
+/// What the direct pass produced.
+#[derive(Clone, Debug, Default)]
+pub struct DirectResult {
+    /// Irradiance per patch, lux, linear RGB.
+    pub irradiance: Vec<Vec3>,
+    /// Shadow and sky rays traced.
+    pub rays: u64,
+}
+
+/// Per-pass context shared by the texel workers.
+struct Ctx<'a> {
+    scene: &'a Scene,
+    layout: &'a Layout,
+    rays: &'a RayScene,
+    patches: &'a Patches,
+    surface: Surface<'a>,
+    settings: &'a BakeSettings,
+    plan: &'a BakePlan,
+    emitters: &'a Emitters,
+    closed_form: bool,
+}
+
+/// Computes direct irradiance at every patch. Invalid patches get zero (they are filled from
+/// their neighbours later).
+pub fn direct_light(
+    bake: &BakeContext<'_>,
+    emitters: &Emitters,
+    progress: &Progress,
+) -> DirectResult {
+    let ctx = Ctx {
+        scene: bake.scene,
+        layout: bake.layout,
+        rays: bake.rays,
+        patches: bake.patches,
+        surface: Surface::new(bake.scene, bake.layout, bake.rays),
+        settings: bake.settings,
+        plan: bake.plan,
+        emitters,
+        closed_form: emitters.list.len() <= bake.settings.max_closed_form_emitters as usize,
+    };
+    let ray_count = AtomicU64::new(0);
+    let irradiance: Vec<Vec3> = bake
+        .patches
+        .patches
+        .par_chunks(256)
+        .flat_map_iter(|chunk| {
+            let cancelled = progress.is_cancelled();
+            let mut local_rays = 0u64;
+            let out: Vec<Vec3> = chunk
+                .iter()
+                .map(|p| {
+                    if cancelled || !p.is_valid() {
+                        Vec3::ZERO
+                    } else {
+                        texel(&ctx, p, &mut local_rays)
+                    }
+                })
+                .collect();
+            ray_count.fetch_add(local_rays, Ordering::Relaxed);
+            progress.advance(chunk.len() as u64);
+            out
+        })
+        .collect();
+    DirectResult {
+        irradiance,
+        rays: ray_count.into_inner(),
+    }
+}
+
+/// The representative point of a patch as a surface point.
+fn representative(p: &Patch) -> SurfacePoint {
+    SurfacePoint {
+        position: p.position,
+        normal: p.normal,
+        geometric_normal: p.geometric_normal,
+    }
+}
+
+/// Footprint sample `s` of patch `p`: a point of the texel square on one of its triangles,
+/// or the representative point when the square point misses them (partly covered texel) or
+/// cannot see the representative point (geometry in between).
+fn footprint_sample(ctx: &Ctx<'_>, p: &Patch, s: u32, rays: &mut u64) -> SurfacePoint {
+    let rep = representative(p);
+    let footprint = ctx.patches.footprint_of(p);
+    let Some(rect) = ctx.layout.instances[p.instance as usize] else {
+        return rep;
+    };
+    let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+    let seed = ctx.settings.seed;
+    for attempt in 0..4u32 {
+        let u = if attempt == 0 {
+            sobol_02(s, p.rng(seed, stream::FOOTPRINT))
+        } else {
+            let k = p.rng(seed, stream::FOOTPRINT_RETRY);
+            Vec2::new(
+                unit_float(hash(k ^ (s * 8 + attempt))),
+                unit_float(hash(k.wrapping_add(0x9e37_79b9) ^ (s * 8 + attempt))),
+            )
+        };
+        let q = texel + u;
+        let Some(sp) = footprint.iter().find_map(|&t| ctx.surface.point(t, q, 0.0)) else {
+            continue;
+        };
+        if p.flags & Patch::NEAR_GEOMETRY != 0 {
+            // Only points that see the representative point (same side of any wall).
+            let a = ctx.rays.offset(rep.position, rep.geometric_normal);
+            let b = ctx.rays.offset(sp.position, sp.geometric_normal);
+            let d = b - a;
+            let len = d.length();
+            if len > 0.0 {
+                *rays += 1;
+                if ctx.rays.occluded(a, d / len, 0.0, len) {
+                    return rep;
+                }
+            }
+        }
+        return sp;
+    }
+    rep
+}
+
+/// Direct irradiance of one valid patch.
+fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
+    let seed = ctx.settings.seed;
+    let spp = ctx.settings.samples_per_texel;
+    let lights = ctx.plan.lights_for(p.instance as usize);
+    let far = ctx.rays.extent * 4.0 + 1.0;
+    let mut e = Vec3::ZERO;
+    // Ratio-estimator sums for the closed-form emitter path.
+    let mut unoccluded_sum = Vec3::ZERO;
+    let (mut w_visible, mut w_total) = (0.0f32, 0.0f32);
+    let mut contributions: Vec<f32> = Vec::new();
+    let mut samples: Vec<SurfacePoint> = Vec::with_capacity(spp as usize);
+    for s in 0..spp {
+        let sp = footprint_sample(ctx, p, s, rays);
+        samples.push(sp);
+        let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+        for &li in lights {
+            let light = &ctx.scene.lights[li as usize];
+            let u = sobol_02(s, p.rng(seed, stream::LIGHT + li));
+            match light.kind {
+                LightKind::Point | LightKind::Spot { .. } => {
+                    if let Some((irr, l, d)) = punctual(light, &sp) {
+                        *rays += 1;
+                        let tmax = d - ctx.rays.epsilon(light.position);
+                        if !ctx.rays.occluded(origin, l, 0.0, tmax) {
+                            e += irr;
+                        }
+                    }
+                }
+                LightKind::Directional { angular_radius } => {
+                    let to_sun = -light.direction;
+                    let dir = if angular_radius > 0.0 {
+                        uniform_cone(to_sun, angular_radius.cos(), u)
+                    } else {
+                        to_sun
+                    };
+                    let cos = sp.normal.dot(dir);
+                    if cos > 0.0 && sp.geometric_normal.dot(dir) > 0.0 {
+                        *rays += 1;
+                        if !ctx.rays.occluded(origin, dir, 0.0, far) {
+                            e += light.color * (light.intensity * cos);
+                        }
+                    }
+                }
+            }
+        }
+        if ctx.plan.area_lights && !ctx.emitters.is_empty() {
+            if ctx.closed_form {
+                closed_form_emitter_sample(
+                    ctx,
+                    p,
+                    s,
+                    &sp,
+                    origin,
+                    &mut contributions,
+                    &mut unoccluded_sum,
+                    &mut w_visible,
+                    &mut w_total,
+                    rays,
+                );
+            } else {
+                e += sampled_emitter(ctx, p, s, &sp, origin, rays);
+            }
+        }
+    }
+    let mut irradiance = e / spp as f32;
+    if ctx.plan.area_lights && ctx.closed_form && w_total > 0.0 {
+        irradiance += unoccluded_sum / spp as f32 * (w_visible / w_total);
+    }
+    if ctx.plan.sky {
+        let n = ctx.settings.sky_samples;
+        let mut escaped = 0u32;
+        for k in 0..n {
+            let sp = samples[(k % spp) as usize];
+            let dir = cosine_hemisphere(sp.normal, sobol_02(k, p.rng(seed, stream::SKY)));
+            if sp.geometric_normal.dot(dir) <= 0.0 {
+                continue;
+            }
+            *rays += 1;
+            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+            if !ctx.rays.occluded(origin, dir, 0.0, far) {
+                escaped += 1;
+            }
+        }
+        irradiance += ctx.scene.sky * (std::f32::consts::PI * escaped as f32 / n as f32);
+    }
+    irradiance
+}
+
+/// The emitter triangle as seen from `sp`: closed-form unoccluded irradiance (lux).
+fn emitter_irradiance(em: &Emitter, sp: &SurfacePoint) -> Vec3 {
+    let facing = em.normal.dot(sp.position - em.vertices[0]);
+    if facing <= 0.0 && !em.two_sided {
+        return Vec3::ZERO;
+    }
+    em.radiance
+        * (std::f32::consts::PI
+            * point_to_polygon_form_factor(sp.position, sp.normal, &em.vertices))
+}
+
+/// One footprint sample of the closed-form + ratio estimator (see the module docs).
+#[allow(clippy::too_many_arguments)]
+fn closed_form_emitter_sample(
+    ctx: &Ctx<'_>,
+    p: &Patch,
+    s: u32,
+    sp: &SurfacePoint,
+    origin: Vec3,
+    contributions: &mut Vec<f32>,
+    unoccluded_sum: &mut Vec3,
+    w_visible: &mut f32,
+    w_total: &mut f32,
+    rays: &mut u64,
+) {
+    contributions.clear();
+    let mut total = Vec3::ZERO;
+    let mut lum_total = 0.0f32;
+    for em in &ctx.emitters.list {
+        let e = emitter_irradiance(em, sp);
+        total += e;
+        let l = luminance(e).max(0.0);
+        lum_total += l;
+        contributions.push(lum_total);
+    }
+    *unoccluded_sum += total;
+    if lum_total <= 0.0 {
+        return;
+    }
+    // Pick a triangle by its share of the unoccluded irradiance, then a point on it.
+    let seed = ctx.settings.seed;
+    let pick = unit_float(hash(
+        p.rng(seed, stream::EMITTER_PICK) ^ s.wrapping_mul(0x2c1b_3c6d),
+    )) * lum_total;
+    let i = contributions
+        .partition_point(|&c| c <= pick)
+        .min(contributions.len() - 1);
+    let prev = if i == 0 { 0.0 } else { contributions[i - 1] };
+    let prob = (contributions[i] - prev) / lum_total;
+    if prob <= 0.0 {
+        return;
+    }
+    let em = &ctx.emitters.list[i];
+    let b = uniform_triangle(sobol_02(s, p.rng(seed, stream::EMITTER)));
+    let y = em.vertices[0] * (1.0 - b.x - b.y) + em.vertices[1] * b.x + em.vertices[2] * b.y;
+    let to = y - origin;
+    let d2 = to.length_squared();
+    if d2 <= 0.0 {
+        return;
+    }
+    let d = d2.sqrt();
+    let l = to / d;
+    let cos_r = sp.normal.dot(l);
+    let cos_e = -em.normal.dot(l);
+    let cos_e = if em.two_sided { cos_e.abs() } else { cos_e };
+    if cos_r <= 0.0 || cos_e <= 0.0 {
+        return;
+    }
+    let f = luminance(em.radiance) * cos_r * cos_e / d2;
+    let w = f * em.area / prob;
+    *w_total += w;
+    *rays += 1;
+    let tmax = d - 2.0 * ctx.rays.epsilon(y);
+    if !ctx.rays.occluded(origin, l, 0.0, tmax) {
+        *w_visible += w;
+    }
+}
+
+/// One footprint sample of the plain Monte Carlo emitter estimator (many emitters).
+fn sampled_emitter(
+    ctx: &Ctx<'_>,
+    p: &Patch,
+    s: u32,
+    sp: &SurfacePoint,
+    origin: Vec3,
+    rays: &mut u64,
+) -> Vec3 {
+    let seed = ctx.settings.seed;
+    let pick = unit_float(hash(
+        p.rng(seed, stream::EMITTER_PICK) ^ s.wrapping_mul(0x2c1b_3c6d),
+    ));
+    let (i, prob) = ctx.emitters.pick(pick);
+    if prob <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let em = &ctx.emitters.list[i];
+    let b = uniform_triangle(sobol_02(s, p.rng(seed, stream::EMITTER)));
+    let y = em.vertices[0] * (1.0 - b.x - b.y) + em.vertices[1] * b.x + em.vertices[2] * b.y;
+    let to = y - origin;
+    let d2 = to.length_squared();
+    if d2 <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let d = d2.sqrt();
+    let l = to / d;
+    let cos_r = sp.normal.dot(l);
+    let mut cos_e = -em.normal.dot(l);
+    if em.two_sided {
+        cos_e = cos_e.abs();
+    }
+    if cos_r <= 0.0 || cos_e <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
+        return Vec3::ZERO;
+    }
+    *rays += 1;
+    let tmax = d - 2.0 * ctx.rays.epsilon(y);
+    if ctx.rays.occluded(origin, l, 0.0, tmax) {
+        return Vec3::ZERO;
+    }
+    em.radiance * (cos_r * cos_e / d2 * em.area / prob)
+}

@@ -1,0 +1,115 @@
+//! Closed-form irradiance from a uniform Lambertian polygon at a point — Lambert's formula for
+//! the differential-area-to-polygon form factor (Lambert 1760; Baum, Rushmeier & Winget 1989,
+//! eq. 4; Dutré et al., *Advanced Global Illumination*, §6.2):
+//!
+//! F = 1/(2π) · Σᵢ Θᵢ · (n · Γ̂ᵢ),  Γ̂ᵢ = (Rᵢ × Rᵢ₊₁)/|Rᵢ × Rᵢ₊₁|,  Θᵢ = ∠(Rᵢ, Rᵢ₊₁)
+//!
+//! with Rᵢ = vᵢ − p. The polygon is first clipped to the receiver's upper half-space (parts
+//! below the horizon send nothing). Irradiance from radiance L is E = π·L·F.
+
+use glam::Vec3;
+
+/// The unoccluded form factor from a differential patch at `p` with unit normal `n` to the
+/// convex polygon `poly` (any winding), in [0, 1].
+pub fn point_to_polygon_form_factor(p: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
+    // Clip to the half-space n·(x − p) ≥ 0 (Sutherland–Hodgman against one plane).
+    let mut clipped: Vec<Vec3> = Vec::with_capacity(poly.len() + 2);
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (da, db) = (n.dot(a - p), n.dot(b - p));
+        if da >= 0.0 {
+            clipped.push(a);
+        }
+        if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+            clipped.push(a + (b - a) * (da / (da - db)));
+        }
+    }
+    if clipped.len() < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0f64;
+    for i in 0..clipped.len() {
+        let a = (clipped[i] - p).as_dvec3();
+        let b = (clipped[(i + 1) % clipped.len()] - p).as_dvec3();
+        let c = a.cross(b);
+        let len = c.length();
+        if len <= 0.0 {
+            continue;
+        }
+        let theta = len.atan2(a.dot(b));
+        sum += theta * n.as_dvec3().dot(c / len);
+    }
+    // The sign follows the winding as seen from p; the magnitude is the form factor.
+    ((sum.abs() / (2.0 * std::f64::consts::PI)) as f32).min(1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// Howell's catalogue, configuration B-3: differential element parallel to a rectangle
+    /// a × b at height c, the element under one corner.
+    pub(crate) fn corner_parallel(a: f64, b: f64, c: f64) -> f64 {
+        let (x, y) = (a / c, b / c);
+        let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+        (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
+    }
+
+    #[test]
+    fn matches_howell_parallel_rectangle() {
+        for (a, b, c) in [(1.0f32, 1.0f32, 1.0f32), (0.2, 0.5, 2.0), (3.0, 0.1, 0.3)] {
+            let poly = [
+                Vec3::new(0.0, c, 0.0),
+                Vec3::new(a, c, 0.0),
+                Vec3::new(a, c, b),
+                Vec3::new(0.0, c, b),
+            ];
+            let f = point_to_polygon_form_factor(Vec3::ZERO, Vec3::Y, &poly) as f64;
+            let expected = corner_parallel(a as f64, b as f64, c as f64);
+            assert!(
+                (f - expected).abs() < 1e-5 * expected.max(1e-3),
+                "{f} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn hemisphere_covering_polygon_gives_one() {
+        let s = 1.0e4f32;
+        let poly = [
+            Vec3::new(-s, 1.0, -s),
+            Vec3::new(s, 1.0, -s),
+            Vec3::new(s, 1.0, s),
+            Vec3::new(-s, 1.0, s),
+        ];
+        let f = point_to_polygon_form_factor(Vec3::ZERO, Vec3::Y, &poly);
+        assert!((f - 1.0).abs() < 1e-3, "{f}");
+    }
+
+    #[test]
+    fn polygon_below_the_horizon_is_clipped() {
+        // Perpendicular unit square sharing an edge with the receiver plane, half below it.
+        let poly = [
+            Vec3::new(0.5, -1.0, 0.0),
+            Vec3::new(0.5, 1.0, 0.0),
+            Vec3::new(0.5, 1.0, 1.0),
+            Vec3::new(0.5, -1.0, 1.0),
+        ];
+        let full = point_to_polygon_form_factor(Vec3::ZERO, Vec3::Y, &poly);
+        let upper = [
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.5, 1.0, 0.0),
+            Vec3::new(0.5, 1.0, 1.0),
+            Vec3::new(0.5, 0.0, 1.0),
+        ];
+        let half = point_to_polygon_form_factor(Vec3::ZERO, Vec3::Y, &upper);
+        assert!((full - half).abs() < 1e-6 && full > 0.0);
+        // Entirely below: nothing.
+        let below = poly.map(|v| v - Vec3::Y * 2.0);
+        assert_eq!(
+            point_to_polygon_form_factor(Vec3::ZERO, Vec3::Y, &below),
+            0.0
+        );
+    }
+}

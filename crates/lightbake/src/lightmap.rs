@@ -1,0 +1,204 @@
+//! Lightmap pages: patch values written into their texels, invalid texels filled from their
+//! chart neighbours, and the padding dilated so bilinear and bicubic sampling never read an
+//! unset texel.
+//!
+//! # What a texel stores
+//! Irradiance over π, E/π, in Bevy's light units (lux/π), linear RGB. Bevy's PBR shader adds
+//! `lightmap × lightmap_exposure × diffuse_color` (`pbr_functions.wgsl`), and a Lambertian
+//! surface of albedo ρ under irradiance E reflects radiance ρ·E/π; so with
+//! `lightmap_exposure = 1` the game shows exactly the baked light. A white floor 1 m under a
+//! 1 cd point light stores 1/π ≈ 0.318.
+
+use glam::Vec3;
+
+use crate::raster::Patches;
+use crate::unwrap::Layout;
+
+/// One atlas page of lightmap texels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightmapPage {
+    /// Texels across.
+    pub width: u32,
+    /// Texels down.
+    pub height: u32,
+    /// E/π per texel, row-major from the top, linear RGB.
+    pub texels: Vec<Vec3>,
+    /// Texels that belong to a surface (before dilation).
+    pub covered: Vec<bool>,
+}
+
+impl LightmapPage {
+    /// A black page.
+    pub fn black(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            texels: vec![Vec3::ZERO; (width * height) as usize],
+            covered: vec![false; (width * height) as usize],
+        }
+    }
+
+    /// The texel at (x, y).
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.texels[(y * self.width + x) as usize]
+    }
+
+    /// Bilinear sample at page uv (Bevy's convention: texel centres at (i + ½)/W), clamped
+    /// at the page edge: what the GPU shows.
+    pub fn sample_bilinear(&self, u: f32, v: f32) -> Vec3 {
+        let x = u * self.width as f32 - 0.5;
+        let y = v * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let clamp_x = |i: f32| (i.max(0.0) as u32).min(self.width - 1);
+        let clamp_y = |i: f32| (i.max(0.0) as u32).min(self.height - 1);
+        let (xa, xb, ya, yb) = (
+            clamp_x(x0),
+            clamp_x(x0 + 1.0),
+            clamp_y(y0),
+            clamp_y(y0 + 1.0),
+        );
+        let top = self.get(xa, ya).lerp(self.get(xb, ya), fx);
+        let bottom = self.get(xa, yb).lerp(self.get(xb, yb), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+/// Statistics of assembling pages.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AssembleStats {
+    /// Invalid texels filled from their chart neighbours.
+    pub filled: usize,
+    /// Invalid texels left black (their chart had no valid texel).
+    pub unfilled: usize,
+    /// Padding texels set by dilation.
+    pub dilated: usize,
+}
+
+/// Writes E/π of every valid patch into its page, fills the invalid ones from valid
+/// neighbours of the same instance and chart, then dilates `dilate_passes` texels into the
+/// empty space around every chart.
+pub fn assemble(
+    layout: &Layout,
+    patches: &Patches,
+    irradiance: &[Vec3],
+    dilate_passes: u32,
+) -> (Vec<LightmapPage>, AssembleStats) {
+    let mut stats = AssembleStats::default();
+    let mut pages: Vec<LightmapPage> = layout
+        .pages
+        .iter()
+        .map(|p| LightmapPage::black(p.width, p.height))
+        .collect();
+    // state: 0 = empty, 1 = invalid patch (to fill), 2 = has a value
+    let mut state: Vec<Vec<u8>> = pages.iter().map(|p| vec![0u8; p.texels.len()]).collect();
+    for (i, p) in patches.patches.iter().enumerate() {
+        let page = &mut pages[p.page as usize];
+        let k = (p.y * page.width + p.x) as usize;
+        page.covered[k] = true;
+        if p.is_valid() {
+            page.texels[k] = irradiance[i] / std::f32::consts::PI;
+            state[p.page as usize][k] = 2;
+        } else {
+            state[p.page as usize][k] = 1;
+        }
+    }
+    for (pi, page) in pages.iter_mut().enumerate() {
+        let index = &patches.page_index[pi];
+        let st = &mut state[pi];
+        // Fill invalid texels from filled neighbours of the same instance and chart, in waves.
+        loop {
+            let mut updates = Vec::new();
+            for k in 0..st.len() {
+                if st[k] != 1 {
+                    continue;
+                }
+                let me = &patches.patches[index[k] as usize];
+                let (sum, n) = neighbours(page.width, page.height, k, |j| {
+                    if st[j] != 2 {
+                        return false;
+                    }
+                    let other = &patches.patches[index[j] as usize];
+                    other.instance == me.instance && other.chart == me.chart
+                })
+                .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
+                if n > 0 {
+                    updates.push((k, sum / n as f32));
+                }
+            }
+            if updates.is_empty() {
+                break;
+            }
+            stats.filled += updates.len();
+            for (k, v) in updates {
+                page.texels[k] = v;
+                st[k] = 2;
+            }
+        }
+        for s in st.iter_mut() {
+            if *s == 1 {
+                stats.unfilled += 1;
+                *s = 2; // left black, but counts as set so dilation does not overwrite it
+            }
+        }
+        // Dilate into the padding.
+        for _ in 0..dilate_passes {
+            let mut updates = Vec::new();
+            for k in 0..st.len() {
+                if st[k] != 0 {
+                    continue;
+                }
+                let (sum, n) = neighbours(page.width, page.height, k, |j| st[j] == 2)
+                    .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
+                if n > 0 {
+                    updates.push((k, sum / n as f32));
+                }
+            }
+            if updates.is_empty() {
+                break;
+            }
+            stats.dilated += updates.len();
+            for (k, v) in updates {
+                page.texels[k] = v;
+                st[k] = 2;
+            }
+        }
+    }
+    (pages, stats)
+}
+
+/// The 8-neighbours of texel `k` accepted by `keep`.
+fn neighbours(
+    width: u32,
+    height: u32,
+    k: usize,
+    keep: impl Fn(usize) -> bool,
+) -> impl Iterator<Item = usize> {
+    let (x, y) = ((k as u32 % width) as i64, (k as u32 / width) as i64);
+    let (w, h) = (width as i64, height as i64);
+    (-1i64..=1)
+        .flat_map(move |dy| (-1i64..=1).map(move |dx| (dx, dy)))
+        .filter(|&(dx, dy)| dx != 0 || dy != 0)
+        .filter_map(move |(dx, dy)| {
+            let (nx, ny) = (x + dx, y + dy);
+            (nx >= 0 && ny >= 0 && nx < w && ny < h).then_some((ny * w + nx) as usize)
+        })
+        .filter(move |&j| keep(j))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_matches_texel_centres() {
+        let mut p = LightmapPage::black(2, 1);
+        p.texels[0] = Vec3::ZERO;
+        p.texels[1] = Vec3::ONE;
+        assert_eq!(p.sample_bilinear(0.25, 0.5), Vec3::ZERO);
+        assert_eq!(p.sample_bilinear(0.75, 0.5), Vec3::ONE);
+        assert!((p.sample_bilinear(0.5, 0.5) - Vec3::splat(0.5)).length() < 1e-6);
+        // Clamped beyond the edge.
+        assert_eq!(p.sample_bilinear(1.0, 0.5), Vec3::ONE);
+    }
+}

@@ -1,0 +1,186 @@
+//! Writing files so that nothing already written is lost.
+//!
+//! Every output is first written in full to a temporary file, then all of them are renamed
+//! into place together ([`StagedFiles::commit`]). A bake that fails or is cancelled before the
+//! commit leaves the previous outputs untouched; a reader never sees a half-written file.
+//!
+//! Temporary files go to the system temporary directory when it is on the same file system
+//! as the destination, so a game watching its assets folder (Bevy's `file_watcher`) only sees
+//! the final rename (`IN_MOVED_TO` → a reload), never the temporary name; otherwise they are
+//! written next to the destination under a hidden name.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{BakeError, Result};
+
+/// Files written to temporary names, waiting to be renamed into place.
+#[derive(Debug, Default)]
+pub struct StagedFiles {
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> BakeError + '_ {
+    move |source| BakeError::Write {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn unique_suffix() -> String {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    format!(
+        "{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+impl StagedFiles {
+    /// No files yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes `bytes` to a temporary file destined for `path`. The directory of `path` is
+    /// created if needed.
+    ///
+    /// # Errors
+    /// [`BakeError::Write`] naming the destination.
+    pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).map_err(write_err(dir))?;
+        let name = path
+            .file_name()
+            .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+        let suffix = unique_suffix();
+        // Prefer the system temp dir (outside any watched folder), if a rename can reach.
+        let system_tmp = std::env::temp_dir().join(format!(".lightbake-{suffix}-{name}"));
+        let tmp = if same_file_system(&std::env::temp_dir(), dir) {
+            system_tmp
+        } else {
+            dir.join(format!(".{name}.lightbake-{suffix}.tmp"))
+        };
+        let result = (|| -> std::io::Result<()> {
+            let mut f = std::fs::File::create(&tmp)?;
+            f.write_all(bytes)?;
+            f.sync_all()
+        })();
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(write_err(path)(e));
+        }
+        self.staged.push((tmp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Destinations staged so far.
+    pub fn destinations(&self) -> impl Iterator<Item = &Path> {
+        self.staged.iter().map(|(_, d)| d.as_path())
+    }
+
+    /// Renames every staged file into place, in staging order.
+    ///
+    /// # Errors
+    /// [`BakeError::Write`] for the first rename that fails; temporaries not yet renamed are
+    /// removed.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        let staged = std::mem::take(&mut self.staged);
+        let mut done = Vec::new();
+        let mut iter = staged.into_iter();
+        while let Some((tmp, dest)) = iter.next() {
+            if let Err(e) = rename_or_copy(&tmp, &dest) {
+                let _ = std::fs::remove_file(&tmp);
+                for (t, _) in iter {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(write_err(&dest)(e));
+            }
+            done.push(dest);
+        }
+        Ok(done)
+    }
+}
+
+impl Drop for StagedFiles {
+    /// Uncommitted temporaries are removed (a failed or cancelled bake leaves nothing behind).
+    fn drop(&mut self) {
+        for (tmp, _) in self.staged.drain(..) {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
+/// Rename, falling back to copy-then-rename within the destination directory when the
+/// temporary is on another file system after all.
+fn rename_or_copy(tmp: &Path, dest: &Path) -> std::io::Result<()> {
+    match std::fs::rename(tmp, dest) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::CrossesDevices => {
+            let dir = dest.parent().unwrap_or(Path::new("."));
+            let local = dir.join(format!(".lightbake-{}.tmp", unique_suffix()));
+            std::fs::copy(tmp, &local)?;
+            std::fs::remove_file(tmp)?;
+            std::fs::rename(&local, dest)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+#[cfg(unix)]
+fn same_file_system(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file_system(_a: &Path, _b: &Path) -> bool {
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nothing_changes_until_commit_and_drop_cleans_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.txt");
+        std::fs::write(&a, b"old").unwrap();
+        {
+            let mut s = StagedFiles::new();
+            s.stage(&a, b"new").unwrap();
+            s.stage(&dir.path().join("sub/b.txt"), b"b").unwrap();
+            assert_eq!(std::fs::read(&a).unwrap(), b"old");
+            // dropped without commit
+        }
+        assert_eq!(std::fs::read(&a).unwrap(), b"old");
+        assert!(!dir.path().join("sub/b.txt").exists());
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains("lightbake"))
+            .collect();
+        assert!(leftovers.is_empty());
+
+        let mut s = StagedFiles::new();
+        s.stage(&a, b"new").unwrap();
+        let written = s.commit().unwrap();
+        assert_eq!(written, vec![a.clone()]);
+        assert_eq!(std::fs::read(&a).unwrap(), b"new");
+    }
+
+    #[test]
+    fn unwritable_destination_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let blocker = dir.path().join("file");
+        std::fs::write(&blocker, b"x").unwrap();
+        let mut s = StagedFiles::new();
+        let err = s.stage(&blocker.join("inside.txt"), b"y").unwrap_err();
+        assert!(err.to_string().contains("file"), "{err}");
+    }
+}

@@ -1,0 +1,445 @@
+//! The bake plan: before any work, decide which stages the scene needs and say why the others
+//! are left out.
+//!
+//! * no emissive surfaces → no area-light pass;
+//! * a mesh that has `TEXCOORD_1` → no unwrap for it (unless `reunwrap`);
+//! * a light whose range or cone cannot reach an instance → not evaluated for it; a light that
+//!   emits nothing → dropped;
+//! * a black sky → no sky rays;
+//! * method `direct`, or every albedo zero → no indirect pass;
+//! * no lights, no emission and a black sky → nothing to bake: the lightmaps are black and the
+//!   raster, ray-tracing and lighting stages are skipped.
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::scene::{LightKind, Scene};
+use crate::settings::{BakeSettings, Method};
+
+/// One stage of the pipeline and whether it runs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlannedStage {
+    /// Stage name as shown in the summary (`unwrap`, `direct`, ...).
+    pub name: String,
+    /// Whether it runs.
+    pub run: bool,
+    /// Why it runs or why it is skipped.
+    pub reason: String,
+}
+
+/// Where one light is evaluated.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LightReach {
+    /// Light name.
+    pub light: String,
+    /// `point`, `spot` or `directional`.
+    pub kind: &'static str,
+    /// Baked instances the light is evaluated for.
+    pub instances: usize,
+    /// Baked instances it was skipped for.
+    pub skipped: usize,
+    /// Why (the reasons met, with up to three instance names each).
+    pub skip_reasons: Vec<String>,
+}
+
+/// What the bake will do and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BakePlan {
+    /// Texel density used, texels per metre.
+    pub texel_density: f32,
+    /// Where it came from (`settings` or the scene's hint).
+    pub texel_density_source: String,
+    /// Meshes unwrapped by xatlas.
+    pub meshes_to_unwrap: usize,
+    /// Meshes keeping their own `TEXCOORD_1`.
+    pub meshes_keeping_uv1: usize,
+    /// The stages in order.
+    pub stages: Vec<PlannedStage>,
+    /// Per light.
+    pub lights: Vec<LightReach>,
+    /// Emissive surfaces exist: the area-light pass runs.
+    pub area_lights: bool,
+    /// The sky is not black: sky rays are traced.
+    pub sky: bool,
+    /// No light at all: the lightmaps are black.
+    pub nothing_to_bake: bool,
+    /// Per instance, the indices of the lights evaluated for it.
+    #[serde(skip)]
+    lights_per_instance: Vec<Vec<u32>>,
+}
+
+impl BakePlan {
+    /// Plans a bake of `scene` with `settings`.
+    pub fn new(scene: &Scene, settings: &BakeSettings) -> Self {
+        let (texel_density, texel_density_source) =
+            match (scene.texel_density_hint, settings.texel_density_from_scene) {
+                (Some(d), true) if d.is_finite() && d > 0.0 => (
+                    d,
+                    "the scene's hint (extras.lightbake.texel_density)".to_string(),
+                ),
+                _ => (settings.texel_density, "settings".to_string()),
+            };
+        let baked: Vec<usize> = (0..scene.instances.len())
+            .filter(|&i| {
+                scene.instances[i].bake
+                    && scene.meshes[scene.instances[i].mesh].triangle_count() > 0
+            })
+            .collect();
+        let mut stages = Vec::new();
+        let mut stage = |name: &str, run: bool, reason: String| {
+            stages.push(PlannedStage {
+                name: name.into(),
+                run,
+                reason,
+            })
+        };
+
+        // Unwrap.
+        let mut baked_meshes: Vec<usize> = baked.iter().map(|&i| scene.instances[i].mesh).collect();
+        baked_meshes.sort_unstable();
+        baked_meshes.dedup();
+        let keeping = baked_meshes
+            .iter()
+            .filter(|&&m| scene.meshes[m].uv1.is_some() && !settings.reunwrap)
+            .count();
+        let unwrapping = baked_meshes.len() - keeping;
+
+        // Lights.
+        let mut lights_per_instance = vec![Vec::new(); scene.instances.len()];
+        let mut lights = Vec::new();
+        for (li, light) in scene.lights.iter().enumerate() {
+            let mut reach = LightReach {
+                light: light.name.clone(),
+                kind: light.kind_name(),
+                instances: 0,
+                skipped: 0,
+                skip_reasons: Vec::new(),
+            };
+            let mut reasons: Vec<(String, Vec<String>)> = Vec::new();
+            let mut note =
+                |reason: &str, who: &str| match reasons.iter_mut().find(|(r, _)| r == reason) {
+                    Some((_, names)) => names.push(who.to_string()),
+                    None => reasons.push((reason.to_string(), vec![who.to_string()])),
+                };
+            for &ii in &baked {
+                let inst = &scene.instances[ii];
+                match light_misses(scene, ii, light) {
+                    Some(why) => {
+                        reach.skipped += 1;
+                        note(why, &inst.name);
+                    }
+                    None => {
+                        reach.instances += 1;
+                        lights_per_instance[ii].push(li as u32);
+                    }
+                }
+            }
+            reach.skip_reasons = reasons
+                .into_iter()
+                .map(|(r, names)| {
+                    let shown: Vec<&str> = names.iter().take(3).map(String::as_str).collect();
+                    let more = names.len().saturating_sub(3);
+                    if more > 0 {
+                        format!("{r}: {} and {more} more", shown.join(", "))
+                    } else {
+                        format!("{r}: {}", shown.join(", "))
+                    }
+                })
+                .collect();
+            lights.push(reach);
+        }
+        let any_light = lights.iter().any(|l| l.instances > 0);
+        let emissive_instances = scene
+            .instances
+            .iter()
+            .filter(|inst| {
+                scene.material_of(inst.mesh).is_emissive() && scene.meshes[inst.mesh].area() > 0.0
+            })
+            .count();
+        let area_lights = emissive_instances > 0 && !baked.is_empty();
+        let sky = scene.sky.max_element() > 0.0 && !baked.is_empty();
+        let nothing_to_bake = !(any_light || area_lights || sky) || baked.is_empty();
+
+        stage(
+            "unwrap",
+            unwrapping > 0 || keeping > 0,
+            match (unwrapping, keeping) {
+                (0, 0) => "no instance is baked".to_string(),
+                (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
+                (0, k) => {
+                    format!("all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)")
+                }
+                (u, k) => format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1"),
+            },
+        );
+        let work = !nothing_to_bake;
+        let why_not = if baked.is_empty() {
+            "no instance is baked".to_string()
+        } else {
+            "nothing to bake: no light reaches the scene, nothing is emissive and the sky is black"
+                .to_string()
+        };
+        stage(
+            "raster",
+            work,
+            if work {
+                format!("{} instance(s) into texel patches", baked.len())
+            } else {
+                why_not.clone()
+            },
+        );
+        stage(
+            "bvh",
+            work,
+            if work {
+                format!(
+                    "{} triangles for shadow rays",
+                    scene.instanced_triangle_count()
+                )
+            } else {
+                why_not.clone()
+            },
+        );
+        stage(
+            "validity",
+            work,
+            if work {
+                "move texels out of geometry; mark those that cannot be".to_string()
+            } else {
+                why_not.clone()
+            },
+        );
+        let light_count = lights.iter().filter(|l| l.instances > 0).count();
+        stage(
+            "direct lights",
+            light_count > 0 && work,
+            if scene.lights.is_empty() {
+                "the scene has no punctual or directional lights".to_string()
+            } else if light_count == 0 {
+                "no light reaches a baked instance (range, cone or zero intensity)".to_string()
+            } else {
+                format!(
+                    "{light_count} of {} light(s) reach baked instances",
+                    scene.lights.len()
+                )
+            },
+        );
+        stage(
+            "area lights",
+            area_lights && work,
+            if area_lights {
+                format!("{emissive_instances} emissive instance(s)")
+            } else {
+                "no emissive surfaces".to_string()
+            },
+        );
+        stage(
+            "sky",
+            sky && work,
+            if sky {
+                format!("sky luminance {:?} nits", scene.sky.to_array())
+            } else {
+                "the sky is black".to_string()
+            },
+        );
+        let all_black = scene
+            .instances
+            .iter()
+            .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
+        stage(
+            "indirect",
+            false,
+            match settings.method {
+                Method::Direct if all_black => {
+                    "method 'direct' computes no interreflection (and every albedo is zero)"
+                        .to_string()
+                }
+                Method::Direct => "method 'direct' computes no interreflection".to_string(),
+            },
+        );
+        stage(
+            "dilate",
+            work,
+            if work {
+                format!(
+                    "fill invalid texels and {} texels of padding",
+                    settings.padding
+                )
+            } else {
+                why_not
+            },
+        );
+        stage(
+            "write",
+            true,
+            "lightmaps, baked glTF, manifest and report".to_string(),
+        );
+
+        Self {
+            texel_density,
+            texel_density_source,
+            meshes_to_unwrap: unwrapping,
+            meshes_keeping_uv1: keeping,
+            stages,
+            lights,
+            area_lights,
+            sky,
+            nothing_to_bake,
+            lights_per_instance,
+        }
+    }
+
+    /// Indices of the lights to evaluate for instance `i`.
+    pub fn lights_for(&self, instance: usize) -> &[u32] {
+        &self.lights_per_instance[instance]
+    }
+
+    /// Whether the named stage runs.
+    pub fn runs(&self, name: &str) -> bool {
+        self.stages.iter().any(|s| s.name == name && s.run)
+    }
+
+    /// A human-readable plan, one line per stage and per skipped light.
+    pub fn describe(&self) -> String {
+        let mut s = format!(
+            "texel density {} texels/m (from {})\n",
+            self.texel_density, self.texel_density_source
+        );
+        if self.nothing_to_bake {
+            s.push_str("NOTHING TO BAKE: no light reaches the scene, nothing is emissive and the sky is black; the lightmaps will be black.\n");
+        }
+        for st in &self.stages {
+            s.push_str(&format!(
+                "  {:<14} {:<4} {}\n",
+                st.name,
+                if st.run { "run" } else { "skip" },
+                st.reason
+            ));
+        }
+        for l in &self.lights {
+            for r in &l.skip_reasons {
+                s.push_str(&format!(
+                    "  light '{}' ({}) skipped for {r}\n",
+                    l.light, l.kind
+                ));
+            }
+        }
+        s
+    }
+}
+
+/// The largest diffuse albedo a mesh's material can have (a texture can at most keep the
+/// factor as it is).
+fn albedo_upper_bound(scene: &Scene, mesh: usize) -> Vec3 {
+    let m = scene.material_of(mesh);
+    m.base_color.truncate() * (1.0 - m.metallic)
+}
+
+/// Why `light` cannot reach instance `ii` (or `None` when it may).
+fn light_misses(scene: &Scene, ii: usize, light: &crate::scene::Light) -> Option<&'static str> {
+    if light.intensity <= 0.0 || light.color.max_element() <= 0.0 {
+        return Some("it emits nothing");
+    }
+    if matches!(light.kind, LightKind::Directional { .. }) {
+        return None;
+    }
+    let (lo, hi) = scene.instance_bounds(ii);
+    let nearest = light.position.clamp(lo, hi);
+    let distance = nearest.distance(light.position);
+    if let Some(range) = light.range {
+        if distance >= range {
+            return Some("out of range");
+        }
+    }
+    if let LightKind::Spot {
+        outer_cone_angle, ..
+    } = light.kind
+    {
+        let centre = 0.5 * (lo + hi);
+        let radius = 0.5 * (hi - lo).length();
+        let to = centre - light.position;
+        let d = to.length();
+        if d > radius {
+            let angle_to_centre = light.direction.dot(to / d).clamp(-1.0, 1.0).acos();
+            let angular_radius = (radius / d).clamp(0.0, 1.0).asin();
+            if angle_to_centre - angular_radius > outer_cone_angle {
+                return Some("outside the cone");
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::testscenes::{CornellLight, cornell_box, plane};
+    use crate::scene::{Instance, Light};
+    use glam::Affine3A;
+
+    #[test]
+    fn cornell_area_plan() {
+        let s = cornell_box(CornellLight::Area);
+        let plan = BakePlan::new(&s, &BakeSettings::default());
+        assert!(plan.area_lights && !plan.sky && !plan.nothing_to_bake);
+        assert!(!plan.runs("direct lights") && plan.runs("area lights") && !plan.runs("sky"));
+        assert_eq!(plan.texel_density, 256.0);
+        let text = plan.describe();
+        assert!(text.contains("no punctual"), "{text}");
+    }
+
+    #[test]
+    fn unlit_scene_has_nothing_to_bake() {
+        let mut s = cornell_box(CornellLight::Point);
+        s.lights.clear();
+        let plan = BakePlan::new(&s, &BakeSettings::default());
+        assert!(plan.nothing_to_bake);
+        assert!(!plan.runs("raster") && !plan.runs("direct lights"));
+        assert!(plan.describe().contains("NOTHING TO BAKE"));
+    }
+
+    #[test]
+    fn lights_are_culled_by_range_and_cone() {
+        let mut s = Scene::default();
+        let m = s.add_mesh(plane("p", 1.0));
+        s.instances
+            .push(Instance::new("near", m, Affine3A::IDENTITY));
+        s.instances.push(Instance::new(
+            "far",
+            m,
+            Affine3A::from_translation(Vec3::new(50.0, 0.0, 0.0)),
+        ));
+        s.lights.push(Light {
+            name: "lamp".into(),
+            kind: LightKind::Point,
+            color: Vec3::ONE,
+            intensity: 10.0,
+            range: Some(5.0),
+            position: Vec3::new(0.0, 1.0, 0.0),
+            direction: Vec3::NEG_Y,
+        });
+        s.lights.push(Light {
+            name: "spot".into(),
+            kind: LightKind::Spot {
+                inner_cone_angle: 0.1,
+                outer_cone_angle: 0.2,
+            },
+            color: Vec3::ONE,
+            intensity: 10.0,
+            range: None,
+            position: Vec3::new(50.0, 3.0, 0.0),
+            direction: Vec3::NEG_Y,
+        });
+        let plan = BakePlan::new(&s, &BakeSettings::default());
+        assert_eq!(plan.lights_for(0), &[0]);
+        assert_eq!(plan.lights_for(1), &[1]);
+        assert_eq!(
+            plan.lights[0].skip_reasons,
+            vec!["out of range: far".to_string()]
+        );
+        assert_eq!(
+            plan.lights[1].skip_reasons,
+            vec!["outside the cone: near".to_string()]
+        );
+    }
+}

@@ -1,0 +1,269 @@
+//! Deterministic sample sequences and warps.
+//!
+//! Every random number in a bake is a pure function of (what is being sampled — texel, path,
+//! light —, the sample number, the dimension and [`crate::settings::BakeSettings::seed`]),
+//! never of the thread that computes it, so a bake gives the same bits on any thread count.
+//!
+//! * [`hash`]: an integer mixer (the "lowbias32" finaliser of Chris Wellons' hash prospector)
+//!   to derive independent scrambles.
+//! * [`radical_inverse`] / [`halton`]: the Halton sequence Φ_b(i) with prime bases
+//!   (Halton 1960; Keller 1997 uses it for instant radiosity).
+//! * [`sobol_02`]: the first two Sobol' dimensions, a (0,2)-sequence in base 2, with Owen
+//!   scrambling by the Laine–Karras hash (Burley 2020, "Practical Hash-based Owen
+//!   Scrambling"): every power-of-two prefix is stratified in both dimensions jointly.
+//! * Warps: cosine hemisphere (Malley's method), cone, triangle, disc, and an orthonormal
+//!   basis (Duff et al. 2017).
+
+use glam::{Vec2, Vec3};
+
+/// Mixes a 32-bit value ("lowbias32", bias ≈ 0.17).
+#[inline]
+pub fn hash(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// Hashes several words into one (order matters).
+#[inline]
+pub fn hash_words(words: &[u32]) -> u32 {
+    words.iter().fold(0x9e37_79b9u32, |h, &w| {
+        hash(h ^ w.wrapping_add(0x632b_e5ab))
+    })
+}
+
+/// Maps 32 random bits to [0, 1) (24-bit mantissa, never 1.0).
+#[inline]
+pub fn unit_float(bits: u32) -> f32 {
+    (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// The first 64 primes: the Halton bases for dimensions 0..64.
+pub const PRIMES: [u32; 64] = [
+    2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53, 59, 61, 67, 71, 73, 79, 83, 89, 97,
+    101, 103, 107, 109, 113, 127, 131, 137, 139, 149, 151, 157, 163, 167, 173, 179, 181, 191, 193,
+    197, 199, 211, 223, 227, 229, 233, 239, 241, 251, 257, 263, 269, 271, 277, 281, 283, 293, 307,
+    311,
+];
+
+/// The radical inverse Φ_b(i): the digits of `i` in base `b` mirrored about the radix point.
+#[inline]
+pub fn radical_inverse(base: u32, mut i: u64) -> f64 {
+    let inv_base = 1.0 / base as f64;
+    let mut inv = inv_base;
+    let mut result = 0.0;
+    while i > 0 {
+        let digit = i % base as u64;
+        result += digit as f64 * inv;
+        i /= base as u64;
+        inv *= inv_base;
+    }
+    result
+}
+
+/// Component `dim` (< 64) of the `i`-th Halton point (base `PRIMES[dim]`).
+///
+/// # Panics
+/// If `dim >= 64`.
+#[inline]
+pub fn halton(dim: usize, i: u64) -> f64 {
+    radical_inverse(PRIMES[dim], i)
+}
+
+/// Reverses the bits of a 32-bit word.
+#[inline]
+fn reverse_bits(x: u32) -> u32 {
+    x.reverse_bits()
+}
+
+/// Laine–Karras hash: an Owen scramble of a bit-reversed integer (Burley 2020, listing 2,
+/// with the improved constants).
+#[inline]
+fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
+    x ^= x.wrapping_mul(0x3d20_adea);
+    x = x.wrapping_add(seed);
+    x = x.wrapping_mul((seed >> 16) | 1);
+    x ^= x.wrapping_mul(0x0552_6c56);
+    x ^= x.wrapping_mul(0x53a2_2864);
+    x
+}
+
+/// Nested uniform (Owen) scramble of a 32-bit binary fraction.
+#[inline]
+fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+    reverse_bits(laine_karras_permutation(reverse_bits(x), seed))
+}
+
+/// Sobol' dimension 1 as a 32-bit fraction (generator matrix: Pascal's triangle mod 2).
+#[inline]
+fn sobol_dim1(mut index: u32) -> u32 {
+    let mut v: u32 = 1 << 31;
+    let mut result = 0u32;
+    while index != 0 {
+        if index & 1 != 0 {
+            result ^= v;
+        }
+        index >>= 1;
+        v ^= v >> 1;
+    }
+    result
+}
+
+/// Point `i` of an Owen-scrambled (0,2)-sequence, decorrelated by `seed`. Each prefix of 2^k
+/// points has exactly one point in every elementary interval of area 2^-k.
+#[inline]
+pub fn sobol_02(i: u32, seed: u32) -> Vec2 {
+    // Shuffle the order (Owen-scramble the index) so different seeds give different subsets.
+    let index = nested_uniform_scramble(i, hash(seed ^ 0xa511_e9b3));
+    let x = index.reverse_bits(); // van der Corput = Sobol' dimension 0
+    let y = sobol_dim1(index);
+    let sx = nested_uniform_scramble(x, hash(seed ^ 0x63d8_3595));
+    let sy = nested_uniform_scramble(y, hash(seed ^ 0x2c1b_3c6d));
+    Vec2::new(unit_float(sx), unit_float(sy))
+}
+
+/// Builds a right-handed orthonormal basis (t, b, n) around unit `n` (Duff et al. 2017,
+/// "Building an Orthonormal Basis, Revisited").
+#[inline]
+pub fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// Cosine-distributed direction about unit `n` (pdf cosθ/π), by Malley's method with the
+/// concentric disc map (Shirley & Chiu 1997).
+#[inline]
+pub fn cosine_hemisphere(n: Vec3, u: Vec2) -> Vec3 {
+    let d = concentric_disc(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    let (t, b) = basis(n);
+    (t * d.x + b * d.y + n * z).normalize()
+}
+
+/// Maps the unit square to the unit disc, preserving stratification (Shirley & Chiu 1997).
+#[inline]
+pub fn concentric_disc(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform direction in the cone of half-angle acos(`cos_max`) about unit `axis`.
+#[inline]
+pub fn uniform_cone(axis: Vec3, cos_max: f32, u: Vec2) -> Vec3 {
+    let cos_theta = 1.0 - u.x * (1.0 - cos_max);
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = std::f32::consts::TAU * u.y;
+    let (t, b) = basis(axis);
+    (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + axis * cos_theta).normalize()
+}
+
+/// Uniform barycentric coordinates (b1, b2) on a triangle; the point is
+/// `(1 − b1 − b2)·p0 + b1·p1 + b2·p2`. Uses the square-root parameterisation, which keeps
+/// stratification.
+#[inline]
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    let s = u.x.sqrt();
+    Vec2::new(s * (1.0 - u.y), s * u.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radical_inverse_known_values() {
+        assert_eq!(radical_inverse(2, 1), 0.5);
+        assert_eq!(radical_inverse(2, 2), 0.25);
+        assert_eq!(radical_inverse(2, 3), 0.75);
+        assert!((radical_inverse(3, 1) - 1.0 / 3.0).abs() < 1e-15);
+        assert!((radical_inverse(3, 5) - (2.0 / 3.0 + 1.0 / 9.0)).abs() < 1e-15);
+        assert!((halton(1, 4) - radical_inverse(3, 4)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sobol_prefixes_are_stratified() {
+        // For 2^k points, every elementary interval of size 2^-a × 2^-(k-a) holds one point.
+        for seed in [0u32, 7, 12345] {
+            let k = 6u32;
+            let n = 1u32 << k;
+            let pts: Vec<Vec2> = (0..n).map(|i| sobol_02(i, seed)).collect();
+            for a in 0..=k {
+                let (nx, ny) = (1u32 << a, 1u32 << (k - a));
+                let mut seen = vec![0u32; n as usize];
+                for p in &pts {
+                    let cx = (p.x * nx as f32) as u32;
+                    let cy = (p.y * ny as f32) as u32;
+                    seen[(cy * nx + cx) as usize] += 1;
+                }
+                assert!(seen.iter().all(|&c| c == 1), "seed {seed} a {a}");
+            }
+        }
+    }
+
+    #[test]
+    fn sobol_seeds_decorrelate() {
+        let a: Vec<Vec2> = (0..16).map(|i| sobol_02(i, 1)).collect();
+        let b: Vec<Vec2> = (0..16).map(|i| sobol_02(i, 2)).collect();
+        assert_ne!(a, b);
+    }
+
+    #[test]
+    fn cosine_hemisphere_mean_matches_pdf() {
+        // E[cosθ] under pdf cosθ/π is 2/3.
+        let n = Vec3::new(0.3, 0.4, 0.866).normalize();
+        let count = 4096;
+        let mean: f32 = (0..count)
+            .map(|i| cosine_hemisphere(n, sobol_02(i, 3)).dot(n))
+            .sum::<f32>()
+            / count as f32;
+        assert!((mean - 2.0 / 3.0).abs() < 2e-3, "{mean}");
+        for i in 0..256 {
+            let d = cosine_hemisphere(n, sobol_02(i, 9));
+            assert!(d.dot(n) >= -1e-6 && (d.length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for n in [
+            Vec3::Z,
+            Vec3::NEG_Z,
+            Vec3::X,
+            Vec3::new(1.0, -2.0, 0.5).normalize(),
+        ] {
+            let (t, b) = basis(n);
+            assert!(t.dot(b).abs() < 1e-6 && t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6);
+            assert!((t.cross(b) - n).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn cone_and_triangle_warps_stay_inside() {
+        let axis = Vec3::new(0.0, -1.0, 0.0);
+        for i in 0..256 {
+            let u = sobol_02(i, 5);
+            assert!(uniform_cone(axis, 0.99, u).dot(axis) >= 0.99 - 1e-5);
+            let b = uniform_triangle(u);
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+        }
+    }
+}

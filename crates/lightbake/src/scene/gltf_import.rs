@@ -1,0 +1,615 @@
+//! glTF 2.0 import: meshes (with `TEXCOORD_0/1`), the node hierarchy, metallic-roughness
+//! materials with `KHR_materials_emissive_strength`, `KHR_lights_punctual` lights, and
+//! lightbake's own `extras`:
+//!
+//! | where | key | meaning |
+//! |---|---|---|
+//! | scene | `extras.lightbake.texel_density` | suggested texels per metre |
+//! | scene | `extras.lightbake.sky` | `[r, g, b]` sky luminance, nits |
+//! | node | `extras.lightbake.texel_density_scale` | density multiplier for this node's meshes |
+//! | node | `extras.lightbake.bake` | `false`: cast shadows and reflect, but get no lightmap |
+//! | light | `extras.lightbake.angular_radius` | sun disc radius, radians |
+//!
+//! Repairs are reported in [`Scene::warnings`]: missing normals are computed; unloadable
+//! textures fall back to their material's factors; non-triangle primitives are skipped.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Affine3A, Mat4, Vec2, Vec3, Vec4};
+use gltf::Semantic;
+use gltf::mesh::Mode;
+
+use super::gltf_accessor::{read_indices, read_uv, read_vec3};
+use super::{
+    GltfPrimitiveRef, Instance, Light, LightKind, Material, Mesh, Scene, Texture, TextureRef, Wrap,
+};
+use crate::error::{BakeError, Result};
+use crate::settings::LightConvention;
+
+/// The parsed source document, kept for writing the baked glTF.
+#[derive(Clone, Debug)]
+pub struct GltfSource {
+    /// The file that was read.
+    pub path: PathBuf,
+    /// The JSON document, verbatim (unknown extensions and extras included).
+    pub json: serde_json::Value,
+    /// Every buffer's bytes, in order (the GLB `BIN` chunk for buffer 0 of a `.glb`).
+    pub buffers: Vec<Vec<u8>>,
+    /// Whether the source is binary glTF.
+    pub is_glb: bool,
+}
+
+/// A scene imported from glTF plus the document it came from.
+#[derive(Clone, Debug)]
+pub struct ImportedScene {
+    /// The scene to bake.
+    pub scene: Scene,
+    /// The source, for the baked-glTF export.
+    pub source: GltfSource,
+}
+
+/// Reads a `.gltf` or `.glb` file.
+///
+/// # Errors
+/// [`BakeError::Read`] for a missing file, [`BakeError::BadGltf`] for a malformed document,
+/// [`BakeError::MissingBuffer`], [`BakeError::BadAccessor`] and the validation errors of
+/// [`Scene::validate`], each naming the file, mesh or node at fault.
+pub fn import_gltf(path: &Path, convention: LightConvention) -> Result<ImportedScene> {
+    let bytes = std::fs::read(path).map_err(|source| BakeError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    import_gltf_slice(&bytes, path, convention)
+}
+
+/// Like [`import_gltf`] for bytes already in memory; `path` names the file in messages and
+/// is the base for relative URIs.
+///
+/// # Errors
+/// As [`import_gltf`].
+pub fn import_gltf_slice(
+    bytes: &[u8],
+    path: &Path,
+    convention: LightConvention,
+) -> Result<ImportedScene> {
+    let bad_gltf = |message: String| BakeError::BadGltf {
+        path: path.to_path_buf(),
+        message,
+    };
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?;
+    let is_glb = bytes.starts_with(b"glTF");
+    let json: serde_json::Value = if is_glb {
+        let glb = gltf::Glb::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?;
+        serde_json::from_slice(&glb.json).map_err(|e| bad_gltf(e.to_string()))?
+    } else {
+        serde_json::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?
+    };
+    let base = path.parent().unwrap_or(Path::new("."));
+    let document = gltf.document;
+    let mut blob = gltf.blob;
+
+    // Buffers, one by one so a failure names the buffer.
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let uri = match buffer.source() {
+            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => "<data URI>".to_string(),
+            gltf::buffer::Source::Uri(u) => u.to_string(),
+            gltf::buffer::Source::Bin => "<GLB BIN chunk>".to_string(),
+        };
+        let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
+            .map_err(|e| BakeError::MissingBuffer {
+                path: path.to_path_buf(),
+                index: buffer.index(),
+                uri: uri.clone(),
+                message: e.to_string(),
+            })?;
+        if data.len() < buffer.length() {
+            return Err(BakeError::MissingBuffer {
+                path: path.to_path_buf(),
+                index: buffer.index(),
+                uri,
+                message: format!(
+                    "holds {} bytes but the document declares {}",
+                    data.len(),
+                    buffer.length()
+                ),
+            });
+        }
+        buffers.push(data);
+    }
+
+    let mut importer = Importer {
+        document: &document,
+        buffers: &buffers,
+        base,
+        convention,
+        scene: Scene {
+            name: path
+                .file_name()
+                .map_or_else(|| "scene".into(), |n| n.to_string_lossy().into_owned()),
+            ..Scene::default()
+        },
+        mesh_map: HashMap::new(),
+        texture_map: HashMap::new(),
+    };
+    importer.materials();
+    let gltf_scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next());
+    if let Some(s) = &gltf_scene {
+        importer.scene_extras(s.extras());
+        for node in s.nodes() {
+            importer.node(&node, Mat4::IDENTITY, 0)?;
+        }
+    } else {
+        // No scenes: every root node is shown.
+        let mut is_child = vec![false; document.nodes().len()];
+        for n in document.nodes() {
+            for c in n.children() {
+                is_child[c.index()] = true;
+            }
+        }
+        for n in document.nodes().filter(|n| !is_child[n.index()]) {
+            importer.node(&n, Mat4::IDENTITY, 0)?;
+        }
+    }
+    let scene = importer.scene;
+    scene.validate()?;
+    Ok(ImportedScene {
+        scene,
+        source: GltfSource {
+            path: path.to_path_buf(),
+            json,
+            buffers: buffers.into_iter().map(|b| b.0).collect(),
+            is_glb,
+        },
+    })
+}
+
+struct Importer<'a> {
+    document: &'a gltf::Document,
+    buffers: &'a [gltf::buffer::Data],
+    base: &'a Path,
+    convention: LightConvention,
+    scene: Scene,
+    /// (glTF mesh, primitive) → scene mesh (None when skipped).
+    mesh_map: HashMap<(usize, usize), Option<usize>>,
+    /// glTF texture → scene texture (None when it could not be loaded).
+    texture_map: HashMap<usize, Option<usize>>,
+}
+
+/// `extras.lightbake` as JSON, if present.
+fn lightbake_extras(extras: &gltf::json::Extras) -> Option<serde_json::Value> {
+    let raw = extras.as_ref()?;
+    let v: serde_json::Value = serde_json::from_str(raw.get()).ok()?;
+    v.get("lightbake").cloned()
+}
+
+fn wrap_mode(w: gltf::texture::WrappingMode) -> Wrap {
+    match w {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    }
+}
+
+/// glTF colours in Bevy's loader are read as sRGB-encoded floats.
+fn srgb_float_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Importer<'_> {
+    fn scene_extras(&mut self, extras: &gltf::json::Extras) {
+        let Some(lb) = lightbake_extras(extras) else {
+            return;
+        };
+        if let Some(d) = lb.get("texel_density").and_then(|v| v.as_f64()) {
+            self.scene.texel_density_hint = Some(d as f32);
+        }
+        if let Some(sky) = lb.get("sky").and_then(|v| v.as_array()) {
+            let c: Vec<f32> = sky
+                .iter()
+                .filter_map(|x| x.as_f64())
+                .map(|x| x as f32)
+                .collect();
+            if c.len() == 3 {
+                self.scene.sky = Vec3::new(c[0], c[1], c[2]);
+            } else {
+                self.scene
+                    .warnings
+                    .push("scene extras.lightbake.sky must be [r, g, b]; ignored".into());
+            }
+        }
+    }
+
+    fn materials(&mut self) {
+        let document = self.document;
+        for m in document.materials() {
+            let name = m.name().map_or_else(
+                || format!("material {}", m.index().unwrap_or(0)),
+                str::to_string,
+            );
+            let pbr = m.pbr_metallic_roughness();
+            let base_color_texture = pbr
+                .base_color_texture()
+                .and_then(|info| self.texture(&info.texture(), info.tex_coord(), &name));
+            let emissive_texture = m
+                .emissive_texture()
+                .and_then(|info| self.texture(&info.texture(), info.tex_coord(), &name));
+            let strength = m.emissive_strength().unwrap_or(1.0);
+            self.scene.materials.push(Material {
+                name,
+                base_color: Vec4::from_array(pbr.base_color_factor()),
+                base_color_texture,
+                metallic: pbr.metallic_factor(),
+                emissive: Vec3::from_array(m.emissive_factor()) * strength,
+                emissive_texture,
+                double_sided: m.double_sided(),
+            });
+        }
+    }
+
+    fn texture(
+        &mut self,
+        texture: &gltf::Texture<'_>,
+        tex_coord: u32,
+        material: &str,
+    ) -> Option<TextureRef> {
+        let index = texture.index();
+        if let Some(cached) = self.texture_map.get(&index) {
+            return cached.map(|t| TextureRef {
+                texture: t,
+                tex_coord,
+            });
+        }
+        let image = texture.source();
+        let label = match image.source() {
+            gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => uri.to_string(),
+            _ => format!("image {}", image.index()),
+        };
+        let loaded = gltf::image::Data::from_source(image.source(), Some(self.base), self.buffers);
+        let result = match loaded {
+            Ok(data) => match to_rgba8(&data) {
+                Some(rgba8) => {
+                    let sampler = texture.sampler();
+                    self.scene.textures.push(Texture {
+                        name: label,
+                        width: data.width,
+                        height: data.height,
+                        rgba8,
+                        wrap_u: wrap_mode(sampler.wrap_s()),
+                        wrap_v: wrap_mode(sampler.wrap_t()),
+                    });
+                    Some(self.scene.textures.len() - 1)
+                }
+                None => {
+                    self.scene.warnings.push(format!(
+                        "material '{material}': texture {index} ({label}) has pixel format {:?}, which is not supported; using the material's factors only",
+                        data.format
+                    ));
+                    None
+                }
+            },
+            Err(e) => {
+                self.scene.warnings.push(format!(
+                    "material '{material}': texture {index} ({label}) cannot be loaded ({e}); using the material's factors only"
+                ));
+                None
+            }
+        };
+        self.texture_map.insert(index, result);
+        result.map(|t| TextureRef {
+            texture: t,
+            tex_coord,
+        })
+    }
+
+    fn node(&mut self, node: &gltf::Node<'_>, parent: Mat4, depth: usize) -> Result<()> {
+        let name = node
+            .name()
+            .map_or_else(|| format!("node {}", node.index()), str::to_string);
+        if depth > 256 {
+            return Err(BakeError::BadGltf {
+                path: PathBuf::from(&self.scene.name),
+                message: format!(
+                    "node '{name}': the hierarchy is deeper than 256 levels (a cycle?)"
+                ),
+            });
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        let world = parent * local;
+        let extras = lightbake_extras(node.extras());
+        if let Some(mesh) = node.mesh() {
+            let affine = Affine3A::from_mat4(world);
+            let primitive_count = mesh.primitives().len();
+            for primitive in mesh.primitives() {
+                let Some(m) = self.mesh(&mesh, &primitive)? else {
+                    continue;
+                };
+                let mut inst = Instance::new(
+                    if primitive_count > 1 {
+                        format!("{name}#{}", primitive.index())
+                    } else {
+                        name.clone()
+                    },
+                    m,
+                    affine,
+                );
+                inst.gltf_node = Some(node.index());
+                if let Some(lb) = &extras {
+                    if let Some(s) = lb.get("texel_density_scale").and_then(|v| v.as_f64()) {
+                        inst.texel_density_scale = s as f32;
+                    }
+                    if let Some(b) = lb.get("bake").and_then(|v| v.as_bool()) {
+                        inst.bake = b;
+                    }
+                }
+                // A transform that collapses space is bad input for a lightmapped mesh.
+                inst.validate()?;
+                self.scene.instances.push(inst);
+            }
+        }
+        if let Some(light) = node.light() {
+            self.light(&light, world, &name);
+        }
+        for child in node.children() {
+            self.node(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn light(&mut self, light: &gltf::khr_lights_punctual::Light<'_>, world: Mat4, node: &str) {
+        use gltf::khr_lights_punctual::Kind;
+        let name = light
+            .name()
+            .map_or_else(|| node.to_string(), str::to_string);
+        let extras = lightbake_extras(light.extras());
+        let bevy = self.convention == LightConvention::BevyGltfLoader;
+        let mut color = Vec3::from_array(light.color());
+        if bevy {
+            color = Vec3::new(
+                srgb_float_to_linear(color.x),
+                srgb_float_to_linear(color.y),
+                srgb_float_to_linear(color.z),
+            );
+        }
+        let kind = match light.kind() {
+            Kind::Point => LightKind::Point,
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            },
+            Kind::Directional => LightKind::Directional {
+                angular_radius: extras
+                    .as_ref()
+                    .and_then(|e| e.get("angular_radius"))
+                    .and_then(|v| v.as_f64())
+                    .unwrap_or(0.0) as f32,
+            },
+        };
+        let range = match (light.range(), bevy, kind) {
+            (Some(r), _, _) => Some(r),
+            (None, true, LightKind::Point | LightKind::Spot { .. }) => Some(20.0),
+            (None, _, _) => None,
+        };
+        self.scene.lights.push(Light {
+            name,
+            kind,
+            color,
+            intensity: light.intensity(),
+            range,
+            position: world.transform_point3(Vec3::ZERO),
+            direction: world
+                .transform_vector3(Vec3::NEG_Z)
+                .normalize_or(Vec3::NEG_Y),
+        });
+    }
+
+    fn mesh(
+        &mut self,
+        mesh: &gltf::Mesh<'_>,
+        primitive: &gltf::Primitive<'_>,
+    ) -> Result<Option<usize>> {
+        let key = (mesh.index(), primitive.index());
+        if let Some(&m) = self.mesh_map.get(&key) {
+            return Ok(m);
+        }
+        let mesh_name = mesh
+            .name()
+            .map_or_else(|| format!("mesh {}", mesh.index()), str::to_string);
+        let name = format!("{mesh_name}/{}", primitive.index());
+        let ctx = |attr: &str| format!("mesh '{mesh_name}' primitive {} {attr}", primitive.index());
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.scene.warnings.push(format!(
+                "mesh '{name}': primitive mode {mode:?} has no surface to bake; skipped"
+            ));
+            self.mesh_map.insert(key, None);
+            return Ok(None);
+        }
+        let Some(pos_acc) = primitive.get(&Semantic::Positions) else {
+            return Err(BakeError::BadAccessor {
+                context: ctx("POSITION"),
+                message: "the primitive has no POSITION attribute".into(),
+            });
+        };
+        let positions: Vec<Vec3> = read_vec3(&pos_acc, self.buffers, &ctx("POSITION"))?
+            .into_iter()
+            .map(Vec3::from_array)
+            .collect();
+        let raw_indices = match primitive.indices() {
+            Some(acc) => read_indices(&acc, self.buffers, &ctx("indices"))?,
+            None => (0..positions.len() as u32).collect(),
+        };
+        let indices = match mode {
+            Mode::TriangleStrip => (0..raw_indices.len().saturating_sub(2))
+                .flat_map(|i| {
+                    if i % 2 == 0 {
+                        [raw_indices[i], raw_indices[i + 1], raw_indices[i + 2]]
+                    } else {
+                        [raw_indices[i + 1], raw_indices[i], raw_indices[i + 2]]
+                    }
+                })
+                .collect(),
+            Mode::TriangleFan => (1..raw_indices.len().saturating_sub(1))
+                .flat_map(|i| [raw_indices[0], raw_indices[i], raw_indices[i + 1]])
+                .collect(),
+            _ => raw_indices,
+        };
+        let mut m = Mesh {
+            name: name.clone(),
+            positions,
+            normals: Vec::new(),
+            uv0: None,
+            uv1: None,
+            indices,
+            material: primitive.material().index(),
+            source: Some(GltfPrimitiveRef {
+                mesh: mesh.index(),
+                primitive: primitive.index(),
+            }),
+        };
+        let read_uv_set = |set: u32| -> Result<Option<Vec<Vec2>>> {
+            match primitive.get(&Semantic::TexCoords(set)) {
+                Some(acc) => Ok(Some(
+                    read_uv(&acc, self.buffers, &ctx(&format!("TEXCOORD_{set}")))?
+                        .into_iter()
+                        .map(Vec2::from_array)
+                        .collect(),
+                )),
+                None => Ok(None),
+            }
+        };
+        m.uv0 = read_uv_set(0)?;
+        m.uv1 = read_uv_set(1)?;
+        // Positions and indices are checked before normals are computed from them.
+        m.validate_geometry()?;
+        match primitive.get(&Semantic::Normals) {
+            Some(acc) => {
+                m.normals = read_vec3(&acc, self.buffers, &ctx("NORMAL"))?
+                    .into_iter()
+                    .map(Vec3::from_array)
+                    .collect();
+                if m.normals.len() != m.positions.len() {
+                    return Err(BakeError::BadAccessor {
+                        context: ctx("NORMAL"),
+                        message: format!(
+                            "{} normals for {} positions",
+                            m.normals.len(),
+                            m.positions.len()
+                        ),
+                    });
+                }
+                if let Some(vertex) = m.normals.iter().position(|n| !n.is_finite()) {
+                    return Err(BakeError::NonFiniteVertex {
+                        mesh: name,
+                        vertex,
+                        attribute: "normal",
+                        value: format!("{:?}", m.normals[vertex]),
+                    });
+                }
+                let zero = m
+                    .normals
+                    .iter()
+                    .filter(|n| n.length_squared() < 1e-12)
+                    .count();
+                let mut flipped = 0usize;
+                for t in 0..m.triangle_count() {
+                    let [a, b, c] = m.triangle(t);
+                    let g =
+                        (m.positions[b] - m.positions[a]).cross(m.positions[c] - m.positions[a]);
+                    if [a, b, c].iter().all(|&v| m.normals[v].dot(g) < 0.0) {
+                        flipped += 1;
+                    }
+                }
+                if flipped > 0 {
+                    self.scene.warnings.push(format!(
+                        "mesh '{name}': {flipped} of {} triangles have normals pointing against their winding; the front face (counter-clockwise winding) is baked with the normal flipped to it",
+                        m.triangle_count()
+                    ));
+                }
+                if zero > 0 {
+                    self.scene.warnings.push(format!(
+                        "mesh '{name}': {zero} zero-length normals replaced by the face normals"
+                    ));
+                    let mut computed = m.clone();
+                    computed.compute_normals();
+                    for (n, c) in m.normals.iter_mut().zip(&computed.normals) {
+                        if n.length_squared() < 1e-12 {
+                            *n = *c;
+                        }
+                    }
+                }
+                for n in &mut m.normals {
+                    *n = n.normalize_or(Vec3::Y);
+                }
+            }
+            None => {
+                self.scene.warnings.push(format!(
+                    "mesh '{name}': no NORMAL attribute; smooth normals computed from the triangles"
+                ));
+                m.compute_normals();
+            }
+        }
+        if m.material.is_some_and(|i| i >= self.scene.materials.len()) {
+            return Err(BakeError::BadReference {
+                what: format!("mesh '{name}' uses a material that does not exist"),
+            });
+        }
+        self.scene.meshes.push(m);
+        let index = self.scene.meshes.len() - 1;
+        self.mesh_map.insert(key, Some(index));
+        Ok(Some(index))
+    }
+}
+
+impl Mesh {
+    /// Index ranges and finite positions, before normals exist.
+    fn validate_geometry(&self) -> Result<()> {
+        let mut probe = self.clone();
+        probe.normals = vec![Vec3::Y; self.positions.len()];
+        probe.validate()
+    }
+}
+
+/// Converts decoded glTF image data to RGBA8 (16-bit channels keep their high byte).
+fn to_rgba8(data: &gltf::image::Data) -> Option<Vec<[u8; 4]>> {
+    use gltf::image::Format;
+    let p = &data.pixels;
+    let px = (data.width * data.height) as usize;
+    let out: Vec<[u8; 4]> = match data.format {
+        Format::R8 => p.iter().map(|&r| [r, r, r, 255]).collect(),
+        Format::R8G8 => p
+            .chunks_exact(2)
+            .map(|c| [c[0], c[0], c[0], c[1]])
+            .collect(),
+        Format::R8G8B8 => p.chunks_exact(3).map(|c| [c[0], c[1], c[2], 255]).collect(),
+        Format::R8G8B8A8 => p
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        Format::R16 => p.chunks_exact(2).map(|c| [c[1], c[1], c[1], 255]).collect(),
+        Format::R16G16 => p
+            .chunks_exact(4)
+            .map(|c| [c[1], c[1], c[1], c[3]])
+            .collect(),
+        Format::R16G16B16 => p.chunks_exact(6).map(|c| [c[1], c[3], c[5], 255]).collect(),
+        Format::R16G16B16A16 => p
+            .chunks_exact(8)
+            .map(|c| [c[1], c[3], c[5], c[7]])
+            .collect(),
+        _ => return None,
+    };
+    (out.len() == px).then_some(out)
+}

@@ -1,0 +1,314 @@
+//! Writes a [`Scene`] as glTF 2.0 (`.gltf` + `.bin`): how the shipped assets are produced
+//! from [`super::testscenes`], and how tests make input files.
+//!
+//! One node per instance (TRS), one mesh with one primitive per scene mesh, metallic-roughness
+//! materials (metallic 0, roughness 1) with `KHR_materials_emissive_strength` when the
+//! emission exceeds 1, `KHR_lights_punctual` lights on their own nodes, textures embedded as
+//! PNG, and lightbake's extras (see [`super::gltf_import`]).
+
+use glam::{Quat, Vec3};
+use serde_json::{Value, json};
+
+use super::{LightKind, Scene, Wrap};
+
+fn pad4(bin: &mut Vec<u8>) {
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+}
+
+struct Writer {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Writer {
+    fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
+        pad4(&mut self.bin);
+        let mut v = json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() });
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.bin.extend_from_slice(bytes);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    fn floats(&mut self, data: &[f32], kind: &str, count: usize, minmax: bool) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.view(&bytes, Some(34962));
+        let mut a =
+            json!({ "bufferView": view, "componentType": 5126, "count": count, "type": kind });
+        if minmax && count > 0 {
+            let n = data.len() / count;
+            let lo: Vec<f32> = (0..n)
+                .map(|k| {
+                    data.iter()
+                        .skip(k)
+                        .step_by(n)
+                        .copied()
+                        .fold(f32::INFINITY, f32::min)
+                })
+                .collect();
+            let hi: Vec<f32> = (0..n)
+                .map(|k| {
+                    data.iter()
+                        .skip(k)
+                        .step_by(n)
+                        .copied()
+                        .fold(f32::NEG_INFINITY, f32::max)
+                })
+                .collect();
+            a["min"] = json!(lo);
+            a["max"] = json!(hi);
+        }
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+}
+
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => 10497,
+        Wrap::MirroredRepeat => 33648,
+        Wrap::ClampToEdge => 33071,
+    }
+}
+
+/// The glTF JSON (pretty) and binary buffer of `scene`; the JSON refers to the buffer as
+/// `bin_uri`.
+///
+/// # Panics
+/// If a texture cannot be PNG-encoded (its pixel count does not match its size).
+pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
+    let mut w = Writer {
+        bin: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
+    let mut meshes = Vec::new();
+    for m in &scene.meshes {
+        let mut attributes = serde_json::Map::new();
+        let pos: Vec<f32> = m.positions.iter().flat_map(|p| p.to_array()).collect();
+        attributes.insert(
+            "POSITION".into(),
+            json!(w.floats(&pos, "VEC3", m.positions.len(), true)),
+        );
+        let nrm: Vec<f32> = m.normals.iter().flat_map(|p| p.to_array()).collect();
+        attributes.insert(
+            "NORMAL".into(),
+            json!(w.floats(&nrm, "VEC3", m.normals.len(), false)),
+        );
+        for (name, uv) in [("TEXCOORD_0", &m.uv0), ("TEXCOORD_1", &m.uv1)] {
+            if let Some(uv) = uv {
+                let d: Vec<f32> = uv.iter().flat_map(|p| p.to_array()).collect();
+                attributes.insert(name.into(), json!(w.floats(&d, "VEC2", uv.len(), false)));
+            }
+        }
+        let (bytes, component): (Vec<u8>, u32) = if m.positions.len() <= u16::MAX as usize {
+            (
+                m.indices
+                    .iter()
+                    .flat_map(|&i| (i as u16).to_le_bytes())
+                    .collect(),
+                5123,
+            )
+        } else {
+            (
+                m.indices.iter().flat_map(|&i| i.to_le_bytes()).collect(),
+                5125,
+            )
+        };
+        let view = w.view(&bytes, Some(34963));
+        w.accessors.push(json!({ "bufferView": view, "componentType": component, "count": m.indices.len(), "type": "SCALAR" }));
+        let mut prim =
+            json!({ "attributes": attributes, "indices": w.accessors.len() - 1, "mode": 4 });
+        if let Some(mat) = m.material {
+            prim["material"] = json!(mat);
+        }
+        meshes.push(json!({ "name": m.name, "primitives": [prim] }));
+    }
+
+    let mut images = Vec::new();
+    let mut textures = Vec::new();
+    let mut samplers = Vec::new();
+    for t in &scene.textures {
+        let raw: Vec<u8> = t.rgba8.iter().flatten().copied().collect();
+        let img = image::RgbaImage::from_raw(t.width, t.height, raw)
+            .expect("texture size matches its pixels");
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("PNG encoding into memory");
+        let view = w.view(&png, None);
+        images.push(json!({ "name": t.name, "bufferView": view, "mimeType": "image/png" }));
+        samplers.push(json!({ "wrapS": wrap_code(t.wrap_u), "wrapT": wrap_code(t.wrap_v) }));
+        textures.push(json!({ "source": images.len() - 1, "sampler": samplers.len() - 1 }));
+    }
+
+    let mut uses_strength = false;
+    let materials: Vec<Value> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            let mut pbr = json!({
+                "baseColorFactor": m.base_color.to_array(),
+                "metallicFactor": m.metallic,
+                "roughnessFactor": 1.0,
+            });
+            if let Some(t) = m.base_color_texture {
+                pbr["baseColorTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
+            }
+            let mut v = json!({ "name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": m.double_sided });
+            let peak = m.emissive.max_element();
+            if peak > 0.0 {
+                let strength = peak.max(1.0);
+                v["emissiveFactor"] = json!((m.emissive / strength).to_array());
+                if strength > 1.0 {
+                    uses_strength = true;
+                    v["extensions"] = json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
+                }
+            }
+            if let Some(t) = m.emissive_texture {
+                v["emissiveTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
+            }
+            v
+        })
+        .collect();
+
+    let mut nodes = Vec::new();
+    for inst in &scene.instances {
+        let (scale, rotation, translation) = inst.transform.to_scale_rotation_translation();
+        let mut n = json!({ "name": inst.name, "mesh": inst.mesh });
+        if translation != Vec3::ZERO {
+            n["translation"] = json!(translation.to_array());
+        }
+        if rotation != Quat::IDENTITY {
+            n["rotation"] = json!(rotation.to_array());
+        }
+        if scale != Vec3::ONE {
+            n["scale"] = json!(scale.to_array());
+        }
+        let mut lb = serde_json::Map::new();
+        if inst.texel_density_scale != 1.0 {
+            lb.insert(
+                "texel_density_scale".into(),
+                json!(inst.texel_density_scale),
+            );
+        }
+        if !inst.bake {
+            lb.insert("bake".into(), json!(false));
+        }
+        if !lb.is_empty() {
+            n["extras"] = json!({ "lightbake": lb });
+        }
+        nodes.push(n);
+    }
+    let mut lights = Vec::new();
+    for (i, l) in scene.lights.iter().enumerate() {
+        let mut light =
+            json!({ "name": l.name, "color": l.color.to_array(), "intensity": l.intensity });
+        match l.kind {
+            LightKind::Point => light["type"] = json!("point"),
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                light["type"] = json!("spot");
+                light["spot"] = json!({ "innerConeAngle": inner_cone_angle, "outerConeAngle": outer_cone_angle });
+            }
+            LightKind::Directional { angular_radius } => {
+                light["type"] = json!("directional");
+                if angular_radius > 0.0 {
+                    light["extras"] = json!({ "lightbake": { "angular_radius": angular_radius } });
+                }
+            }
+        }
+        if let Some(r) = l.range {
+            light["range"] = json!(r);
+        }
+        lights.push(light);
+        let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction);
+        let mut n =
+            json!({ "name": l.name, "extensions": { "KHR_lights_punctual": { "light": i } } });
+        if l.position != Vec3::ZERO {
+            n["translation"] = json!(l.position.to_array());
+        }
+        if rotation != Quat::IDENTITY {
+            n["rotation"] = json!(rotation.to_array());
+        }
+        nodes.push(n);
+    }
+    let mut scene_extras = serde_json::Map::new();
+    if let Some(d) = scene.texel_density_hint {
+        scene_extras.insert("texel_density".into(), json!(d));
+    }
+    if scene.sky != Vec3::ZERO {
+        scene_extras.insert("sky".into(), json!(scene.sky.to_array()));
+    }
+    let mut gltf_scene =
+        json!({ "name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>() });
+    if !scene_extras.is_empty() {
+        gltf_scene["extras"] = json!({ "lightbake": scene_extras });
+    }
+    pad4(&mut w.bin);
+    let mut doc = json!({
+        "asset": { "version": "2.0", "generator": "lightbake scene writer" },
+        "scene": 0,
+        "scenes": [gltf_scene],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "buffers": [{ "byteLength": w.bin.len(), "uri": bin_uri }],
+        "bufferViews": w.views,
+        "accessors": w.accessors,
+    });
+    let mut used = Vec::new();
+    if !lights.is_empty() {
+        used.push("KHR_lights_punctual");
+        doc["extensions"] = json!({ "KHR_lights_punctual": { "lights": lights } });
+    }
+    if uses_strength {
+        used.push("KHR_materials_emissive_strength");
+    }
+    if !used.is_empty() {
+        doc["extensionsUsed"] = json!(used);
+    }
+    if !images.is_empty() {
+        doc["images"] = json!(images);
+        doc["textures"] = json!(textures);
+        doc["samplers"] = json!(samplers);
+    }
+    let mut text = serde_json::to_vec_pretty(&doc).expect("JSON values serialise");
+    text.push(b'\n');
+    (text, w.bin)
+}
+
+/// `scene` as a single binary glTF (`.glb`).
+pub fn scene_to_glb(scene: &Scene) -> Vec<u8> {
+    let (json, bin) = scene_to_gltf(scene, "");
+    let mut doc: Value = serde_json::from_slice(&json).expect("own JSON parses");
+    doc["buffers"][0]
+        .as_object_mut()
+        .expect("buffer object")
+        .remove("uri");
+    let text = serde_json::to_vec(&doc).expect("JSON values serialise");
+    crate::output::gltf_export::glb(text, &bin)
+}
+
+/// Writes `scene` to `path` (`.gltf`) and its buffer next to it (`.bin`), atomically.
+///
+/// # Errors
+/// [`crate::BakeError::Write`] naming the file.
+pub fn write_scene_gltf(scene: &Scene, path: &std::path::Path) -> crate::Result<()> {
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+    let bin_name = format!("{stem}.bin");
+    let (json, bin) = scene_to_gltf(scene, &bin_name);
+    let mut staged = crate::output::atomic::StagedFiles::new();
+    staged.stage(path, &json)?;
+    staged.stage(&path.with_file_name(bin_name), &bin)?;
+    staged.commit()?;
+    Ok(())
+}

@@ -1,0 +1,261 @@
+//! Bake settings: one plain struct, each field with its unit, range and default, plus the
+//! named quality presets the CLI's `--quality` and the Bevy plugin map onto.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{BakeError, Result};
+
+/// How light is computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Direct light only: punctual lights, the sun, emissive surfaces and the sky, each with
+    /// shadow rays. Interreflected light is not computed.
+    #[default]
+    Direct,
+}
+
+/// Named quality presets (`--quality preview|medium|high`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Quality {
+    /// Fast look: low density, few samples.
+    Preview,
+    /// The default.
+    #[default]
+    Medium,
+    /// Final bakes.
+    High,
+}
+
+/// Which lightmap files are written per atlas page.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OutputFormats {
+    /// OpenEXR, RGB half float, ZIP compressed (`lightmap_N.exr`). Default on.
+    pub exr: bool,
+    /// Radiance RGBE (`lightmap_N.hdr`). Default off.
+    pub hdr: bool,
+    /// KTX2, `R16G16B16A16_SFLOAT`, uncompressed (`lightmap_N.ktx2`). Default off.
+    pub ktx2: bool,
+    /// A tonemapped sRGB PNG to look at (`lightmap_N.preview.png`). Default on.
+    pub png_preview: bool,
+}
+
+impl Default for OutputFormats {
+    fn default() -> Self {
+        Self {
+            exr: true,
+            hdr: false,
+            ktx2: false,
+            png_preview: true,
+        }
+    }
+}
+
+/// How punctual-light parameters the glTF leaves open are read.
+///
+/// The glTF specification says `KHR_lights_punctual` colours are linear and a light without
+/// `range` reaches infinitely far. Bevy 0.19's glTF loader reads the colour as sRGB and gives
+/// such a light a range of 20 m. See `docs/units.md`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightConvention {
+    /// Follow the glTF specification (default for the CLI).
+    #[default]
+    GltfSpec,
+    /// Match what Bevy 0.19's glTF loader does, so a baked light equals Bevy's real-time one.
+    BevyGltfLoader,
+}
+
+/// Everything that steers a bake. Build it from a preset and change fields:
+///
+/// ```
+/// use lightbake::settings::{BakeSettings, Quality};
+/// let mut s = BakeSettings::preset(Quality::High);
+/// s.texel_density = 64.0;
+/// assert!(s.validate().is_ok());
+/// ```
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BakeSettings {
+    /// How light is computed. Default [`Method::Direct`].
+    pub method: Method,
+    /// Lightmap texels per metre of world-space surface (per axis). Range (0, 100 000].
+    /// Default 32 (medium), 12 (preview), 64 (high). A glTF scene may suggest its own in
+    /// `scene.extras.lightbake.texel_density`; [`BakeSettings::texel_density_from_scene`] says
+    /// whether that hint is honoured.
+    pub texel_density: f32,
+    /// Take the scene's `texel_density` hint when it has one. Default true; the CLI turns it
+    /// off when `--texel-density` is given.
+    pub texel_density_from_scene: bool,
+    /// Empty texels kept between charts and between atlas rectangles, filled by dilation so
+    /// bilinear and bicubic sampling never read unset texels. Range 1..=16. Default 2.
+    pub padding: u32,
+    /// Largest atlas page, in texels per side. More pages are made when one is not enough.
+    /// Range 64..=16384. Default 2048.
+    pub max_page_size: u32,
+    /// Samples per texel for direct light: each is a point in the texel's footprint and one
+    /// sample of every light, so shadow edges are antialiased. Range 1..=4096.
+    /// Default 16 (medium), 4 (preview), 64 (high).
+    pub samples_per_texel: u32,
+    /// Cosine-distributed rays per texel towards the uniform sky (only when the sky is not
+    /// black). Range 1..=65 536. Default 64 (medium), 16 (preview), 256 (high).
+    pub sky_samples: u32,
+    /// Emitters (emissive triangles) up to which each texel evaluates the closed-form,
+    /// unoccluded point-to-polygon irradiance and uses the shadow rays only for the visible
+    /// fraction (a ratio estimator, exact where the emitter is fully visible). Above it the
+    /// emitters are sampled by power. Default 256.
+    pub max_closed_form_emitters: u32,
+    /// Unwrap every mesh again with xatlas, even those that carry their own `TEXCOORD_1`.
+    /// Default false.
+    pub reunwrap: bool,
+    /// Seed of every random sequence (numbers are indexed by texel, sample and this seed, never
+    /// by thread). Default 0.
+    pub seed: u32,
+    /// Worker threads; 0 uses every core. The result does not depend on it. Default 0.
+    pub threads: usize,
+    /// Refuse a bake whose estimated memory exceeds this many MiB. Default 8192.
+    pub memory_budget_mib: u64,
+    /// Which files to write.
+    pub formats: OutputFormats,
+    /// How glTF punctual lights are read. Default [`LightConvention::GltfSpec`].
+    pub light_convention: LightConvention,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self::preset(Quality::Medium)
+    }
+}
+
+impl BakeSettings {
+    /// The settings of a quality preset.
+    pub fn preset(quality: Quality) -> Self {
+        let (texel_density, samples_per_texel, sky_samples) = match quality {
+            Quality::Preview => (12.0, 4, 16),
+            Quality::Medium => (32.0, 16, 64),
+            Quality::High => (64.0, 64, 256),
+        };
+        Self {
+            method: Method::Direct,
+            texel_density,
+            texel_density_from_scene: true,
+            padding: 2,
+            max_page_size: 2048,
+            samples_per_texel,
+            sky_samples,
+            max_closed_form_emitters: 256,
+            reunwrap: false,
+            seed: 0,
+            threads: 0,
+            memory_budget_mib: 8192,
+            formats: OutputFormats::default(),
+            light_convention: LightConvention::GltfSpec,
+        }
+    }
+
+    /// Fast look (`--quality preview`).
+    pub fn preview() -> Self {
+        Self::preset(Quality::Preview)
+    }
+
+    /// Default (`--quality medium`).
+    pub fn medium() -> Self {
+        Self::preset(Quality::Medium)
+    }
+
+    /// Final bakes (`--quality high`).
+    pub fn high() -> Self {
+        Self::preset(Quality::High)
+    }
+
+    /// Checks every field against its documented range.
+    ///
+    /// # Errors
+    /// [`BakeError::BadSetting`] naming the first field out of range.
+    pub fn validate(&self) -> Result<()> {
+        fn bad(name: &'static str, value: impl ToString, message: &str) -> BakeError {
+            BakeError::BadSetting {
+                name,
+                value: value.to_string(),
+                message: message.to_string(),
+            }
+        }
+        if !(self.texel_density.is_finite()
+            && self.texel_density > 0.0
+            && self.texel_density <= 100_000.0)
+        {
+            return Err(bad(
+                "texel_density",
+                self.texel_density,
+                "must be in (0, 100000] texels per metre",
+            ));
+        }
+        if !(1..=16).contains(&self.padding) {
+            return Err(bad("padding", self.padding, "must be 1..=16 texels"));
+        }
+        if !(64..=16384).contains(&self.max_page_size) {
+            return Err(bad(
+                "max_page_size",
+                self.max_page_size,
+                "must be 64..=16384 texels",
+            ));
+        }
+        if !(1..=4096).contains(&self.samples_per_texel) {
+            return Err(bad(
+                "samples_per_texel",
+                self.samples_per_texel,
+                "must be 1..=4096",
+            ));
+        }
+        if !(1..=65_536).contains(&self.sky_samples) {
+            return Err(bad("sky_samples", self.sky_samples, "must be 1..=65536"));
+        }
+        if self.memory_budget_mib == 0 {
+            return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));
+        }
+        if !(self.formats.exr || self.formats.hdr || self.formats.ktx2) {
+            return Err(bad(
+                "formats",
+                "none",
+                "at least one HDR format (exr, hdr, ktx2) must be written",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_ordered() {
+        let (p, m, h) = (
+            BakeSettings::preview(),
+            BakeSettings::medium(),
+            BakeSettings::high(),
+        );
+        for s in [&p, &m, &h] {
+            s.validate().unwrap();
+        }
+        assert!(p.texel_density < m.texel_density && m.texel_density < h.texel_density);
+        assert!(p.samples_per_texel < m.samples_per_texel);
+        assert_eq!(BakeSettings::default(), m);
+    }
+
+    #[test]
+    fn out_of_range_fields_are_named() {
+        let s = BakeSettings {
+            texel_density: f32::NAN,
+            ..BakeSettings::default()
+        };
+        let msg = s.validate().unwrap_err().to_string();
+        assert!(msg.contains("texel_density"), "{msg}");
+        let s = BakeSettings {
+            padding: 0,
+            ..BakeSettings::default()
+        };
+        assert!(s.validate().unwrap_err().to_string().contains("padding"));
+    }
+}

@@ -1,0 +1,703 @@
+//! Lightmap UVs and the atlas layout.
+//!
+//! Each mesh gets its own lightmap rectangle of `width × height` texels, with `TEXCOORD_1` in
+//! [0, 1]² spanning it: xatlas segments, parameterises and packs its charts (with `padding`
+//! texels between them), or the mesh's own `TEXCOORD_1` is kept after validation. Every baked
+//! *instance* of the mesh then gets a copy of that rectangle on an atlas page; Bevy's
+//! `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves every
+//! instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
+//! `padding` texels between them.
+//!
+//! Texel conventions (Bevy's and glTF's): texel (x, y) covers [x, x+1] × [y, y+1] in texel
+//! units; its centre is at uv ((x + ½)/W, (y + ½)/H); v grows downwards in the image.
+
+pub mod xatlas;
+
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+
+use crate::error::{BakeError, Result};
+use crate::scene::{Mesh, Scene};
+use crate::settings::BakeSettings;
+
+/// Where a mesh's lightmap UVs came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UvOrigin {
+    /// Unwrapped by xatlas.
+    Xatlas,
+    /// The mesh's own `TEXCOORD_1`, validated and kept.
+    Existing,
+}
+
+/// The lightmap parameterisation of one mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshUnwrap {
+    /// Texels across the mesh's rectangle.
+    pub width: u32,
+    /// Texels down the mesh's rectangle.
+    pub height: u32,
+    /// `TEXCOORD_1` of every output vertex, in [0, 1]².
+    pub uv1: Vec<Vec2>,
+    /// Output vertex → source vertex, when xatlas split vertices along chart seams
+    /// (`None`: the vertices are the source's).
+    pub xref: Option<Vec<u32>>,
+    /// Output triangle list; triangle t is source triangle t.
+    pub indices: Vec<u32>,
+    /// Chart of each triangle (`u32::MAX` for degenerate triangles xatlas ignored).
+    pub triangle_charts: Vec<u32>,
+    /// Number of charts.
+    pub chart_count: u32,
+    /// xatlas or the mesh's own UVs.
+    pub origin: UvOrigin,
+    /// Texels per metre on the mesh's largest baked instance.
+    pub texels_per_metre: f32,
+    /// The requested density was lowered so the mesh fits on one page.
+    pub scaled_to_fit: bool,
+}
+
+impl MeshUnwrap {
+    /// The mesh with its vertices split as the unwrap requires and `uv1` set.
+    pub fn apply(&self, mesh: &Mesh) -> Mesh {
+        let Some(xref) = &self.xref else {
+            return Mesh {
+                uv1: Some(self.uv1.clone()),
+                indices: self.indices.clone(),
+                ..mesh.clone()
+            };
+        };
+        let gather3 = |v: &[Vec3]| xref.iter().map(|&i| v[i as usize]).collect::<Vec<_>>();
+        let gather2 = |v: &[Vec2]| xref.iter().map(|&i| v[i as usize]).collect::<Vec<_>>();
+        Mesh {
+            name: mesh.name.clone(),
+            positions: gather3(&mesh.positions),
+            normals: gather3(&mesh.normals),
+            uv0: mesh.uv0.as_deref().map(gather2),
+            uv1: Some(self.uv1.clone()),
+            indices: self.indices.clone(),
+            material: mesh.material,
+            source: mesh.source,
+        }
+    }
+}
+
+/// Where one instance's lightmap lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct InstanceRect {
+    /// Atlas page.
+    pub page: u32,
+    /// Left texel of the rectangle.
+    pub x: u32,
+    /// Top texel of the rectangle.
+    pub y: u32,
+    /// Width in texels (the mesh's).
+    pub width: u32,
+    /// Height in texels (the mesh's).
+    pub height: u32,
+}
+
+/// Size of an atlas page in texels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct PageSize {
+    /// Texels across.
+    pub width: u32,
+    /// Texels down.
+    pub height: u32,
+}
+
+impl InstanceRect {
+    /// Bevy's `Lightmap::uv_rect` (min u, min v, max u, max v) on a page of the given size.
+    pub fn uv_rect(&self, page: PageSize) -> [f32; 4] {
+        [
+            self.x as f32 / page.width as f32,
+            self.y as f32 / page.height as f32,
+            (self.x + self.width) as f32 / page.width as f32,
+            (self.y + self.height) as f32 / page.height as f32,
+        ]
+    }
+}
+
+/// The whole scene's lightmap layout.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Layout {
+    /// Per scene mesh: its unwrap, or `None` when no instance of it is baked.
+    pub meshes: Vec<Option<MeshUnwrap>>,
+    /// Per scene instance: its rectangle, or `None` when it is not baked.
+    pub instances: Vec<Option<InstanceRect>>,
+    /// Atlas pages.
+    pub pages: Vec<PageSize>,
+    /// Messages about repairs and compromises (invalid UVs replaced, density lowered).
+    pub warnings: Vec<String>,
+}
+
+impl Layout {
+    /// The scene with every unwrapped mesh replaced by its split, `TEXCOORD_1`-carrying version.
+    pub fn apply(&self, scene: &Scene) -> Scene {
+        let mut out = scene.clone();
+        for (m, unwrap) in self.meshes.iter().enumerate() {
+            if let Some(u) = unwrap {
+                out.meshes[m] = u.apply(&scene.meshes[m]);
+            }
+        }
+        out
+    }
+
+    /// Total texels over all pages.
+    pub fn page_texels(&self) -> u64 {
+        self.pages
+            .iter()
+            .map(|p| p.width as u64 * p.height as u64)
+            .sum()
+    }
+
+    /// Checks the layout: UVs in [0, 1], rectangles inside their pages and not overlapping.
+    ///
+    /// # Errors
+    /// A description of the first violation.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        for (m, u) in self.meshes.iter().enumerate() {
+            let Some(u) = u else { continue };
+            if let Some(bad) = u
+                .uv1
+                .iter()
+                .position(|p| !(p.min_element() >= 0.0 && p.max_element() <= 1.0))
+            {
+                return Err(format!(
+                    "mesh {m}: uv1[{bad}] = {:?} is outside [0, 1]",
+                    u.uv1[bad]
+                ));
+            }
+            if u.triangle_charts.len() * 3 != u.indices.len() {
+                return Err(format!("mesh {m}: chart list does not match the triangles"));
+            }
+        }
+        let rects: Vec<(usize, InstanceRect)> = self
+            .instances
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.map(|r| (i, r)))
+            .collect();
+        for &(i, r) in &rects {
+            let page = self
+                .pages
+                .get(r.page as usize)
+                .ok_or_else(|| format!("instance {i}: page {} does not exist", r.page))?;
+            if r.x + r.width > page.width || r.y + r.height > page.height {
+                return Err(format!(
+                    "instance {i}: rectangle {r:?} leaves page {page:?}"
+                ));
+            }
+        }
+        for (a, &(i, ra)) in rects.iter().enumerate() {
+            for &(j, rb) in &rects[a + 1..] {
+                let disjoint = ra.page != rb.page
+                    || ra.x + ra.width <= rb.x
+                    || rb.x + rb.width <= ra.x
+                    || ra.y + ra.height <= rb.y
+                    || rb.y + rb.height <= ra.y;
+                if !disjoint {
+                    return Err(format!("instances {i} and {j} overlap: {ra:?} / {rb:?}"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// World-area scale of `mesh` under an instance transform: sqrt(world area / local area).
+fn area_scale(mesh: &Mesh, transform: &glam::Affine3A) -> f32 {
+    let (mut local, mut world) = (0.0f64, 0.0f64);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t);
+        let p = [mesh.positions[a], mesh.positions[b], mesh.positions[c]];
+        local += (p[1] - p[0]).cross(p[2] - p[0]).length() as f64;
+        let w = p.map(|q| transform.transform_point3(q));
+        world += (w[1] - w[0]).cross(w[2] - w[0]).length() as f64;
+    }
+    if local > 0.0 {
+        (world / local).sqrt() as f32
+    } else {
+        1.0
+    }
+}
+
+/// Unwraps (or validates) every baked mesh and packs every baked instance onto pages.
+///
+/// `density` is the texel density in texels per metre (the settings' or the scene's hint).
+///
+/// # Errors
+/// [`BakeError::Unwrap`] when xatlas refuses a mesh.
+pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Result<Layout> {
+    let mut layout = Layout {
+        meshes: vec![None; scene.meshes.len()],
+        instances: vec![None; scene.instances.len()],
+        ..Layout::default()
+    };
+    // Texels per mesh unit needed by the most demanding baked instance of each mesh.
+    let mut requests = vec![Density::default(); scene.meshes.len()];
+    for inst in scene.instances.iter().filter(|i| i.bake) {
+        let mesh = &scene.meshes[inst.mesh];
+        if mesh.triangle_count() == 0 {
+            continue;
+        }
+        let per_metre = density * inst.texel_density_scale;
+        let tpu = per_metre * area_scale(mesh, &inst.transform);
+        if tpu > requests[inst.mesh].texels_per_unit {
+            requests[inst.mesh] = Density {
+                texels_per_unit: tpu,
+                texels_per_metre: per_metre,
+            };
+        }
+    }
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        let request = requests[m];
+        if request.texels_per_unit <= 0.0 || mesh.area() <= 0.0 {
+            continue;
+        }
+        let keep_existing = !settings.reunwrap && mesh.uv1.is_some();
+        let unwrap = if keep_existing {
+            match existing_uvs(mesh, request, settings) {
+                Ok(u) => u,
+                Err(problem) => {
+                    layout.warnings.push(format!(
+                        "mesh '{}': its TEXCOORD_1 cannot be used ({problem}); unwrapped again with xatlas",
+                        mesh.name
+                    ));
+                    xatlas_unwrap(mesh, request, settings, &mut layout.warnings)?
+                }
+            }
+        } else {
+            xatlas_unwrap(mesh, request, settings, &mut layout.warnings)?
+        };
+        layout.meshes[m] = Some(unwrap);
+    }
+    pack_instances(scene, settings, &mut layout);
+    Ok(layout)
+}
+
+/// What a mesh's most demanding baked instance asks for.
+#[derive(Clone, Copy, Debug, Default)]
+struct Density {
+    /// Texels per mesh-space unit.
+    texels_per_unit: f32,
+    /// Texels per metre on that instance.
+    texels_per_metre: f32,
+}
+
+/// Runs xatlas on one mesh at the requested density, lowering the density until the
+/// result fits on a page.
+fn xatlas_unwrap(
+    mesh: &Mesh,
+    request: Density,
+    settings: &BakeSettings,
+    warnings: &mut Vec<String>,
+) -> Result<MeshUnwrap> {
+    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+    let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
+    let uvs: Option<Vec<[f32; 2]>> = mesh
+        .uv0
+        .as_ref()
+        .map(|u| u.iter().map(|p| p.to_array()).collect());
+    let input = xatlas::Input {
+        positions: &positions,
+        normals: Some(&normals),
+        uvs: uvs.as_deref(),
+        indices: &mesh.indices,
+    };
+    let max_page = settings.max_page_size;
+    let tpu = request.texels_per_unit;
+    let mut pack = xatlas::PackOptions {
+        texels_per_unit: tpu,
+        padding: settings.padding,
+        max_chart_size: max_page.saturating_sub(2 * settings.padding + 2).max(1),
+        ..xatlas::PackOptions::default()
+    };
+    let mut scaled = false;
+    for _attempt in 0..8 {
+        let out =
+            xatlas::generate(&input, &xatlas::ChartOptions::default(), &pack).map_err(|e| {
+                BakeError::Unwrap {
+                    mesh: mesh.name.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        if out.width == 0 || out.height == 0 {
+            return Err(BakeError::Unwrap {
+                mesh: mesh.name.clone(),
+                message: "xatlas produced an empty atlas".into(),
+            });
+        }
+        let largest = out.width.max(out.height);
+        if largest > max_page {
+            scaled = true;
+            pack.texels_per_unit *= 0.97 * (max_page as f32 / largest as f32);
+            continue;
+        }
+        if scaled {
+            warnings.push(format!(
+                "mesh '{}' needs more than one {max_page}² page at the requested density; baked at {:.0}% of it",
+                mesh.name,
+                100.0 * pack.texels_per_unit / tpu
+            ));
+        }
+        let (w, h) = (out.width as f32, out.height as f32);
+        let uv1 = out
+            .vertices
+            .iter()
+            .map(|v| Vec2::new((v.uv[0] / w).clamp(0.0, 1.0), (v.uv[1] / h).clamp(0.0, 1.0)))
+            .collect();
+        return Ok(MeshUnwrap {
+            width: out.width,
+            height: out.height,
+            uv1,
+            xref: Some(out.vertices.iter().map(|v| v.xref).collect()),
+            indices: out.indices,
+            triangle_charts: out.triangle_charts,
+            chart_count: out.chart_count,
+            origin: UvOrigin::Xatlas,
+            texels_per_metre: request.texels_per_metre * pack.texels_per_unit
+                / request.texels_per_unit,
+            scaled_to_fit: scaled,
+        });
+    }
+    Err(BakeError::Unwrap {
+        mesh: mesh.name.clone(),
+        message: format!("could not fit the mesh on a {max_page}² page"),
+    })
+}
+
+/// Validates a mesh's own `TEXCOORD_1` and sizes its rectangle for `tpu` texels per mesh unit.
+fn existing_uvs(
+    mesh: &Mesh,
+    request: Density,
+    settings: &BakeSettings,
+) -> std::result::Result<MeshUnwrap, String> {
+    let tpu = request.texels_per_unit;
+    let uv = mesh.uv1.as_ref().ok_or("no TEXCOORD_1")?;
+    let tol = 1e-4;
+    if let Some(bad) = uv
+        .iter()
+        .position(|p| p.min_element() < -tol || p.max_element() > 1.0 + tol)
+    {
+        return Err(format!("vertex {bad} has uv {:?}, outside [0, 1]", uv[bad]));
+    }
+    let uv_area: f32 = (0..mesh.triangle_count())
+        .map(|t| {
+            let [a, b, c] = mesh.triangle(t);
+            0.5 * (uv[b] - uv[a]).perp_dot(uv[c] - uv[a]).abs()
+        })
+        .sum();
+    if uv_area <= 1e-9 {
+        return Err("its triangles cover no area in UV space".into());
+    }
+    let texels = (tpu * tpu * mesh.area() / uv_area).sqrt().ceil() as u32;
+    let size = texels.clamp(8, settings.max_page_size);
+    let overlapping = overlapping_texels(mesh, uv, size, size);
+    if overlapping > 0 {
+        return Err(format!(
+            "{overlapping} texels of a {size}² lightmap are covered by more than one triangle (overlapping or mirrored UVs)"
+        ));
+    }
+    let (triangle_charts, chart_count) = uv_charts(mesh);
+    Ok(MeshUnwrap {
+        width: size,
+        height: size,
+        uv1: uv.iter().map(|p| p.clamp(Vec2::ZERO, Vec2::ONE)).collect(),
+        xref: None,
+        indices: mesh.indices.clone(),
+        triangle_charts,
+        chart_count,
+        origin: UvOrigin::Existing,
+        texels_per_metre: size as f32 * (uv_area / mesh.area()).sqrt() * request.texels_per_metre
+            / tpu,
+        scaled_to_fit: size < texels,
+    })
+}
+
+/// Counts texel centres claimed by more than one triangle, rasterising with the top-left rule
+/// so triangles that share an edge never both claim a centre on it.
+pub fn overlapping_texels(mesh: &Mesh, uv: &[Vec2], width: u32, height: u32) -> usize {
+    let mut owner = vec![u32::MAX; (width * height) as usize];
+    let mut overlaps = 0usize;
+    let scale = glam::DVec2::new(width as f64, height as f64);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t);
+        let mut p = [uv[a], uv[b], uv[c]].map(|q| q.as_dvec2() * scale);
+        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+        if area == 0.0 {
+            continue;
+        }
+        if area < 0.0 {
+            p.swap(1, 2);
+        }
+        let lo = p[0].min(p[1]).min(p[2]);
+        let hi = p[0].max(p[1]).max(p[2]);
+        let x0 = (lo.x - 0.5).ceil().max(0.0) as u32;
+        let y0 = (lo.y - 0.5).ceil().max(0.0) as u32;
+        let x1 = ((hi.x - 0.5).floor() as i64).min(width as i64 - 1);
+        let y1 = ((hi.y - 0.5).floor() as i64).min(height as i64 - 1);
+        for y in y0 as i64..=y1 {
+            for x in x0 as i64..=x1 {
+                let q = glam::DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                if inside_top_left(&p, q) {
+                    let slot = &mut owner[(y as u32 * width + x as u32) as usize];
+                    if *slot != u32::MAX && *slot != t as u32 {
+                        overlaps += 1;
+                    }
+                    *slot = t as u32;
+                }
+            }
+        }
+    }
+    overlaps
+}
+
+/// Point-in-triangle for a counter-clockwise (positive area, y down) triangle with the
+/// top-left fill rule: points on an edge belong to it only for "top" or "left" edges.
+fn inside_top_left(p: &[glam::DVec2; 3], q: glam::DVec2) -> bool {
+    for i in 0..3 {
+        let (a, b) = (p[i], p[(i + 1) % 3]);
+        let e = (b - a).perp_dot(q - a);
+        if e < 0.0 {
+            return false;
+        }
+        if e == 0.0 {
+            let d = b - a;
+            let top_or_left = (d.y == 0.0 && d.x < 0.0) || d.y > 0.0;
+            if !top_or_left {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Charts of a mesh with its own UVs: triangles connected through shared vertex indices.
+fn uv_charts(mesh: &Mesh) -> (Vec<u32>, u32) {
+    let n = mesh.positions.len();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t);
+        let ra = find(&mut parent, a as u32);
+        for v in [b, c] {
+            let rv = find(&mut parent, v as u32);
+            if rv != ra {
+                parent[rv as usize] = ra;
+            }
+        }
+    }
+    let mut ids = vec![u32::MAX; n];
+    let mut count = 0u32;
+    let charts = (0..mesh.triangle_count())
+        .map(|t| {
+            let root = find(&mut parent, mesh.triangle(t)[0] as u32) as usize;
+            if ids[root] == u32::MAX {
+                ids[root] = count;
+                count += 1;
+            }
+            ids[root]
+        })
+        .collect();
+    (charts, count)
+}
+
+/// Shelf packing of every baked instance's rectangle into pages (tallest first, stable
+/// order). Shelves wrap at a width chosen for a roughly square page (the square root of the
+/// total rectangle area, at least the widest rectangle, at most `max_page_size`).
+fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mut Layout) {
+    let gap = settings.padding;
+    let max = settings.max_page_size;
+    let mut order: Vec<(usize, u32, u32)> = scene
+        .instances
+        .iter()
+        .enumerate()
+        .filter(|(_, inst)| inst.bake)
+        .filter_map(|(i, inst)| {
+            layout.meshes[inst.mesh]
+                .as_ref()
+                .map(|u| (i, u.width, u.height))
+        })
+        .collect();
+    order.sort_by(|a, b| b.2.cmp(&a.2).then(b.1.cmp(&a.1)).then(a.0.cmp(&b.0)));
+    let area: u64 = order
+        .iter()
+        .map(|&(_, w, h)| (w + gap) as u64 * (h + gap) as u64)
+        .sum();
+    let widest = order.iter().map(|&(_, w, _)| w).max().unwrap_or(0);
+    let shelf_width = ((area as f64).sqrt().ceil() as u32).max(widest).min(max);
+
+    struct Shelf {
+        y: u32,
+        height: u32,
+        x: u32,
+    }
+    struct Page {
+        shelves: Vec<Shelf>,
+        used_w: u32,
+        used_h: u32,
+    }
+    let mut pages: Vec<Page> = Vec::new();
+    for (inst, w, h) in order {
+        let mut placed = None;
+        'pages: for (pi, page) in pages.iter_mut().enumerate() {
+            for shelf in &mut page.shelves {
+                if h <= shelf.height && shelf.x + w <= shelf_width {
+                    placed = Some((pi, shelf.x, shelf.y));
+                    shelf.x += w + gap;
+                    break 'pages;
+                }
+            }
+            let next_y = page.shelves.last().map_or(0, |s| s.y + s.height + gap);
+            if next_y + h <= max {
+                page.shelves.push(Shelf {
+                    y: next_y,
+                    height: h,
+                    x: w + gap,
+                });
+                placed = Some((pi, 0, next_y));
+                break;
+            }
+        }
+        let (pi, x, y) = placed.unwrap_or_else(|| {
+            pages.push(Page {
+                shelves: vec![Shelf {
+                    y: 0,
+                    height: h,
+                    x: w + gap,
+                }],
+                used_w: 0,
+                used_h: 0,
+            });
+            (pages.len() - 1, 0, 0)
+        });
+        let page = &mut pages[pi];
+        page.used_w = page.used_w.max(x + w);
+        page.used_h = page.used_h.max(y + h);
+        layout.instances[inst] = Some(InstanceRect {
+            page: pi as u32,
+            x,
+            y,
+            width: w,
+            height: h,
+        });
+    }
+    // Pages are trimmed to what is used (plus the gap, so dilation has room), rounded up to a
+    // multiple of 4 for block compression.
+    layout.pages = pages
+        .iter()
+        .map(|p| PageSize {
+            width: round4((p.used_w + gap).min(max)),
+            height: round4((p.used_h + gap).min(max)),
+        })
+        .collect();
+}
+
+fn round4(v: u32) -> u32 {
+    v.div_ceil(4) * 4
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Instance;
+    use crate::scene::testscenes::{CornellLight, cornell_box, cuboid, plane};
+    use glam::Affine3A;
+
+    #[test]
+    fn cornell_layout_is_valid() {
+        let s = cornell_box(CornellLight::Area);
+        let settings = BakeSettings::default();
+        let layout = unwrap_scene(&s, &settings, 128.0).unwrap();
+        layout.validate().unwrap();
+        assert_eq!(layout.pages.len(), 1);
+        for (i, inst) in s.instances.iter().enumerate() {
+            assert!(layout.instances[i].is_some(), "{}", inst.name);
+        }
+        // A floor of 0.55 m at 128 texels/m needs about 70 texels across.
+        let floor = s.meshes.iter().position(|m| m.name == "floor").unwrap();
+        let u = layout.meshes[floor].as_ref().unwrap();
+        assert!(u.width >= 60 && u.width <= 90, "{}", u.width);
+    }
+
+    #[test]
+    fn existing_uv1_is_kept_and_overlaps_are_rejected() {
+        let mut s = Scene::default();
+        let mut m = plane("p", 1.0);
+        m.uv1 = m.uv0.clone();
+        let id = s.add_mesh(m);
+        s.instances.push(Instance::new("p", id, Affine3A::IDENTITY));
+        let layout = unwrap_scene(&s, &BakeSettings::default(), 32.0).unwrap();
+        let u = layout.meshes[0].as_ref().unwrap();
+        assert_eq!(u.origin, UvOrigin::Existing);
+        assert_eq!(Some(&u.uv1), s.meshes[0].uv1.as_ref());
+        assert!(u.xref.is_none());
+        assert_eq!(u.width, 32);
+
+        // Both triangles mapped onto the same UV triangle: overlap → re-unwrapped.
+        let mut bad = plane("bad", 1.0);
+        bad.uv1 = Some(vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(1.0, 0.0),
+        ]);
+        s.meshes[0] = bad;
+        let layout = unwrap_scene(&s, &BakeSettings::default(), 32.0).unwrap();
+        assert_eq!(layout.meshes[0].as_ref().unwrap().origin, UvOrigin::Xatlas);
+        assert!(
+            layout.warnings[0].contains("TEXCOORD_1"),
+            "{:?}",
+            layout.warnings
+        );
+    }
+
+    #[test]
+    fn oversized_meshes_are_scaled_to_fit_a_page() {
+        let mut s = Scene::default();
+        let id = s.add_mesh(cuboid("big", Vec3::ZERO, Vec3::splat(100.0), false));
+        s.instances
+            .push(Instance::new("big", id, Affine3A::IDENTITY));
+        let settings = BakeSettings {
+            max_page_size: 256,
+            ..BakeSettings::default()
+        };
+        let layout = unwrap_scene(&s, &settings, 32.0).unwrap();
+        let u = layout.meshes[0].as_ref().unwrap();
+        assert!(u.scaled_to_fit && u.width <= 256 && u.height <= 256);
+        assert!(!layout.warnings.is_empty());
+        layout.validate().unwrap();
+    }
+
+    #[test]
+    fn many_instances_spill_onto_more_pages() {
+        let mut s = Scene::default();
+        let id = s.add_mesh(plane("p", 1.0));
+        for i in 0..40 {
+            s.instances.push(Instance::new(
+                format!("p{i}"),
+                id,
+                Affine3A::from_translation(Vec3::new(i as f32 * 2.0, 0.0, 0.0)),
+            ));
+        }
+        let settings = BakeSettings {
+            max_page_size: 128,
+            ..BakeSettings::default()
+        };
+        let layout = unwrap_scene(&s, &settings, 40.0).unwrap();
+        layout.validate().unwrap();
+        assert!(layout.pages.len() > 1, "{:?}", layout.pages);
+        assert!(
+            layout
+                .pages
+                .iter()
+                .all(|p| p.width <= 128 && p.height <= 128)
+        );
+    }
+}

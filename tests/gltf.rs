@@ -1,0 +1,441 @@
+//! glTF in and out: a round trip keeps the scene and adds TEXCOORD_1 (as .gltf and .glb, with
+//! textures); bad input gives errors that name the file, buffer, mesh, vertex, triangle or
+//! node; repairs (missing normals, inverted normals) are reported as warnings.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+use lightbake::BakeError;
+use lightbake::output::write_outputs;
+use lightbake::progress::Progress;
+use lightbake::scene::gltf_import::{ImportedScene, import_gltf};
+use lightbake::scene::gltf_write::{scene_to_glb, write_scene_gltf};
+use lightbake::scene::testscenes::{CornellLight, cornell_box};
+use lightbake::scene::{Scene, Texture, TextureRef};
+use lightbake::settings::{BakeSettings, LightConvention};
+use serde_json::Value;
+
+fn import(path: &Path) -> Result<ImportedScene, BakeError> {
+    import_gltf(path, LightConvention::GltfSpec)
+}
+
+fn write_cornell(dir: &Path, light: CornellLight) -> PathBuf {
+    let path = dir.join("cornell_box.gltf");
+    write_scene_gltf(&cornell_box(light), &path).unwrap();
+    path
+}
+
+fn fast_settings() -> BakeSettings {
+    let mut s = BakeSettings::preview();
+    s.texel_density = 64.0;
+    s.texel_density_from_scene = false;
+    s
+}
+
+/// World positions of every triangle of every instance, in order.
+fn world_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    for inst in &scene.instances {
+        let m = &scene.meshes[inst.mesh];
+        for t in 0..m.triangle_count() {
+            out.push(
+                m.triangle(t)
+                    .map(|i| inst.transform.transform_point3(m.positions[i])),
+            );
+        }
+    }
+    out
+}
+
+fn assert_same_scene(a: &Scene, b: &Scene) {
+    assert_eq!(a.instances.len(), b.instances.len());
+    assert_eq!(a.materials.len(), b.materials.len());
+    assert_eq!(a.lights.len(), b.lights.len());
+    for (x, y) in world_triangles(a).iter().zip(world_triangles(b).iter()) {
+        for k in 0..3 {
+            assert!((x[k] - y[k]).length() < 1e-6, "{x:?} vs {y:?}");
+        }
+    }
+    assert_eq!(world_triangles(a).len(), world_triangles(b).len());
+    for (x, y) in a.materials.iter().zip(&b.materials) {
+        assert_eq!(x.name, y.name);
+        assert!((x.base_color - y.base_color).abs().max_element() < 1e-6);
+        assert!(
+            (x.emissive - y.emissive).abs().max_element()
+                < 1e-3 * x.emissive.max_element().max(1.0)
+        );
+    }
+    for (x, y) in a.lights.iter().zip(&b.lights) {
+        assert_eq!(x.kind, y.kind);
+        assert!(
+            (x.intensity - y.intensity).abs() < 1e-4 && (x.position - y.position).length() < 1e-5
+        );
+        assert!((x.direction - y.direction).length() < 1e-5);
+    }
+    assert_eq!(a.texel_density_hint, b.texel_density_hint);
+}
+
+#[test]
+fn gltf_round_trip_keeps_the_scene_and_adds_texcoord1() {
+    let dir = tempfile::tempdir().unwrap();
+    for light in [CornellLight::Area, CornellLight::Point] {
+        let path = write_cornell(dir.path(), light);
+        let imported = import(&path).unwrap();
+        assert_same_scene(&cornell_box(light), &imported.scene);
+        assert!(
+            imported.scene.warnings.is_empty(),
+            "{:?}",
+            imported.scene.warnings
+        );
+
+        let settings = fast_settings();
+        let out = lightbake::bake(&imported.scene, &settings, &Progress::new()).unwrap();
+        let out_dir = dir.path().join(format!("baked_{light:?}"));
+        write_outputs(
+            &out_dir,
+            &out,
+            &imported.scene,
+            Some(&imported.source),
+            &settings,
+        )
+        .unwrap();
+        let baked = import(&out_dir.join("cornell_box.gltf")).unwrap();
+        assert_same_scene(&imported.scene, &baked.scene);
+        let json: Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("cornell_box.gltf")).unwrap())
+                .unwrap();
+        let manifest: Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("manifest.json")).unwrap()).unwrap();
+        for (i, inst) in baked.scene.instances.iter().enumerate() {
+            let mesh = &baked.scene.meshes[inst.mesh];
+            let uv1 = mesh
+                .uv1
+                .as_ref()
+                .unwrap_or_else(|| panic!("{} has no TEXCOORD_1", mesh.name));
+            assert!(
+                uv1.iter()
+                    .all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0)
+            );
+            // The node's extras and the manifest point at the same page and rectangle.
+            let node = inst.gltf_node.unwrap();
+            let extras = &json["nodes"][node]["extras"]["lightbake"]["lightmaps"][0];
+            let entry = &manifest["instances"][i];
+            for k in 0..4 {
+                let (a, b) = (
+                    extras["uv_rect"][k].as_f64().unwrap(),
+                    entry["uv_rect"][k].as_f64().unwrap(),
+                );
+                assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+            }
+            assert_eq!(extras["image"], entry["image"]);
+            assert!(out_dir.join(entry["image"].as_str().unwrap()).exists());
+        }
+        // Baking the baked file keeps the UVs it now has.
+        let plan = lightbake::plan::BakePlan::new(&baked.scene, &settings);
+        assert_eq!(plan.meshes_to_unwrap, 0);
+        assert_eq!(plan.meshes_keeping_uv1, baked.scene.meshes.len());
+    }
+}
+
+#[test]
+fn glb_with_textures_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = cornell_box(CornellLight::Point);
+    // A 2×2 checker on the floor.
+    scene.textures.push(Texture {
+        name: "checker".into(),
+        width: 2,
+        height: 2,
+        rgba8: vec![
+            [255, 255, 255, 255],
+            [40, 40, 40, 255],
+            [40, 40, 40, 255],
+            [255, 255, 255, 255],
+        ],
+        wrap_u: Default::default(),
+        wrap_v: Default::default(),
+    });
+    scene.materials[0].base_color_texture = Some(TextureRef {
+        texture: 0,
+        tex_coord: 0,
+    });
+    let path = dir.path().join("textured.glb");
+    std::fs::write(&path, scene_to_glb(&scene)).unwrap();
+    let imported = import(&path).unwrap();
+    assert!(imported.source.is_glb);
+    assert_eq!(imported.scene.textures.len(), 1);
+    assert_eq!(imported.scene.textures[0].rgba8, scene.textures[0].rgba8);
+    assert_same_scene(&scene, &imported.scene);
+
+    let settings = fast_settings();
+    let out = lightbake::bake(&imported.scene, &settings, &Progress::new()).unwrap();
+    let out_dir = dir.path().join("out");
+    write_outputs(
+        &out_dir,
+        &out,
+        &imported.scene,
+        Some(&imported.source),
+        &settings,
+    )
+    .unwrap();
+    let baked = import(&out_dir.join("textured.glb")).unwrap();
+    assert_same_scene(&imported.scene, &baked.scene);
+    assert_eq!(baked.scene.textures[0].rgba8, scene.textures[0].rgba8);
+    assert!(baked.scene.meshes.iter().all(|m| m.uv1.is_some()));
+    // UV0 follows the vertices through the seam split.
+    for (a, b) in imported.scene.meshes.iter().zip(&baked.scene.meshes) {
+        for t in 0..a.triangle_count() {
+            let (ta, tb) = (a.triangle(t), b.triangle(t));
+            for k in 0..3 {
+                let (ua, ub): (Vec2, Vec2) = (
+                    a.uv0.as_ref().unwrap()[ta[k]],
+                    b.uv0.as_ref().unwrap()[tb[k]],
+                );
+                assert_eq!(ua, ub);
+            }
+        }
+    }
+}
+
+#[test]
+fn external_images_are_copied_next_to_the_baked_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_cornell(dir.path(), CornellLight::Point);
+    let mut json: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    image::RgbaImage::from_pixel(4, 4, image::Rgba([200, 100, 50, 255]))
+        .save(dir.path().join("wall paint.png"))
+        .unwrap();
+    json["images"] = serde_json::json!([{ "uri": "wall%20paint.png" }]);
+    json["textures"] = serde_json::json!([{ "source": 0 }]);
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] =
+        serde_json::json!({ "index": 0 });
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let imported = import(&path).unwrap();
+    assert_eq!(imported.scene.textures.len(), 1);
+    let settings = fast_settings();
+    let out = lightbake::bake(&imported.scene, &settings, &Progress::new()).unwrap();
+    let out_dir = dir.path().join("out");
+    write_outputs(
+        &out_dir,
+        &out,
+        &imported.scene,
+        Some(&imported.source),
+        &settings,
+    )
+    .unwrap();
+    assert!(out_dir.join("wall paint.png").exists());
+    let baked = import(&out_dir.join("cornell_box.gltf")).unwrap();
+    assert_eq!(baked.scene.textures.len(), 1);
+}
+
+/// Edits a written glTF: a closure on the JSON and one on the binary buffer.
+fn corrupt(
+    dir: &Path,
+    edit_json: impl FnOnce(&mut Value),
+    edit_bin: impl FnOnce(&Value, &mut Vec<u8>),
+) -> PathBuf {
+    let path = write_cornell(dir, CornellLight::Point);
+    let bin_path = dir.join("cornell_box.bin");
+    let mut json: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let mut bin = std::fs::read(&bin_path).unwrap();
+    edit_json(&mut json);
+    edit_bin(&json, &mut bin);
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::write(&bin_path, bin).unwrap();
+    path
+}
+
+/// Byte offset of element `i` of accessor `a` in the (single) buffer.
+fn element_offset(json: &Value, a: u64, i: usize, size: usize) -> usize {
+    let acc = &json["accessors"][a as usize];
+    let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + acc["byteOffset"].as_u64().unwrap_or(0) as usize
+        + i * size
+}
+
+fn error_of(path: &Path) -> String {
+    match import(path) {
+        Ok(_) => panic!("{} imported without error", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_inputs_give_named_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+
+    let msg = error_of(&d.join("missing.gltf"));
+    assert!(
+        msg.contains("missing.gltf") && msg.contains("cannot read"),
+        "{msg}"
+    );
+
+    let bad = d.join("bad.gltf");
+    std::fs::write(&bad, b"{ this is not json").unwrap();
+    let msg = error_of(&bad);
+    assert!(
+        msg.contains("bad.gltf") && msg.contains("not a valid glTF"),
+        "{msg}"
+    );
+
+    let path = write_cornell(d, CornellLight::Point);
+    std::fs::remove_file(d.join("cornell_box.bin")).unwrap();
+    let msg = error_of(&path);
+    assert!(
+        msg.contains("buffer 0") && msg.contains("cornell_box.bin"),
+        "{msg}"
+    );
+
+    let short = corrupt(d, |_| {}, |_, bin| bin.truncate(100));
+    let msg = error_of(&short);
+    assert!(
+        msg.contains("buffer 0") && msg.contains("declares"),
+        "{msg}"
+    );
+
+    let wrong_type = corrupt(
+        d,
+        |j| {
+            let a = j["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            j["accessors"][a]["componentType"] = serde_json::json!(5123); // UNSIGNED_SHORT
+        },
+        |_, _| {},
+    );
+    let msg = error_of(&wrong_type);
+    assert!(msg.contains("POSITION") && msg.contains("floor"), "{msg}");
+
+    let nan = corrupt(
+        d,
+        |_| {},
+        |j, bin| {
+            let a = j["meshes"][1]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap();
+            let o = element_offset(j, a, 2, 12);
+            bin[o + 4..o + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+        },
+    );
+    let msg = error_of(&nan);
+    assert!(
+        msg.contains("ceiling") && msg.contains("vertex 2") && msg.contains("position"),
+        "{msg}"
+    );
+
+    let inf = corrupt(
+        d,
+        |_| {},
+        |j, bin| {
+            let a = j["meshes"][0]["primitives"][0]["attributes"]["NORMAL"]
+                .as_u64()
+                .unwrap();
+            let o = element_offset(j, a, 1, 12);
+            bin[o..o + 4].copy_from_slice(&f32::INFINITY.to_le_bytes());
+        },
+    );
+    let msg = error_of(&inf);
+    assert!(
+        msg.contains("floor") && msg.contains("normal") && msg.contains("vertex 1"),
+        "{msg}"
+    );
+
+    let out_of_range = corrupt(
+        d,
+        |_| {},
+        |j, bin| {
+            let a = j["meshes"][2]["primitives"][0]["indices"].as_u64().unwrap();
+            let o = element_offset(j, a, 4, 2);
+            bin[o..o + 2].copy_from_slice(&999u16.to_le_bytes());
+        },
+    );
+    let msg = error_of(&out_of_range);
+    assert!(
+        msg.contains("back_wall") && msg.contains("triangle 1") && msg.contains("999"),
+        "{msg}"
+    );
+
+    let zero_scale = corrupt(
+        d,
+        |j| j["nodes"][3]["scale"] = serde_json::json!([0.0, 0.0, 0.0]),
+        |_, _| {},
+    );
+    let msg = error_of(&zero_scale);
+    assert!(
+        msg.contains("green_wall") && msg.contains("zero scale"),
+        "{msg}"
+    );
+
+    let only_light = corrupt(
+        d,
+        |j| {
+            let light_node = j["nodes"].as_array().unwrap().len() - 1;
+            j["scenes"][0]["nodes"] = serde_json::json!([light_node]);
+        },
+        |_, _| {},
+    );
+    let msg = error_of(&only_light);
+    assert!(msg.contains("no triangles"), "{msg}");
+}
+
+#[test]
+fn repairs_are_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let no_normals = corrupt(
+        d,
+        |j| {
+            j["meshes"][0]["primitives"][0]["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("NORMAL");
+        },
+        |_, _| {},
+    );
+    let s = import(&no_normals).unwrap().scene;
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("floor") && w.contains("no NORMAL")),
+        "{:?}",
+        s.warnings
+    );
+    // The computed normals face up (the floor's winding).
+    assert!(s.meshes[0].normals.iter().all(|n| (n.y - 1.0).abs() < 1e-5));
+
+    let inverted = corrupt(
+        d,
+        |_| {},
+        |j, bin| {
+            let a = j["meshes"][0]["primitives"][0]["attributes"]["NORMAL"]
+                .as_u64()
+                .unwrap();
+            for v in 0..4 {
+                let o = element_offset(j, a, v, 12);
+                for k in 0..3 {
+                    let x = f32::from_le_bytes(bin[o + 4 * k..o + 4 * k + 4].try_into().unwrap());
+                    bin[o + 4 * k..o + 4 * k + 4].copy_from_slice(&(-x).to_le_bytes());
+                }
+            }
+        },
+    );
+    let imported = import(&inverted).unwrap();
+    assert!(
+        imported
+            .scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("floor") && w.contains("against their winding")),
+        "{:?}",
+        imported.scene.warnings
+    );
+    // The floor is still lit from above: it is baked on its front (winding) side.
+    let out = lightbake::bake(&imported.scene, &fast_settings(), &Progress::new()).unwrap();
+    let floor = common::texels(&out, 0);
+    let lit = floor.iter().filter(|t| t.value.max_element() > 0.0).count();
+    assert!(lit > floor.len() / 2, "{lit} of {}", floor.len());
+}

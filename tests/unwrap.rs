@@ -1,0 +1,123 @@
+//! Unwrap and atlas layout: every baked triangle has TEXCOORD_1 in [0, 1]; rasterised charts do
+//! not overlap and keep `padding` empty texels between them; a mesh with its own TEXCOORD_1
+//! keeps it.
+
+mod common;
+
+use glam::{Affine3A, Vec3};
+use lightbake::bvh::RayScene;
+use lightbake::raster::Patches;
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::{CornellLight, cornell_box, cuboid, sunlit_room};
+use lightbake::settings::BakeSettings;
+use lightbake::unwrap::{UvOrigin, overlapping_texels, unwrap_scene};
+
+fn check_layout(scene: &Scene, density: f32, padding: u32) -> usize {
+    let settings = BakeSettings {
+        padding,
+        ..BakeSettings::default()
+    };
+    let layout = unwrap_scene(scene, &settings, density).unwrap();
+    layout.validate().unwrap();
+    let baked = layout.apply(scene);
+    for (m, u) in layout.meshes.iter().enumerate() {
+        let Some(u) = u else { continue };
+        let mesh = &baked.meshes[m];
+        let uv1 = mesh.uv1.as_ref().unwrap();
+        // Every triangle's TEXCOORD_1 lies in [0, 1].
+        for &i in &mesh.indices {
+            let p = uv1[i as usize];
+            assert!(
+                p.min_element() >= 0.0 && p.max_element() <= 1.0,
+                "{}: {p:?}",
+                mesh.name
+            );
+        }
+        // No two triangles claim the same texel centre.
+        assert_eq!(
+            overlapping_texels(mesh, uv1, u.width, u.height),
+            0,
+            "{}",
+            mesh.name
+        );
+        // Positions are preserved through the seam split.
+        let src = &scene.meshes[m];
+        for t in 0..src.triangle_count() {
+            let (a, b) = (src.triangle(t), mesh.triangle(t));
+            for k in 0..3 {
+                assert_eq!(src.positions[a[k]], mesh.positions[b[k]]);
+            }
+        }
+    }
+    // Charts and instances keep `padding` empty texels between them on every page.
+    let rays = RayScene::build(&baked);
+    let patches = Patches::build(&baked, &layout, &rays);
+    patches.validate(&layout, padding).unwrap();
+    patches.patches.len()
+}
+
+#[test]
+fn shipped_scenes_unwrap_without_overlap_and_with_padding() {
+    for padding in [1, 2, 4] {
+        assert!(check_layout(&cornell_box(CornellLight::Area), 256.0, padding) > 50_000);
+        assert!(check_layout(&sunlit_room(), 16.0, padding) > 10_000);
+    }
+}
+
+#[test]
+fn rotated_and_scaled_instances_share_one_unwrap() {
+    let mut s = Scene::default();
+    let id = s.add_mesh(cuboid("box", Vec3::ZERO, Vec3::ONE, false));
+    for i in 0..5 {
+        s.instances.push(lightbake::scene::Instance::new(
+            format!("box{i}"),
+            id,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(1.0 + i as f32 * 0.5),
+                glam::Quat::from_rotation_y(i as f32),
+                Vec3::new(i as f32 * 4.0, 0.0, 0.0),
+            ),
+        ));
+    }
+    check_layout(&s, 20.0, 2);
+    let layout = unwrap_scene(&s, &BakeSettings::default(), 20.0).unwrap();
+    // The largest instance (scale 3) sets the density: a 3 m cube face at 20 texels/m.
+    let u = layout.meshes[id].as_ref().unwrap();
+    assert!(
+        (u.texels_per_metre - 20.0).abs() < 2.0,
+        "{}",
+        u.texels_per_metre
+    );
+    let rects: Vec<_> = layout.instances.iter().flatten().collect();
+    assert_eq!(rects.len(), 5);
+    assert!(
+        rects
+            .iter()
+            .all(|r| r.width == u.width && r.height == u.height)
+    );
+}
+
+#[test]
+fn own_texcoord1_is_kept() {
+    let mut s = Scene::default();
+    common::add(
+        &mut s,
+        common::uv_plane("floor", 3.0),
+        Vec3::ONE,
+        Affine3A::IDENTITY,
+        true,
+    );
+    let layout = unwrap_scene(&s, &BakeSettings::default(), 10.0).unwrap();
+    let u = layout.meshes[0].as_ref().unwrap();
+    assert_eq!(u.origin, UvOrigin::Existing);
+    assert_eq!(&u.uv1, s.meshes[0].uv1.as_ref().unwrap());
+    assert_eq!(u.indices, s.meshes[0].indices);
+    assert_eq!(u.width, 30);
+    // Unless asked to unwrap again.
+    let settings = BakeSettings {
+        reunwrap: true,
+        ..BakeSettings::default()
+    };
+    let layout = unwrap_scene(&s, &settings, 10.0).unwrap();
+    assert_eq!(layout.meshes[0].as_ref().unwrap().origin, UvOrigin::Xatlas);
+}
