@@ -10,6 +10,8 @@
 //! with the scene extent and with the magnitude of the coordinates (the float spacing there),
 //! so a 1 mm scene and a 10 km scene both trace without self-intersection or visible gaps.
 
+pub mod workload;
+
 use std::time::Duration;
 
 use glam::{Vec3, Vec3A};
@@ -67,6 +69,8 @@ pub struct RayScene {
     accel: Vec<TriAccel>,
     /// BVH primitive order → global triangle index.
     bvh_to_global: Vec<u32>,
+    /// Global triangle index → BVH primitive order (`u32::MAX` for zero-area triangles).
+    global_to_bvh: Vec<u32>,
     /// Per global triangle.
     pub triangles: Vec<TriangleInfo>,
     /// First global triangle of each instance (length = instances + 1).
@@ -182,15 +186,32 @@ impl RayScene {
                 }
             })
             .collect();
+        let mut global_to_bvh = vec![u32::MAX; triangles.len()];
+        for (k, &g) in bvh_to_global.iter().enumerate() {
+            global_to_bvh[g as usize] = k as u32;
+        }
         Self {
             bvh,
             accel,
             bvh_to_global,
+            global_to_bvh,
             triangles,
             instance_first_triangle,
             bounds,
             extent,
             build_time,
+        }
+    }
+
+    /// World vertices of global triangle `g` (zero for zero-area triangles, which are not in
+    /// the BVH).
+    pub fn triangle_vertices(&self, g: u32) -> [Vec3; 3] {
+        match self.global_to_bvh.get(g as usize).copied() {
+            Some(k) if k != u32::MAX => {
+                let t = &self.accel[k as usize];
+                [t.v0.into(), (t.v0 + t.e1).into(), (t.v0 + t.e2).into()]
+            }
+            _ => [Vec3::ZERO; 3],
         }
     }
 

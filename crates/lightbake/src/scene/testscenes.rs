@@ -180,6 +180,57 @@ pub fn merge(name: &str, parts: impl IntoIterator<Item = Mesh>) -> Mesh {
     m
 }
 
+/// Splits every triangle pair of a quad mesh built by [`quad`]/[`merge`] into an n × n grid of
+/// quads (2n² triangles per quad), keeping positions, normals and UV0 bilinear.
+pub fn subdivide_quads(mesh: &Mesh, n: u32) -> Mesh {
+    assert!(mesh.indices.len() % 6 == 0, "expects quads made of two triangles");
+    let mut out = Mesh {
+        name: mesh.name.clone(),
+        material: mesh.material,
+        uv0: Some(Vec::new()),
+        ..Mesh::default()
+    };
+    let uv0 = mesh.uv0.clone().unwrap_or_else(|| vec![Vec2::ZERO; mesh.positions.len()]);
+    for q in mesh.indices.chunks_exact(6) {
+        // quad() emits (0,1,2),(0,2,3).
+        let c = [q[0], q[1], q[2], q[5]].map(|i| i as usize);
+        let base = out.positions.len() as u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                let (s, t) = (i as f32 / n as f32, j as f32 / n as f32);
+                let bil = |v: [Vec3; 4]| v[0].lerp(v[1], s).lerp(v[3].lerp(v[2], s), t);
+                out.positions.push(bil(c.map(|k| mesh.positions[k])));
+                out.normals.push(bil(c.map(|k| mesh.normals[k])).normalize());
+                let u = c.map(|k| uv0[k]);
+                out.uv0
+                    .as_mut()
+                    .expect("set above")
+                    .push(u[0].lerp(u[1], s).lerp(u[3].lerp(u[2], s), t));
+            }
+        }
+        let row = n + 1;
+        for j in 0..n {
+            for i in 0..n {
+                let a = base + j * row + i;
+                out.indices
+                    .extend_from_slice(&[a, a + 1, a + row + 1, a, a + row + 1, a + row]);
+            }
+        }
+    }
+    out
+}
+
+/// The Cornell box with every quad split into n × n cells: 32·n² triangles (n = 80 gives
+/// 204 800), for ray-tracing benchmarks.
+pub fn cornell_box_dense(light: CornellLight, n: u32) -> Scene {
+    let mut s = cornell_box(light);
+    for m in &mut s.meshes {
+        *m = subdivide_quads(m, n);
+    }
+    s.name = format!("{}_dense{n}", s.name);
+    s
+}
+
 /// Which light the Cornell box has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CornellLight {
@@ -525,6 +576,22 @@ mod tests {
         // The red wall is on the viewer's left (−X) for a camera looking along −Z.
         let red = s.meshes.iter().find(|m| m.name == "red_wall").unwrap();
         assert!(red.positions.iter().all(|p| p.x < -0.27));
+    }
+
+    #[test]
+    fn dense_cornell_keeps_the_surfaces() {
+        let a = cornell_box(CornellLight::Area);
+        let b = cornell_box_dense(CornellLight::Area, 4);
+        assert_eq!(b.instanced_triangle_count(), 32 * 16);
+        for (x, y) in a.meshes.iter().zip(&b.meshes) {
+            assert!((x.area() - y.area()).abs() < 1e-5 * x.area().max(1e-3));
+            y.validate().unwrap();
+            for t in 0..y.triangle_count() {
+                let [p, q, r] = y.triangle(t);
+                let g = (y.positions[q] - y.positions[p]).cross(y.positions[r] - y.positions[p]);
+                assert!(g.dot(y.normals[p]) > 0.0, "{} triangle {t}", y.name);
+            }
+        }
     }
 
     #[test]
