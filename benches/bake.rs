@@ -20,11 +20,22 @@ fn bakes(c: &mut Criterion) {
     let settings = BakeSettings::medium();
     let mut g = c.benchmark_group("bake");
     g.sample_size(10);
-    for scene in [cornell_box(CornellLight::Area), cornell_box(CornellLight::Point), sunlit_room()] {
+    for scene in [
+        cornell_box(CornellLight::Area),
+        cornell_box(CornellLight::Point),
+        sunlit_room(),
+    ] {
         let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
-        eprintln!("{} ({} texels):\n{}", scene.name, out.report.texels.patches, out.report.table());
+        eprintln!(
+            "{} ({} texels):\n{}",
+            scene.name,
+            out.report.texels.patches,
+            out.report.table()
+        );
         g.bench_function(scene.name.clone(), |b| {
-            b.iter(|| black_box(lightbake::bake(&scene, &settings, &Progress::new()).expect("bake")))
+            b.iter(|| {
+                black_box(lightbake::bake(&scene, &settings, &Progress::new()).expect("bake"))
+            })
         });
     }
     g.finish();
@@ -35,11 +46,15 @@ fn stages(c: &mut Criterion) {
     let settings = BakeSettings::medium();
     let mut g = c.benchmark_group("stages_cornell");
     g.sample_size(10);
-    g.bench_function("unwrap", |b| b.iter(|| black_box(unwrap_scene(&scene, &settings, 256.0).expect("unwrap"))));
+    g.bench_function("unwrap", |b| {
+        b.iter(|| black_box(unwrap_scene(&scene, &settings, 256.0).expect("unwrap")))
+    });
     let layout = unwrap_scene(&scene, &settings, 256.0).expect("unwrap");
     let baked = layout.apply(&scene);
     let rays = RayScene::build(&baked);
-    g.bench_function("raster", |b| b.iter(|| black_box(Patches::build(&baked, &layout, &rays))));
+    g.bench_function("raster", |b| {
+        b.iter(|| black_box(Patches::build(&baked, &layout, &rays)))
+    });
     g.finish();
 }
 

@@ -19,15 +19,23 @@ const RAYS: usize = 100_000;
 fn setup() -> (RayScene, Vec<BenchRay>, Vec<BenchRay>) {
     let scene = cornell_box_dense(CornellLight::Area, 80);
     let rays = RayScene::build(&scene);
-    let light = scene.instances.iter().position(|i| i.name == "light").expect("light");
-    let (lo, hi) = (rays.instance_first_triangle[light], rays.instance_first_triangle[light + 1]);
+    let light = scene
+        .instances
+        .iter()
+        .position(|i| i.name == "light")
+        .expect("light");
+    let (lo, hi) = (
+        rays.instance_first_triangle[light],
+        rays.instance_first_triangle[light + 1],
+    );
     let gather = gather_rays(&rays, RAYS, 1);
     let shadow = shadow_rays(&rays, RAYS, 2, |g| (lo..hi).contains(&g));
     (rays, gather, shadow)
 }
 
 fn closest(rs: &RayScene, r: &BenchRay) -> f32 {
-    rs.closest_hit(r.origin, r.direction, 0.0, r.tmax).map_or(-1.0, |h| h.t)
+    rs.closest_hit(r.origin, r.direction, 0.0, r.tmax)
+        .map_or(-1.0, |h| h.t)
 }
 
 fn any(rs: &RayScene, r: &BenchRay) -> bool {
@@ -64,7 +72,9 @@ fn build(c: &mut Criterion) {
     let mut g = c.benchmark_group("bvh_build");
     g.sample_size(10);
     g.throughput(Throughput::Elements(scene.instanced_triangle_count() as u64));
-    g.bench_function("cornell_204800", |b| b.iter(|| black_box(RayScene::build(&scene))));
+    g.bench_function("cornell_204800", |b| {
+        b.iter(|| black_box(RayScene::build(&scene)))
+    });
     g.finish();
 }
 

@@ -445,14 +445,17 @@ fn light_conventions_differ_where_bevy_departs_from_the_spec() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_cornell(dir.path(), CornellLight::Point);
     let mut json: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    json["extensions"]["KHR_lights_punctual"]["lights"][0]["color"] = serde_json::json!([0.5, 0.5, 0.5]);
+    json["extensions"]["KHR_lights_punctual"]["lights"][0]["color"] =
+        serde_json::json!([0.5, 0.5, 0.5]);
     std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
 
     let spec = import_gltf(&path, LightConvention::GltfSpec).unwrap().scene;
     assert_eq!(spec.lights[0].color, Vec3::splat(0.5));
     assert_eq!(spec.lights[0].range, None);
 
-    let bevy = import_gltf(&path, LightConvention::BevyGltfLoader).unwrap().scene;
+    let bevy = import_gltf(&path, LightConvention::BevyGltfLoader)
+        .unwrap()
+        .scene;
     // sRGB 0.5 decodes to 0.2140 linear; no range means 20 m in Bevy's loader.
     assert!((bevy.lights[0].color.x - 0.214_041).abs() < 1e-5);
     assert_eq!(bevy.lights[0].range, Some(20.0));

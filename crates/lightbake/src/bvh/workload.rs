@@ -57,7 +57,10 @@ pub fn gather_rays(rays: &RayScene, count: usize, seed: u32) -> Vec<BenchRay> {
         .map(|i| {
             let key = hash_words(&[seed, i]);
             let (p, n) = sample_point(rays, &ids, &cdf, key);
-            let u = glam::Vec2::new(unit_float(hash_words(&[key, 4])), unit_float(hash_words(&[key, 5])));
+            let u = glam::Vec2::new(
+                unit_float(hash_words(&[key, 4])),
+                unit_float(hash_words(&[key, 5])),
+            );
             BenchRay {
                 origin: rays.offset(p, n),
                 direction: cosine_hemisphere(n, u),
@@ -69,7 +72,12 @@ pub fn gather_rays(rays: &RayScene, count: usize, seed: u32) -> Vec<BenchRay> {
 
 /// `count` shadow rays from random surface points to random points on the triangles accepted
 /// by `target` (for example the emitter's).
-pub fn shadow_rays(rays: &RayScene, count: usize, seed: u32, target: impl Fn(u32) -> bool) -> Vec<BenchRay> {
+pub fn shadow_rays(
+    rays: &RayScene,
+    count: usize,
+    seed: u32,
+    target: impl Fn(u32) -> bool,
+) -> Vec<BenchRay> {
     let (ids, cdf) = area_cdf(rays, |_| true);
     let (tids, tcdf) = area_cdf(rays, target);
     assert!(!tids.is_empty(), "no target triangles");

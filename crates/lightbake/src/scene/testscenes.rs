@@ -183,14 +183,20 @@ pub fn merge(name: &str, parts: impl IntoIterator<Item = Mesh>) -> Mesh {
 /// Splits every triangle pair of a quad mesh built by [`quad`]/[`merge`] into an n × n grid of
 /// quads (2n² triangles per quad), keeping positions, normals and UV0 bilinear.
 pub fn subdivide_quads(mesh: &Mesh, n: u32) -> Mesh {
-    assert!(mesh.indices.len() % 6 == 0, "expects quads made of two triangles");
+    assert!(
+        mesh.indices.len() % 6 == 0,
+        "expects quads made of two triangles"
+    );
     let mut out = Mesh {
         name: mesh.name.clone(),
         material: mesh.material,
         uv0: Some(Vec::new()),
         ..Mesh::default()
     };
-    let uv0 = mesh.uv0.clone().unwrap_or_else(|| vec![Vec2::ZERO; mesh.positions.len()]);
+    let uv0 = mesh
+        .uv0
+        .clone()
+        .unwrap_or_else(|| vec![Vec2::ZERO; mesh.positions.len()]);
     for q in mesh.indices.chunks_exact(6) {
         // quad() emits (0,1,2),(0,2,3).
         let c = [q[0], q[1], q[2], q[5]].map(|i| i as usize);
@@ -200,7 +206,8 @@ pub fn subdivide_quads(mesh: &Mesh, n: u32) -> Mesh {
                 let (s, t) = (i as f32 / n as f32, j as f32 / n as f32);
                 let bil = |v: [Vec3; 4]| v[0].lerp(v[1], s).lerp(v[3].lerp(v[2], s), t);
                 out.positions.push(bil(c.map(|k| mesh.positions[k])));
-                out.normals.push(bil(c.map(|k| mesh.normals[k])).normalize());
+                out.normals
+                    .push(bil(c.map(|k| mesh.normals[k])).normalize());
                 let u = c.map(|k| uv0[k]);
                 out.uv0
                     .as_mut()
