@@ -80,26 +80,74 @@ impl StagedFiles {
         self.staged.iter().map(|(_, d)| d.as_path())
     }
 
-    /// Renames every staged file into place, in staging order.
+    /// Renames every staged file into place, all or nothing: existing destinations are first
+    /// moved aside (same directory), then the new files renamed in; if any step fails, the new
+    /// files are removed and the old ones put back. The set-aside copies are deleted at the
+    /// end.
     ///
     /// # Errors
-    /// [`BakeError::Write`] for the first rename that fails; temporaries not yet renamed are
-    /// removed.
+    /// [`BakeError::Write`] naming the destination that could not be replaced (the directory
+    /// is then as it was before).
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
         let staged = std::mem::take(&mut self.staged);
-        let mut done = Vec::new();
-        let mut iter = staged.into_iter();
-        while let Some((tmp, dest)) = iter.next() {
-            if let Err(e) = rename_or_copy(&tmp, &dest) {
-                let _ = std::fs::remove_file(&tmp);
-                for (t, _) in iter {
+        // 1. Refuse early what a rename cannot replace.
+        for (_, dest) in &staged {
+            if dest.is_dir() {
+                let e = std::io::Error::new(
+                    std::io::ErrorKind::IsADirectory,
+                    "a directory is in the way",
+                );
+                for (t, _) in &staged {
                     let _ = std::fs::remove_file(t);
                 }
-                return Err(write_err(&dest)(e));
+                return Err(write_err(dest)(e));
             }
-            done.push(dest);
         }
-        Ok(done)
+        // 2. Move existing files aside.
+        let mut aside: Vec<(PathBuf, PathBuf)> = Vec::new();
+        for (_, dest) in &staged {
+            if dest.exists() {
+                let name = dest
+                    .file_name()
+                    .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+                let old = dest.with_file_name(format!(".{name}.lightbake-old-{}", unique_suffix()));
+                if let Err(e) = std::fs::rename(dest, &old) {
+                    restore(&aside, &[]);
+                    for (t, _) in &staged {
+                        let _ = std::fs::remove_file(t);
+                    }
+                    return Err(write_err(dest)(e));
+                }
+                aside.push((dest.clone(), old));
+            }
+        }
+        // 3. Rename the new files in.
+        let mut placed: Vec<PathBuf> = Vec::new();
+        for (i, (tmp, dest)) in staged.iter().enumerate() {
+            if let Err(e) = rename_or_copy(tmp, dest) {
+                for (t, _) in &staged[i..] {
+                    let _ = std::fs::remove_file(t);
+                }
+                restore(&aside, &placed);
+                return Err(write_err(dest)(e));
+            }
+            placed.push(dest.clone());
+        }
+        // 4. Drop the old copies.
+        for (_, old) in aside {
+            let _ = std::fs::remove_file(old);
+        }
+        Ok(placed)
+    }
+}
+
+/// Undoes a partial commit: removes the files placed so far and puts the old ones back.
+fn restore(aside: &[(PathBuf, PathBuf)], placed: &[PathBuf]) {
+    for p in placed {
+        let _ = std::fs::remove_file(p);
+    }
+    for (dest, old) in aside {
+        let _ = std::fs::rename(old, dest);
     }
 }
 
@@ -172,6 +220,41 @@ mod tests {
         let written = s.commit().unwrap();
         assert_eq!(written, vec![a.clone()]);
         assert_eq!(std::fs::read(&a).unwrap(), b"new");
+        // No set-aside copies are left behind.
+        assert!(std::fs::read_dir(dir.path()).unwrap().all(|e| {
+            !e.unwrap()
+                .file_name()
+                .to_string_lossy()
+                .contains("lightbake")
+        }));
+    }
+
+    #[test]
+    fn a_failing_rename_rolls_back_every_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b, c) = (
+            dir.path().join("a"),
+            dir.path().join("b"),
+            dir.path().join("c"),
+        );
+        std::fs::write(&a, b"old a").unwrap();
+        std::fs::write(&b, b"old b").unwrap();
+        let mut s = StagedFiles::new();
+        s.stage(&a, b"new a").unwrap();
+        s.stage(&b, b"new b").unwrap();
+        s.stage(&c, b"new c").unwrap();
+        // Make the last rename fail: a non-empty directory where `c` goes.
+        std::fs::create_dir(&c).unwrap();
+        std::fs::write(c.join("x"), b"").unwrap();
+        assert!(s.commit().is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"old b");
+        assert!(c.is_dir());
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names.len(), 3, "{names:?}");
     }
 
     #[test]
