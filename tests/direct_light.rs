@@ -318,3 +318,57 @@ fn sky_irradiance_on_an_open_plane_is_pi_l() {
         );
     }
 }
+
+/// A wall standing on a floor, lit from one side by a point light below the wall's top: floor
+/// texels entirely on the far side get no light (no leak under the wall), and texels touching
+/// the wall's foot on the lit side are not black (their sample points are moved out from under
+/// the wall), for a wall thicker than a texel and one thinner than a texel.
+#[test]
+fn walls_do_not_leak_and_their_feet_are_not_black() {
+    let texel = 1.0 / 32.0;
+    for thickness in [0.1f32, 0.01] {
+        let mut s = Scene::default();
+        let floor = add(
+            &mut s,
+            uv_plane("floor", 2.0),
+            Vec3::ONE,
+            Affine3A::IDENTITY,
+            true,
+        );
+        let h = thickness / 2.0;
+        let wall = cuboid(
+            "wall",
+            Vec3::new(-h, 0.0, -1.2),
+            Vec3::new(h, 1.0, 1.2),
+            true,
+        );
+        add(&mut s, wall, Vec3::ONE, Affine3A::IDENTITY, true);
+        let light = point_light(Vec3::new(-0.6, 0.5, 0.0), 10.0);
+        s.lights.push(light.clone());
+        let out = bake(&s, &settings(32.0, 16));
+        let (mut dark, mut foot) = (0, 0);
+        for t in texels(&out, floor) {
+            let x = t.position.x;
+            if x - texel / 2.0 > h {
+                assert_eq!(
+                    t.value,
+                    Vec3::ZERO,
+                    "wall {thickness}: texel at x = {x} behind the wall is lit"
+                );
+                dark += 1;
+            } else if x + texel / 2.0 > -h && x - texel / 2.0 < -h {
+                // The texel straddles the lit face of the wall.
+                let to = light.position - Vec3::new(-h, 0.0, t.position.z);
+                let expected =
+                    light.color.x * light.intensity * to.normalize().y / to.length_squared() / PI;
+                assert!(
+                    t.value.x > 0.5 * expected,
+                    "wall {thickness}: texel at x = {x} at the wall's foot is {} (lit floor there: {expected})",
+                    t.value.x
+                );
+                foot += 1;
+            }
+        }
+        assert!(dark > 1000 && foot >= 60, "{dark} {foot}");
+    }
+}
