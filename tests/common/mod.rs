@@ -36,9 +36,10 @@ pub fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, transform: Affine3A, bak
     scene.instances.len() - 1
 }
 
-/// Settings for analytic tests: fixed density, no scene hint, deterministic seed.
+/// Settings for analytic direct-light tests: direct light only, fixed density, no scene hint.
 pub fn settings(density: f32, spp: u32) -> BakeSettings {
     let mut s = BakeSettings::medium();
+    s.method = lightbake::settings::Method::Direct;
     s.texel_density = density;
     s.texel_density_from_scene = false;
     s.samples_per_texel = spp;

@@ -18,7 +18,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lightbake::plan::BakePlan;
 use lightbake::progress::Progress;
 use lightbake::scene::gltf_import::import_gltf;
-use lightbake::settings::{BakeSettings, LightConvention, Quality};
+use lightbake::settings::{BakeSettings, LightConvention, Method, Quality};
+use lightbake::solve::SolverChoice;
+use lightbake::transport::Basis;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum QualityArg {
@@ -32,6 +34,40 @@ enum FormatArg {
     Exr,
     Hdr,
     Ktx2,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum MethodArg {
+    /// Direct light only.
+    Direct,
+    /// Direct light plus interreflection by radiosity over the texels.
+    Radiosity,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SolverArg {
+    /// Chosen from the scene (stated in the plan).
+    Auto,
+    Jacobi,
+    GaussSeidel,
+    /// Progressive refinement (Southwell shooting).
+    Shooting,
+    /// Matrix-free, for scenes whose transport matrix does not fit.
+    StochasticJacobi,
+    /// BiCGStab, for stiff scenes (albedo near 1).
+    Krylov,
+    /// Conjugate gradients on the reciprocity-symmetrised system.
+    KrylovCg,
+    /// Dense LU (small scenes).
+    Direct,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum BasisArg {
+    /// Bilinear between texel centres (what the GPU shows).
+    Linear,
+    /// Constant per texel.
+    Constant,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -55,6 +91,24 @@ struct Args {
     /// Preset for density and samples; the options below override it.
     #[arg(long, value_enum, default_value = "medium")]
     quality: QualityArg,
+    /// How light is computed.
+    #[arg(long, value_enum, default_value = "radiosity")]
+    method: MethodArg,
+    /// Radiosity solver.
+    #[arg(long, value_enum, default_value = "auto")]
+    solver: SolverArg,
+    /// Radiosity basis over the texel grid.
+    #[arg(long, value_enum, default_value = "linear")]
+    basis: BasisArg,
+    /// Form-factor rays per texel (radiosity).
+    #[arg(long)]
+    transport_rays: Option<u32>,
+    /// Largest transport matrix, MiB (above it `auto` goes matrix-free).
+    #[arg(long)]
+    transport_budget: Option<u64>,
+    /// Target relative error of the radiosity solve.
+    #[arg(long)]
+    tolerance: Option<f64>,
     /// Lightmap texels per metre (overrides the preset and the scene's own hint).
     #[arg(long)]
     texel_density: Option<f32>,
@@ -127,6 +181,33 @@ fn settings_from(args: &Args) -> BakeSettings {
     if let Some(v) = args.memory_budget {
         s.memory_budget_mib = v;
     }
+    s.method = match args.method {
+        MethodArg::Direct => Method::Direct,
+        MethodArg::Radiosity => Method::Radiosity,
+    };
+    s.solver = match args.solver {
+        SolverArg::Auto => SolverChoice::Auto,
+        SolverArg::Jacobi => SolverChoice::Jacobi,
+        SolverArg::GaussSeidel => SolverChoice::GaussSeidel,
+        SolverArg::Shooting => SolverChoice::Shooting,
+        SolverArg::StochasticJacobi => SolverChoice::StochasticJacobi,
+        SolverArg::Krylov => SolverChoice::Krylov,
+        SolverArg::KrylovCg => SolverChoice::KrylovCg,
+        SolverArg::Direct => SolverChoice::Direct,
+    };
+    s.basis = match args.basis {
+        BasisArg::Linear => Basis::Linear,
+        BasisArg::Constant => Basis::Constant,
+    };
+    if let Some(v) = args.transport_rays {
+        s.transport_rays = v;
+    }
+    if let Some(v) = args.transport_budget {
+        s.transport_budget_mib = v;
+    }
+    if let Some(v) = args.tolerance {
+        s.solver_tolerance = v;
+    }
     s.formats.exr = args.format.iter().any(|f| matches!(f, FormatArg::Exr));
     s.formats.hdr = args.format.iter().any(|f| matches!(f, FormatArg::Hdr));
     s.formats.ktx2 = args.format.iter().any(|f| matches!(f, FormatArg::Ktx2));
@@ -196,6 +277,16 @@ fn run(args: Args) -> Result<(), String> {
         output.report.texels.moved,
         output.report.texels.filled
     );
+    if let Some(ind) = &output.report.indirect {
+        println!(
+            "radiosity: {} nodes, solver {} ({}), {} iterations, {}",
+            ind.nodes,
+            ind.solver,
+            ind.solver_reason,
+            ind.solution.iterations,
+            ind.solution.stop_reason
+        );
+    }
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
     }

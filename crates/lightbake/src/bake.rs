@@ -12,6 +12,7 @@ use glam::Vec3;
 use crate::bvh::RayScene;
 use crate::direct::{Emitters, direct_light};
 use crate::error::{BakeError, Result};
+use crate::indirect::{self, IndirectReport};
 use crate::lightmap::{LightmapPage, assemble};
 use crate::memory;
 use crate::plan::BakePlan;
@@ -20,6 +21,7 @@ use crate::raster::Patches;
 use crate::report::{BakeReport, StageStats, TexelStats};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
+use crate::transport::{Nodes, Transport};
 use crate::unwrap::{Layout, unwrap_scene};
 
 /// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
@@ -112,7 +114,7 @@ fn bake_in_pool(
     let mut warnings = scene.warnings.clone();
 
     // Plan, and refuse early when the texel count alone would not fit.
-    let plan = stages.run("plan", progress, 1, || {
+    let mut plan = stages.run("plan", progress, 1, || {
         let plan = BakePlan::new(scene, settings);
         let note = format!("{} texels/m", plan.texel_density);
         Ok((plan, 0, note))
@@ -141,6 +143,8 @@ fn bake_in_pool(
         page_texels: layout.page_texels(),
         ..TexelStats::default()
     };
+    let mut indirect_report = None;
+    let mut solver_reason = None;
     let pages = if plan.nothing_to_bake {
         layout
             .pages
@@ -159,7 +163,7 @@ fn bake_in_pool(
             Ok((p, 0, note))
         })?;
         stages.run("validity", progress, patches.patches.len() as u64, || {
-            patches.fix_validity(&rays, settings.seed);
+            patches.fix_validity(&baked_scene, &layout, &rays, settings.seed);
             let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
             Ok(((), patches.rays, note))
         })?;
@@ -190,6 +194,75 @@ fn bake_in_pool(
             );
             Ok((r.irradiance, r.rays, note))
         })?;
+        let mut irradiance = irradiance;
+        if plan.runs("indirect") {
+            let nodes = stages.run("nodes", progress, 1, || {
+                let nodes = Nodes::new(&ctx, settings.basis);
+                let note = format!(
+                    "{} nodes, max albedo {:.3}",
+                    nodes.len(),
+                    nodes.max_albedo()
+                );
+                Ok((nodes, 0, note))
+            })?;
+            let solver_plan = indirect::plan_solver(&ctx, &nodes)?;
+            let transport = if solver_plan.choice.needs_matrix() {
+                Some(stages.run("transport", progress, nodes.len() as u64, || {
+                    let t = indirect::build_transport(&ctx, &nodes, progress);
+                    let note = format!(
+                        "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
+                        settings.transport_rays,
+                        t.nnz(),
+                        t.bytes() as f64 / 1048576.0,
+                        solver_plan.transport_estimate_bytes as f64 / 1048576.0
+                    );
+                    let rays = t.rays;
+                    Ok((t, rays, note))
+                })?)
+            } else {
+                None
+            };
+            let source = indirect::source(&nodes, &irradiance);
+            let solution = stages.run("solve", progress, 0, || {
+                let s = indirect::solve_system(
+                    &ctx,
+                    &nodes,
+                    &solver_plan,
+                    transport.as_ref(),
+                    &source,
+                    progress,
+                );
+                let note = format!("{}: {}", s.solver, s.stop_reason);
+                let rays = s.rays;
+                Ok((s, rays, note))
+            })?;
+            if !solution.converged {
+                warnings.push(format!(
+                    "the {} solver did not reach the tolerance {:.1e}: {}",
+                    solution.solver, settings.solver_tolerance, solution.stop_reason
+                ));
+            }
+            let reflected = indirect::per_patch(&nodes, &solution.indirect, patches.patches.len());
+            for (e, r) in irradiance.iter_mut().zip(&reflected) {
+                *e += *r;
+            }
+            solver_reason = Some(format!(
+                "radiosity, solver {}: {}",
+                solver_plan.choice.name(),
+                solver_plan.reason
+            ));
+            indirect_report = Some(IndirectReport {
+                solver: solution.solver,
+                solver_reason: solver_plan.reason.clone(),
+                basis: settings.basis,
+                nodes: nodes.len(),
+                max_albedo: nodes.max_albedo(),
+                transport_nnz: transport.as_ref().map_or(0, Transport::nnz),
+                transport_bytes: transport.as_ref().map_or(0, Transport::bytes),
+                transport_estimate_bytes: solver_plan.transport_estimate_bytes,
+                solution,
+            });
+        }
         if let Some(bad) = irradiance.iter().position(|e| !e.is_finite()) {
             // An internal error: report it rather than write garbage.
             return Err(BakeError::BadSetting {
@@ -219,12 +292,16 @@ fn bake_in_pool(
         .iter()
         .flat_map(|p| p.texels.iter())
         .fold(Vec3::ZERO, |m, t| m.max(*t));
+    if let Some(reason) = solver_reason {
+        plan.set_reason("indirect", reason);
+    }
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
         scene: scene.name.clone(),
         settings: settings.clone(),
         plan,
         stages: stages.list,
+        indirect: indirect_report,
         texels,
         triangles: scene.instanced_triangle_count(),
         threads,
@@ -247,4 +324,64 @@ fn bake_in_pool(
         pages,
         report,
     })
+}
+
+/// A scene made ready for lighting passes, without running them: plan, unwrap, BVH, texel
+/// patches (validated). For tests, benchmarks and studies that drive the passes themselves.
+pub struct Prepared {
+    /// The unwrapped scene.
+    pub scene: Scene,
+    /// Its layout.
+    pub layout: Layout,
+    /// Ray queries.
+    pub rays: RayScene,
+    /// Texel patches.
+    pub patches: Patches,
+    /// Settings.
+    pub settings: BakeSettings,
+    /// The plan.
+    pub plan: BakePlan,
+}
+
+impl Prepared {
+    /// Plans, unwraps, builds the BVH and the validated patches of `scene`.
+    ///
+    /// # Errors
+    /// As [`bake`] for the stages it runs.
+    pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<Self> {
+        settings.validate()?;
+        scene.validate()?;
+        let plan = BakePlan::new(scene, settings);
+        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        let baked = layout.apply(scene);
+        let rays = RayScene::build(&baked);
+        let mut patches = Patches::build(&baked, &layout, &rays);
+        patches.fix_validity(&baked, &layout, &rays, settings.seed);
+        Ok(Self {
+            scene: baked,
+            layout,
+            rays,
+            patches,
+            settings: settings.clone(),
+            plan,
+        })
+    }
+
+    /// The context the lighting passes read.
+    pub fn ctx(&self) -> BakeContext<'_> {
+        BakeContext {
+            scene: &self.scene,
+            layout: &self.layout,
+            rays: &self.rays,
+            patches: &self.patches,
+            settings: &self.settings,
+            plan: &self.plan,
+        }
+    }
+
+    /// Direct irradiance per patch (lux).
+    pub fn direct(&self) -> Vec<Vec3> {
+        let emitters = Emitters::collect(&self.scene, &self.rays);
+        direct_light(&self.ctx(), &emitters, &Progress::new()).irradiance
+    }
 }

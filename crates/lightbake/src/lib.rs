@@ -11,8 +11,10 @@
 //! 4. [`raster`]: every covered texel becomes a patch; patches inside geometry are fixed.
 //! 5. [`bvh`]: closest-hit and any-hit ray queries (obvhs CWBVH).
 //! 6. [`direct`]: point, spot, directional, sky and emissive-surface light with shadow rays.
-//! 7. [`lightmap`]: pages of E/π, invalid texels filled, padding dilated.
-//! 8. [`output`]: EXR/HDR/KTX2 + PNG preview, baked glTF, manifest, report; atomically.
+//! 7. [`transport`], [`solve`], [`indirect`]: radiosity over the texel nodes — form factors
+//!    (Monte Carlo, hemicube, closed form) and the solver family.
+//! 8. [`lightmap`]: pages of E/π, invalid texels filled, padding dilated.
+//! 9. [`output`]: EXR/HDR/KTX2 + PNG preview, baked glTF, manifest, report; atomically.
 //!
 //! ```no_run
 //! use lightbake::{bake, settings::BakeSettings, progress::Progress};
@@ -34,6 +36,7 @@ pub mod bake;
 pub mod bvh;
 pub mod direct;
 pub mod error;
+pub mod indirect;
 pub mod lightmap;
 pub mod memory;
 pub mod output;
@@ -44,6 +47,8 @@ pub mod report;
 pub mod sampling;
 pub mod scene;
 pub mod settings;
+pub mod solve;
+pub mod transport;
 pub mod unwrap;
 
 pub use bake::{BakeOutput, bake};

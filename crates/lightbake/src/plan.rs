@@ -245,18 +245,41 @@ impl BakePlan {
         let all_black = scene
             .instances
             .iter()
+            .filter(|inst| inst.bake)
             .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
-        stage(
-            "indirect",
-            false,
-            match settings.method {
-                Method::Direct if all_black => {
-                    "method 'direct' computes no interreflection (and every albedo is zero)"
-                        .to_string()
-                }
-                Method::Direct => "method 'direct' computes no interreflection".to_string(),
-            },
-        );
+        let (run_indirect, why) = match settings.method {
+            Method::Direct if all_black => (
+                false,
+                "method 'direct' computes no interreflection (and every albedo is zero)"
+                    .to_string(),
+            ),
+            Method::Direct => (
+                false,
+                "method 'direct' computes no interreflection".to_string(),
+            ),
+            Method::Radiosity if all_black => (
+                false,
+                "every baked surface has zero albedo: nothing is reflected".to_string(),
+            ),
+            Method::Radiosity if !work => (false, why_not.clone()),
+            Method::Radiosity => (
+                true,
+                format!(
+                    "radiosity, {} basis, solver {}{}",
+                    match settings.basis {
+                        crate::transport::Basis::Linear => "piecewise-linear",
+                        crate::transport::Basis::Constant => "piecewise-constant",
+                    },
+                    settings.solver.name(),
+                    if settings.solver == crate::solve::SolverChoice::Auto {
+                        " (chosen once the texels are known)"
+                    } else {
+                        ""
+                    }
+                ),
+            ),
+        };
+        stage("indirect", run_indirect, why);
         stage(
             "dilate",
             work,
@@ -292,6 +315,13 @@ impl BakePlan {
     /// Indices of the lights to evaluate for instance `i`.
     pub fn lights_for(&self, instance: usize) -> &[u32] {
         &self.lights_per_instance[instance]
+    }
+
+    /// Replaces the reason given for a stage (once a decision made later is known).
+    pub fn set_reason(&mut self, name: &str, reason: String) {
+        if let Some(s) = self.stages.iter_mut().find(|s| s.name == name) {
+            s.reason = reason;
+        }
     }
 
     /// Whether the named stage runs.

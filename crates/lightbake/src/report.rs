@@ -70,6 +70,9 @@ pub struct BakeReport {
     pub triangles: usize,
     /// Worker threads.
     pub threads: usize,
+    /// The radiosity pass, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub indirect: Option<crate::indirect::IndirectReport>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// Repairs, compromises and clamps.

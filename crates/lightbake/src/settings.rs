@@ -4,6 +4,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{BakeError, Result};
+use crate::solve::SolverChoice;
+use crate::transport::Basis;
 
 /// How light is computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -11,8 +13,11 @@ use crate::error::{BakeError, Result};
 pub enum Method {
     /// Direct light only: punctual lights, the sun, emissive surfaces and the sky, each with
     /// shadow rays. Interreflected light is not computed.
-    #[default]
     Direct,
+    /// Direct light plus interreflection by radiosity over the texel nodes
+    /// ([`crate::indirect`]). The default.
+    #[default]
+    Radiosity,
 }
 
 /// Named quality presets (`--quality preview|medium|high`).
@@ -78,8 +83,26 @@ pub enum LightConvention {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct BakeSettings {
-    /// How light is computed. Default [`Method::Direct`].
+    /// How light is computed. Default [`Method::Radiosity`].
     pub method: Method,
+    /// Radiosity solver. Default [`SolverChoice::Auto`] (stated in the plan).
+    pub solver: SolverChoice,
+    /// Radiosity basis over the texel grid. Default [`Basis::Linear`].
+    pub basis: Basis,
+    /// Monte Carlo form-factor rays per texel node. Range 1..=65 536.
+    /// Default 128 (medium), 32 (preview), 512 (high).
+    pub transport_rays: u32,
+    /// Largest transport matrix, MiB; beyond it `Auto` falls back to matrix-free stochastic
+    /// Jacobi and the matrix solvers refuse. Default 4096.
+    pub transport_budget_mib: u64,
+    /// Target relative error of the radiosity solve. Since ‖(I − ρF)⁻¹‖∞ ≤ 1/(1 − ρ_max),
+    /// solvers stop at the relative residual ‖S + ρFB − B‖/‖S‖ ≤ target·(1 − ρ_max).
+    /// Range (0, 1). Default 10⁻³.
+    pub solver_tolerance: f64,
+    /// Give the solver up after this many iterations (sweeps). Default 20 000.
+    pub max_solver_iterations: u32,
+    /// Stochastic Jacobi: rays in its first iteration per node. Default 64.
+    pub stochastic_rays_per_node: u32,
     /// Lightmap texels per metre of world-space surface (per axis). Range (0, 100 000].
     /// Default 32 (medium), 12 (preview), 64 (high). A glTF scene may suggest its own in
     /// `scene.extras.lightbake.texel_density`; [`BakeSettings::texel_density_from_scene`] says
@@ -131,13 +154,20 @@ impl Default for BakeSettings {
 impl BakeSettings {
     /// The settings of a quality preset.
     pub fn preset(quality: Quality) -> Self {
-        let (texel_density, samples_per_texel, sky_samples) = match quality {
-            Quality::Preview => (12.0, 4, 16),
-            Quality::Medium => (32.0, 16, 64),
-            Quality::High => (64.0, 64, 256),
+        let (texel_density, samples_per_texel, sky_samples, transport_rays) = match quality {
+            Quality::Preview => (12.0, 4, 16, 32),
+            Quality::Medium => (32.0, 16, 64, 128),
+            Quality::High => (64.0, 64, 256, 512),
         };
         Self {
-            method: Method::Direct,
+            method: Method::Radiosity,
+            solver: SolverChoice::Auto,
+            basis: Basis::Linear,
+            transport_rays,
+            transport_budget_mib: 4096,
+            solver_tolerance: 1e-3,
+            max_solver_iterations: 20_000,
+            stochastic_rays_per_node: 64,
             texel_density,
             texel_density_from_scene: true,
             padding: 2,
@@ -210,6 +240,27 @@ impl BakeSettings {
         }
         if !(1..=65_536).contains(&self.sky_samples) {
             return Err(bad("sky_samples", self.sky_samples, "must be 1..=65536"));
+        }
+        if !(1..=65_536).contains(&self.transport_rays) {
+            return Err(bad(
+                "transport_rays",
+                self.transport_rays,
+                "must be 1..=65536",
+            ));
+        }
+        if !(self.solver_tolerance > 0.0 && self.solver_tolerance < 1.0) {
+            return Err(bad(
+                "solver_tolerance",
+                self.solver_tolerance,
+                "must be in (0, 1)",
+            ));
+        }
+        if self.max_solver_iterations == 0 || self.stochastic_rays_per_node == 0 {
+            return Err(bad(
+                "max_solver_iterations",
+                self.max_solver_iterations,
+                "solver iterations and stochastic rays must be at least 1",
+            ));
         }
         if self.memory_budget_mib == 0 {
             return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));

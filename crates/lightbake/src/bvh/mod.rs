@@ -14,11 +14,11 @@ pub mod workload;
 
 use std::time::Duration;
 
-use glam::{Vec3, Vec3A};
+use glam::{UVec2, Vec3, Vec3A, Vec4};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh},
-    ray::{Ray, RayHit},
+    cwbvh::{CwBvh, builder::build_cwbvh, node::CwBvhNode},
+    ray::Ray,
 };
 
 use crate::scene::Scene;
@@ -81,6 +81,85 @@ pub struct RayScene {
     pub extent: f32,
     /// Core BVH build time.
     pub build_time: Duration,
+}
+
+/// Which of a CWBVH node's eight children the ray's [tmin, tmax] interval meets, as the hit
+/// mask obvhs' traversal expects.
+///
+/// The same slab test as obvhs' `CwBvhNode::intersect_ray`, against the node's quantised
+/// (conservative) child boxes, four children at a time (glam's `Vec4` is SIMD on x86), with
+/// two differences that matter to a baker:
+///
+/// * the interval starts at `ray.tmin`, not at obvhs' fixed 10⁻⁴ (an absolute distance that
+///   drops every hit within 0.1 mm of the origin, so millimetre scenes and rays leaving a
+///   surface next to a wall would miss geometry);
+/// * the exit distance is padded by about eight float spacings of the largest term of the
+///   slab computation, which loses precision to cancellation when a box sits just in front of
+///   the origin; without it an axis-aligned wall (a box of zero thickness) can be missed.
+#[inline(always)]
+fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    let extent = node.compute_extent();
+    let dir_inv = extent * ray.inv_direction;
+    let origin = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    let pad = (origin.abs() + dir_inv.abs() * 255.0).max_element() * (1.0 / (1u32 << 20) as f32);
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let quad = |v: &[u8; 8], i: usize| {
+        Vec4::new(
+            v[4 * i] as f32,
+            v[4 * i + 1] as f32,
+            v[4 * i + 2] as f32,
+            v[4 * i + 3] as f32,
+        )
+    };
+    let neg = (
+        ray.direction.x < 0.0,
+        ray.direction.y < 0.0,
+        ray.direction.z < 0.0,
+    );
+    let mut hit_mask = 0u32;
+    for i in 0..2 {
+        let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, d: f32, o: f32| {
+            let (near, far) = if negative {
+                (quad(hi, i), quad(lo, i))
+            } else {
+                (quad(lo, i), quad(hi, i))
+            };
+            (near * d + Vec4::splat(o), far * d + Vec4::splat(o))
+        };
+        let (nx, fx) = slab(
+            &node.child_min_x,
+            &node.child_max_x,
+            neg.0,
+            dir_inv.x,
+            origin.x,
+        );
+        let (ny, fy) = slab(
+            &node.child_min_y,
+            &node.child_max_y,
+            neg.1,
+            dir_inv.y,
+            origin.y,
+        );
+        let (nz, fz) = slab(
+            &node.child_min_z,
+            &node.child_max_z,
+            neg.2,
+            dir_inv.z,
+            origin.z,
+        );
+        let tmin = nx.max(ny).max(nz).max(Vec4::splat(ray.tmin));
+        let tmax = (fx.min(fy).min(fz) + Vec4::splat(pad)).min(Vec4::splat(ray.tmax));
+        let mask = tmin.cmple(tmax).bitmask();
+        for j in 0..4 {
+            if mask & (1 << j) != 0 {
+                let child = i * 4 + j;
+                let bits = obvhs::cwbvh::node::extract_byte64(child_bits8, child);
+                let index = obvhs::cwbvh::node::extract_byte64(bit_index8, child);
+                hit_mask |= bits << index;
+            }
+        }
+    }
+    hit_mask
 }
 
 /// Möller–Trumbore ray–triangle test (Möller & Trumbore 1997). Returns (t, u, v) for hits
@@ -237,45 +316,77 @@ impl RayScene {
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        let mut hit = RayHit::none();
-        let mut best_uv = (0.0f32, 0.0f32);
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| {
-            match intersect(&self.accel[id], r.origin, r.direction, r.tmin, r.tmax) {
-                Some((t, u, v)) => {
-                    if t < r.tmax {
-                        // obvhs shrinks tmax to the returned t when it is closer.
-                        best_uv = (u, v);
+        let mut traverse_ray = ray;
+        let mut best: Option<(u32, f32, f32)> = None;
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        obvhs::traverse!(
+            self.bvh,
+            node,
+            state,
+            node_hits(node, &traverse_ray, state.oct_inv4),
+            {
+                let id = state.primitive_id as usize;
+                if let Some((t, u, v)) = intersect(
+                    &self.accel[id],
+                    traverse_ray.origin,
+                    traverse_ray.direction,
+                    traverse_ray.tmin,
+                    traverse_ray.tmax,
+                ) {
+                    if t < traverse_ray.tmax || best.is_none() {
+                        traverse_ray.tmax = t;
+                        best = Some((id as u32, u, v));
                     }
-                    t
                 }
-                None => f32::INFINITY,
             }
-        });
-        if !found {
-            return None;
-        }
-        let triangle = self.bvh_to_global[hit.primitive_id as usize];
+        );
+        let (k, u, v) = best?;
+        let triangle = self.bvh_to_global[k as usize];
         let normal = self.triangles[triangle as usize].normal;
         Some(Hit {
-            t: hit.t,
+            t: traverse_ray.tmax,
             triangle,
-            u: best_uv.0,
-            v: best_uv.1,
+            u,
+            v,
             front_face: normal.dot(dir) < 0.0,
         })
     }
 
-    /// Whether anything blocks the segment from `origin` along unit `dir` for t in (tmin, tmax).
+    /// Whether anything blocks the segment from `origin` along unit `dir` for t in [tmin, tmax].
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         if tmax <= tmin {
             return false;
         }
         let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, id| {
-            intersect(&self.accel[id], r.origin, r.direction, r.tmin, r.tmax)
-                .map_or(f32::INFINITY, |h| h.0)
-        })
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        let mut hit = false;
+        'outer: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                node_hits(node, &ray, state.oct_inv4),
+                {
+                    let id = state.primitive_id as usize;
+                    if intersect(
+                        &self.accel[id],
+                        ray.origin,
+                        ray.direction,
+                        ray.tmin,
+                        ray.tmax,
+                    )
+                    .is_some()
+                    {
+                        hit = true;
+                        break 'outer;
+                    }
+                }
+            );
+        }
+        hit
     }
 
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
@@ -427,6 +538,39 @@ mod tests {
             .closest_hit(Vec3::new(0.2, -1.0, 0.3), Vec3::Y, 0.0, f32::INFINITY)
             .unwrap();
         assert!(!back.front_face);
+    }
+
+    #[test]
+    fn hits_next_to_the_origin_are_found() {
+        // A ray leaving a floor 0.08 mm from a wall, nearly along the floor, hits the wall
+        // 0.09 mm away; obvhs' own node test (fixed 1e-4 minimum) culls it.
+        let s = crate::scene::testscenes::furnace_box(1.0, 0.5, 1.0);
+        let rs = RayScene::build(&s);
+        let origin = Vec3::new(0.499_915_7, -0.499_997_3, 0.219_412);
+        let dir = Vec3::new(0.960_614_1, 0.230_101_6, 0.155_800_6);
+        let bvh = rs.closest_hit(origin, dir, 0.0, f32::INFINITY);
+        let brute = rs
+            .closest_hit_brute_force(origin, dir, 0.0, f32::INFINITY)
+            .unwrap();
+        assert_eq!(bvh.map(|h| h.triangle), Some(brute.triangle));
+        assert!(brute.t < 1e-4);
+        assert!(rs.occluded(origin, dir, 0.0, 1.0));
+        // A millimetre-sized box is traced like a metre-sized one.
+        let mut tiny = crate::scene::testscenes::furnace_box(0.001, 0.5, 1.0);
+        tiny.name = "tiny".into();
+        let rs = RayScene::build(&tiny);
+        let mut misses = 0;
+        for i in 0..2000u32 {
+            let u = sobol_02(i, 3);
+            let dir = crate::sampling::uniform_cone(Vec3::Y, -1.0, u);
+            if rs
+                .closest_hit(Vec3::splat(0.0001), dir, 0.0, f32::INFINITY)
+                .is_none()
+            {
+                misses += 1;
+            }
+        }
+        assert_eq!(misses, 0, "rays from inside a closed 1 mm box escaped");
     }
 
     #[test]

@@ -262,12 +262,15 @@ pub fn direct_light(
     }
 }
 
-/// The representative point of a patch as a surface point.
-fn representative(p: &Patch) -> SurfacePoint {
+/// The representative point of a patch as a surface point (its barycentrics are not tracked:
+/// the point may have been moved off its triangle by the validity pass).
+pub fn representative(p: &Patch) -> SurfacePoint {
     SurfacePoint {
         position: p.position,
         normal: p.normal,
         geometric_normal: p.geometric_normal,
+        triangle: p.triangle,
+        bary: Vec2::splat(1.0 / 3.0),
     }
 }
 
@@ -275,13 +278,37 @@ fn representative(p: &Patch) -> SurfacePoint {
 /// or the representative point when the square point misses them (partly covered texel) or
 /// cannot see the representative point (geometry in between).
 fn footprint_sample(ctx: &Ctx<'_>, p: &Patch, s: u32, rays: &mut u64) -> SurfacePoint {
+    footprint_point(
+        ctx.layout,
+        ctx.patches,
+        &ctx.surface,
+        ctx.rays,
+        p,
+        s,
+        ctx.settings.seed,
+        rays,
+    )
+}
+
+/// Point `s` of a patch's footprint (see [`footprint_sample`]'s rules); shared by the passes
+/// that sample texel footprints.
+#[allow(clippy::too_many_arguments)]
+pub fn footprint_point(
+    layout: &Layout,
+    patches: &Patches,
+    surface: &Surface<'_>,
+    rays_scene: &RayScene,
+    p: &Patch,
+    s: u32,
+    seed: u32,
+    rays: &mut u64,
+) -> SurfacePoint {
     let rep = representative(p);
-    let footprint = ctx.patches.footprint_of(p);
-    let Some(rect) = ctx.layout.instances[p.instance as usize] else {
+    let footprint = patches.footprint_of(p);
+    let Some(rect) = layout.instances[p.instance as usize] else {
         return rep;
     };
     let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
-    let seed = ctx.settings.seed;
     for attempt in 0..4u32 {
         let u = if attempt == 0 {
             sobol_02(s, p.rng(seed, stream::FOOTPRINT))
@@ -293,20 +320,14 @@ fn footprint_sample(ctx: &Ctx<'_>, p: &Patch, s: u32, rays: &mut u64) -> Surface
             )
         };
         let q = texel + u;
-        let Some(sp) = footprint.iter().find_map(|&t| ctx.surface.point(t, q, 0.0)) else {
+        let Some(sp) = footprint.iter().find_map(|&t| surface.point(t, q, 0.0)) else {
             continue;
         };
         if p.flags & Patch::NEAR_GEOMETRY != 0 {
-            // Only points that see the representative point (same side of any wall).
-            let a = ctx.rays.offset(rep.position, rep.geometric_normal);
-            let b = ctx.rays.offset(sp.position, sp.geometric_normal);
-            let d = b - a;
-            let len = d.length();
-            if len > 0.0 {
-                *rays += 1;
-                if ctx.rays.occluded(a, d / len, 0.0, len) {
-                    return rep;
-                }
+            // Only open surface on the representative point's side of any wall.
+            *rays += 2;
+            if !patches.sees(p, &sp, rays_scene) {
+                return rep;
             }
         }
         return sp;

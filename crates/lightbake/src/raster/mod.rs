@@ -88,6 +88,10 @@ pub struct SurfacePoint {
     pub normal: Vec3,
     /// Unit geometric normal.
     pub geometric_normal: Vec3,
+    /// Global triangle the point lies on.
+    pub triangle: u32,
+    /// Barycentric weights of the triangle's second and third vertices.
+    pub bary: Vec2,
 }
 
 /// One texel of one mesh's rectangle, in mesh-local terms (before instancing).
@@ -180,6 +184,12 @@ pub(crate) fn barycentric_2d(t: [Vec2; 3], q: Vec2, tol: f32) -> Option<Vec2> {
     (u >= -tol && v >= -tol && u + v <= 1.0 + tol).then_some(Vec2::new(u, v))
 }
 
+/// Footprint samples that measure the visible share of a patch near geometry.
+const VISIBILITY_SAMPLES: u32 = 16;
+
+/// How far (texels) a texel's representative point is pulled into its triangle.
+const INSET: f32 = 0.05;
+
 /// Conservatively rasterises one mesh's triangles in its `width × height` texel rectangle.
 pub fn rasterize_mesh(uv1: &[Vec2], indices: &[u32], width: u32, height: u32) -> MeshRaster {
     let scale = Vec2::new(width as f32, height as f32);
@@ -230,6 +240,14 @@ pub fn rasterize_mesh(uv1: &[Vec2], indices: &[u32], width: u32, height: u32) ->
                 (e.1, e.3)
             }
         };
+        // xatlas offsets charts by half a texel, so border texel centres lie exactly on chart
+        // edges — on the geometric edge where two walls meet. Evaluated there, half of a
+        // gather hemisphere leaks out through the edge. Pull the point a little into its
+        // triangle (towards the centroid, at most INSET texels).
+        let tri = &indices[3 * owner as usize..3 * owner as usize + 3];
+        let centroid = tri.iter().map(|&i| uv1[i as usize] * scale).sum::<Vec2>() / 3.0;
+        let to_centroid = centroid - point;
+        let point = point + to_centroid * (INSET / to_centroid.length().max(INSET));
         texels.push(LocalTexel {
             x,
             y,
@@ -293,6 +311,8 @@ impl<'a> Surface<'a> {
             position,
             normal: n,
             geometric_normal: g,
+            triangle,
+            bary: Vec2::new(u, v),
         })
     }
 }
@@ -384,10 +404,15 @@ impl Patches {
     }
 
     /// Finds patches inside or behind geometry, moves them out or marks them invalid, and
-    /// flags those with geometry within a texel (see the module docs).
-    pub fn fix_validity(&mut self, rays: &RayScene, seed: u32) {
+    /// flags those with geometry within a texel (see the module docs). The area of a flagged
+    /// patch is reduced to the part of its footprint that its representative point sees (the
+    /// rest is hidden under geometry, such as a floor texel half under a wall), so that areas
+    /// and form factors stay reciprocal.
+    pub fn fix_validity(&mut self, scene: &Scene, layout: &Layout, rays: &RayScene, seed: u32) {
         const TANGENT_RAYS: u32 = 8;
         const HEMISPHERE_RAYS: u32 = 16;
+        const NORMAL_PROBES: u32 = 4;
+        let surface = Surface::new(scene, layout, rays);
         let results: Vec<(Vec3, u8, u64)> = self
             .patches
             .par_iter()
@@ -398,6 +423,25 @@ impl Patches {
                 let (t, b) = basis(g);
                 let origin = rays.offset(p.position, g);
                 let mut near = false;
+                // Geometry hanging just above the texel (a lamp under a ceiling): short probes
+                // along the normal from points of the footprint.
+                if let Some(rect) = layout.instances[p.instance as usize] {
+                    let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+                    let footprint = self.footprint_of(p);
+                    for k in 0..NORMAL_PROBES {
+                        let q = texel + sobol_02(k, p.rng(seed, 0x0e4a));
+                        if let Some(sp) =
+                            footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0))
+                        {
+                            rays_used += 1;
+                            let o = rays.offset(sp.position, sp.geometric_normal);
+                            if rays.occluded(o, sp.geometric_normal, 0.0, reach) {
+                                near = true;
+                                break;
+                            }
+                        }
+                    }
+                }
                 let mut exit: Option<(f32, Vec3)> = None;
                 // Probe along the surface (slightly lifted so the surface itself is not hit).
                 for k in 0..TANGENT_RAYS {
@@ -454,6 +498,132 @@ impl Patches {
             self.moved += usize::from(flags & Patch::MOVED != 0);
             self.invalid += usize::from(flags & Patch::VALID == 0);
         }
+        // Texels next to an invalid texel (geometry hides the surface there) are near
+        // geometry too, even where the probes missed it.
+        let mut mark = Vec::new();
+        for (i, p) in self.patches.iter().enumerate() {
+            if p.flags & Patch::NEAR_GEOMETRY != 0 {
+                continue;
+            }
+            let w = layout.pages[p.page as usize].width as i64;
+            let h = layout.pages[p.page as usize].height as i64;
+            let index = &self.page_index[p.page as usize];
+            let touches_invalid = (-1i64..=1).any(|dy| {
+                (-1i64..=1).any(|dx| {
+                    let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
+                    if x < 0 || y < 0 || x >= w || y >= h {
+                        return false;
+                    }
+                    let j = index[(y * w + x) as usize];
+                    j != u32::MAX && !self.patches[j as usize].is_valid()
+                })
+            });
+            if touches_invalid {
+                mark.push(i);
+            }
+        }
+        for i in mark {
+            self.patches[i].flags |= Patch::NEAR_GEOMETRY;
+        }
+        // Visible share of the footprint of patches near geometry.
+        let shares: Vec<(f32, u64)> = self
+            .patches
+            .par_iter()
+            .map(|p| {
+                if p.flags & Patch::NEAR_GEOMETRY == 0 || !p.is_valid() {
+                    return (1.0, 0);
+                }
+                let (visible, total, traced) =
+                    self.visible_footprint(p, layout, &surface, rays, seed);
+                let share = if total == 0 {
+                    1.0
+                } else {
+                    (visible as f32 / total as f32).max(1.0 / VISIBILITY_SAMPLES as f32)
+                };
+                (share, traced)
+            })
+            .collect();
+        for (p, (share, traced)) in self.patches.iter_mut().zip(shares) {
+            p.area *= share;
+            self.rays += traced;
+        }
+    }
+
+    /// Stratified points of a patch's footprint on its surface, with whether each is visible
+    /// from the representative point: (visible, on the surface, rays traced).
+    fn visible_footprint(
+        &self,
+        p: &Patch,
+        layout: &Layout,
+        surface: &Surface<'_>,
+        rays: &RayScene,
+        seed: u32,
+    ) -> (u32, u32, u64) {
+        let Some(rect) = layout.instances[p.instance as usize] else {
+            return (0, 0, 0);
+        };
+        let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+        let footprint = self.footprint_of(p);
+        let (mut visible, mut total, mut traced) = (0, 0, 0);
+        for s in 0..VISIBILITY_SAMPLES {
+            let q = texel + sobol_02(s, p.rng(seed, 0x51b1e));
+            let Some(sp) = footprint.iter().find_map(|&t| surface.point(t, q, 0.0)) else {
+                continue;
+            };
+            total += 1;
+            traced += 2;
+            if self.sees(p, &sp, rays) {
+                visible += 1;
+            }
+        }
+        (visible, total, traced)
+    }
+
+    /// Whether a point of patch `p`'s footprint is open surface (always, for patches not near
+    /// geometry): it is not hidden from the representative point by geometry (a floor texel
+    /// half under a wall), and it does not face the back of a single-sided surface within a
+    /// texel (a ceiling texel sandwiched above a lamp hung just below it).
+    pub fn sees(&self, p: &Patch, sp: &SurfacePoint, rays: &RayScene) -> bool {
+        if p.flags & Patch::NEAR_GEOMETRY == 0 {
+            return true;
+        }
+        let a = rays.offset(p.position, p.geometric_normal);
+        let b = rays.offset(sp.position, sp.geometric_normal);
+        let d = b - a;
+        let len = d.length();
+        if len > 0.0 && rays.occluded(a, d / len, 0.0, len) {
+            return false;
+        }
+        match rays.closest_hit(b, sp.geometric_normal, 0.0, p.texel_size) {
+            Some(h) => h.front_face || rays.triangles[h.triangle as usize].double_sided,
+            None => true,
+        }
+    }
+
+    /// Whether a point `sp` in the footprint of texel `texel` is open surface, for the node
+    /// `anchor` whose support it is sampled for: for a valid texel, [`Patches::sees`]; for an
+    /// invalid one (its own point is inside geometry) the point must see `anchor`'s point and
+    /// face no back of a single-sided surface within a texel (the visible rim of a ceiling
+    /// texel whose centre lies above a lamp, but not a floor under a block).
+    pub fn open_point(
+        &self,
+        texel: &Patch,
+        sp: &SurfacePoint,
+        anchor: &Patch,
+        rays: &RayScene,
+    ) -> bool {
+        if texel.is_valid() {
+            return self.sees(texel, sp, rays);
+        }
+        let a = rays.offset(anchor.position, anchor.geometric_normal);
+        let b = rays.offset(sp.position, sp.geometric_normal);
+        let d = b - a;
+        let len = d.length();
+        if len > 0.0 && rays.occluded(a, d / len, 0.0, len) {
+            return false;
+        }
+        rays.closest_hit(b, sp.geometric_normal, 0.0, texel.texel_size)
+            .is_none()
     }
 
     /// The footprint triangles of a patch.

@@ -414,6 +414,37 @@ pub fn cornell_box(light: CornellLight) -> Scene {
     s
 }
 
+/// The radiosity "furnace": the inside of a closed `size`-metre cube whose six faces all emit
+/// luminance `luminance` (nits) and reflect with albedo `albedo`. Every point sees only the
+/// box, so the irradiance everywhere is H = π·L/(1 − ρ) and a lightmap texel stores
+/// L/(1 − ρ).
+pub fn furnace_box(size: f32, albedo: f32, luminance: f32) -> Scene {
+    let mut s = Scene {
+        name: format!("furnace_{albedo}"),
+        ..Scene::default()
+    };
+    let mat = s.add_material(Material {
+        emissive: Vec3::splat(luminance),
+        ..Material::diffuse("furnace", Vec3::splat(albedo))
+    });
+    let h = size / 2.0;
+    let outer = cuboid("box", Vec3::splat(-h), Vec3::splat(h), false);
+    // Turn each face inwards: reverse the winding and the normals.
+    let mut inner = outer;
+    for t in inner.indices.chunks_exact_mut(3) {
+        t.swap(1, 2);
+    }
+    for n in &mut inner.normals {
+        *n = -*n;
+    }
+    inner.name = "furnace".into();
+    inner.material = Some(mat);
+    let m = s.add_mesh(inner);
+    s.instances
+        .push(Instance::new("furnace", m, Affine3A::IDENTITY));
+    s
+}
+
 /// A room 8 × 3 × 6 m (inside) with 0.2 m thick walls, floor and ceiling; a 2.4 × 1.5 m
 /// window in the +Z wall; two 0.4 m pillars; a 2 cm thin partition wall; the sun
 /// (50 000 lx, angular radius 0.01 rad) shining in through the window; a blue sky of

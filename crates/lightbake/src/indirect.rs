@@ -1,0 +1,176 @@
+//! Interreflected light by radiosity over the texel nodes.
+//!
+//! lightbake splits the light at every node into the direct irradiance H_d (from the direct
+//! pass, which treats lights, the sun, the sky and emitters exactly) and the irradiance from
+//! reflected light H_r = F·B, where B is the exitance of reflected light:
+//!
+//! B = ρ∘(H_d + F·B)  ⇔  (I − diag(ρ)·F)·B = S,  S = ρ∘H_d,
+//!
+//! and the lightmap stores (H_d + F·B)/π. In a closed room of uniform emission E = π·L_e and
+//! albedo ρ this gives H = E/(1 − ρ), the classic B = E/(1 − ρ) with the emission counted in
+//! H_d. Emitters are not counted twice: their emission is direct light, and B carries only
+//! reflection.
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::bake::BakeContext;
+use crate::error::{BakeError, Result};
+use crate::progress::Progress;
+use crate::solve::stochastic_jacobi::{self, StochasticOptions};
+use crate::solve::{self, DIRECT_MAX_NODES, Solution, SolveOptions, SolverChoice, System};
+use crate::transport::{Basis, HitMapper, Nodes, Transport};
+
+/// Which solver runs, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SolverPlan {
+    /// The solver (never `Auto`).
+    pub choice: SolverChoice,
+    /// Why.
+    pub reason: String,
+    /// Estimated bytes of the transport matrix (0 when not estimated).
+    pub transport_estimate_bytes: u64,
+}
+
+/// Counters of the radiosity pass, for the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IndirectReport {
+    /// Solver name.
+    pub solver: &'static str,
+    /// Why it was chosen.
+    pub solver_reason: String,
+    /// Basis.
+    pub basis: Basis,
+    /// Unknowns (valid texels).
+    pub nodes: usize,
+    /// Largest albedo component.
+    pub max_albedo: f32,
+    /// Transport matrix: stored entries (0 when matrix-free).
+    pub transport_nnz: usize,
+    /// Transport matrix: bytes (0 when matrix-free).
+    pub transport_bytes: u64,
+    /// Transport matrix: estimate made before building it.
+    pub transport_estimate_bytes: u64,
+    /// The solver's result (history, iterations, stop reason).
+    pub solution: Solution,
+}
+
+/// Decides the solver for these nodes (resolving `Auto`) and checks the matrix budget.
+///
+/// # Errors
+/// [`BakeError::OverMemoryBudget`] when a matrix solver was asked for and the matrix does not
+/// fit; [`BakeError::BadSetting`] when `direct` is asked for too many nodes.
+pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
+    let s = ctx.settings;
+    let budget = s.transport_budget_mib * 1024 * 1024;
+    let estimate = if s.solver.needs_matrix() {
+        Transport::estimate_bytes(ctx, nodes, s.transport_rays, s.basis)
+    } else {
+        0
+    };
+    let fits = estimate <= budget;
+    let (choice, reason) = match s.solver {
+        SolverChoice::Auto => solve::choose(nodes.len(), nodes.max_albedo(), fits),
+        c => (c, "chosen in the settings".to_string()),
+    };
+    if choice.needs_matrix() && !fits {
+        return Err(BakeError::OverMemoryBudget {
+            needed_mib: estimate as f64 / 1048576.0,
+            budget_mib: s.transport_budget_mib as f64,
+            breakdown: format!(
+                "the {} solver needs the transport matrix of {} nodes × {} rays; use --solver stochastic-jacobi (matrix-free) or raise the transport budget",
+                choice.name(),
+                nodes.len(),
+                s.transport_rays
+            ),
+        });
+    }
+    if choice == SolverChoice::Direct && nodes.len() > DIRECT_MAX_NODES {
+        return Err(BakeError::BadSetting {
+            name: "solver",
+            value: "direct".into(),
+            message: format!(
+                "the dense LU solve is limited to {DIRECT_MAX_NODES} nodes and this bake has {}; use auto or krylov",
+                nodes.len()
+            ),
+        });
+    }
+    Ok(SolverPlan {
+        choice,
+        reason,
+        transport_estimate_bytes: estimate,
+    })
+}
+
+/// S = ρ∘H_d per node, from per-patch direct irradiance.
+pub fn source(nodes: &Nodes, direct: &[Vec3]) -> Vec<Vec3> {
+    nodes
+        .patch
+        .iter()
+        .zip(&nodes.albedo)
+        .map(|(&p, rho)| *rho * direct[p as usize])
+        .collect()
+}
+
+/// Builds the transport matrix (Monte Carlo, `settings.transport_rays` per node).
+pub fn build_transport(ctx: &BakeContext<'_>, nodes: &Nodes, progress: &Progress) -> Transport {
+    Transport::build_monte_carlo(
+        ctx,
+        nodes,
+        ctx.settings.transport_rays,
+        ctx.settings.basis,
+        progress,
+    )
+}
+
+/// Solves for B and returns the solution (with `indirect` = F·B per node).
+pub fn solve_system(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    plan: &SolverPlan,
+    transport: Option<&Transport>,
+    source: &[Vec3],
+    progress: &Progress,
+) -> Solution {
+    let s = ctx.settings;
+    let residual_tolerance = residual_tolerance(s.solver_tolerance, nodes.max_albedo());
+    match (plan.choice, transport) {
+        (SolverChoice::StochasticJacobi, _) | (_, None) => {
+            let mapper = HitMapper::new(*ctx, nodes, s.basis);
+            let options = StochasticOptions {
+                first_iteration_rays: nodes.len() as u64 * s.stochastic_rays_per_node as u64,
+                tolerance: residual_tolerance,
+                max_iterations: s.max_solver_iterations,
+            };
+            stochastic_jacobi::solve(ctx, nodes, &mapper, source, &options, progress)
+        }
+        (choice, Some(transport)) => {
+            let system = System {
+                transport,
+                albedo: &nodes.albedo,
+                source,
+                area: &nodes.area,
+            };
+            let options = SolveOptions {
+                tolerance: residual_tolerance,
+                max_iterations: s.max_solver_iterations,
+            };
+            solve::solve_matrix(choice, &system, &options)
+        }
+    }
+}
+
+/// The relative residual that guarantees relative error `target`:
+/// target·(1 − ρ_max), at least 10⁻¹².
+pub fn residual_tolerance(target: f64, max_albedo: f32) -> f64 {
+    (target * (1.0 - max_albedo as f64)).max(1e-12)
+}
+
+/// Per-patch irradiance from reflected light (zero for invalid patches).
+pub fn per_patch(nodes: &Nodes, indirect: &[Vec3], patches: usize) -> Vec<Vec3> {
+    let mut out = vec![Vec3::ZERO; patches];
+    for (n, &p) in nodes.patch.iter().enumerate() {
+        out[p as usize] = indirect[n];
+    }
+    out
+}

@@ -1,0 +1,326 @@
+//! Solvers of the radiosity system (I − diag(ρ)·F)·B = S over the texel nodes, RGB.
+//!
+//! In lightbake's split formulation (see [`crate::indirect`]) S = ρ·H_direct, so B is the
+//! exitance of *reflected* light and H = H_direct + F·B the total irradiance a texel stores
+//! (over π). Every solver records a [`History`] of (time, iteration, relative residual
+//! ‖S + ρFB − B‖ / ‖S‖, error bound) with ‖·‖ the area-weighted RMS over nodes and channels.
+//!
+//! | solver | module | source |
+//! |---|---|---|
+//! | Jacobi | [`jacobi`] | gathering, B ← S + ρFB |
+//! | Gauss–Seidel | [`gauss_seidel`] | gathering in place |
+//! | progressive refinement (Southwell) | [`shooting`] | Cohen, Chen, Wallace & Greenberg 1988 |
+//! | stochastic Jacobi (matrix-free) | [`stochastic_jacobi`] | Bekaert; Dutré et al. ch. 6.3 |
+//! | BiCGStab, conjugate gradients | [`krylov`] | van der Vorst 1992; Hestenes & Stiefel 1952 |
+//! | dense LU | [`direct`] | partial pivoting; the reference |
+//!
+//! For the contracting iterations (Jacobi, Gauss–Seidel) the a-posteriori bound
+//! ‖B − Bₖ‖∞ ≤ ρ_max/(1 − ρ_max)·‖Bₖ − Bₖ₋₁‖∞ is recorded (F's rows sum to at most 1).
+
+pub mod direct;
+pub mod gauss_seidel;
+pub mod jacobi;
+pub mod krylov;
+pub mod shooting;
+pub mod stochastic_jacobi;
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::transport::Transport;
+
+/// Which solver to use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverChoice {
+    /// Chosen from the scene: LU for small systems, BiCGStab when the albedo is high
+    /// (ρ_max > 0.9), Gauss–Seidel otherwise, stochastic Jacobi when the matrix does not fit.
+    #[default]
+    Auto,
+    /// Jacobi gathering.
+    Jacobi,
+    /// Gauss–Seidel gathering.
+    GaussSeidel,
+    /// Progressive refinement (Southwell shooting).
+    Shooting,
+    /// Stochastic Jacobi, matrix-free.
+    StochasticJacobi,
+    /// BiCGStab on the unsymmetric system.
+    Krylov,
+    /// Conjugate gradients on the reciprocity-symmetrised system.
+    KrylovCg,
+    /// Dense LU (small systems only).
+    Direct,
+}
+
+impl SolverChoice {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Jacobi => "jacobi",
+            Self::GaussSeidel => "gauss-seidel",
+            Self::Shooting => "shooting",
+            Self::StochasticJacobi => "stochastic-jacobi",
+            Self::Krylov => "krylov",
+            Self::KrylovCg => "krylov-cg",
+            Self::Direct => "direct",
+        }
+    }
+
+    /// Whether the solver needs the transport matrix.
+    pub fn needs_matrix(self) -> bool {
+        !matches!(self, Self::StochasticJacobi)
+    }
+}
+
+/// The linear system (I − diag(ρ)·F)·B = S.
+#[derive(Clone, Copy)]
+pub struct System<'a> {
+    /// F.
+    pub transport: &'a Transport,
+    /// ρ per node.
+    pub albedo: &'a [Vec3],
+    /// S per node.
+    pub source: &'a [Vec3],
+    /// Node areas (weights of the norms).
+    pub area: &'a [f32],
+}
+
+/// Stopping rules.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolveOptions {
+    /// Stop when the relative residual ‖S + ρFB − B‖/‖S‖ falls below this. Default 10⁻³.
+    /// (The bake derives it from its error target: target × (1 − ρ_max).)
+    pub tolerance: f64,
+    /// Give up after this many iterations (sweeps; for shooting, shots / nodes). Default 20 000.
+    pub max_iterations: u32,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-3,
+            max_iterations: 20_000,
+        }
+    }
+}
+
+/// One point of a solver's history.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct HistoryEntry {
+    /// Seconds since the solve started.
+    pub seconds: f64,
+    /// Iterations so far (sweeps; equivalent sweeps for shooting).
+    pub iteration: f64,
+    /// ‖S + ρFB − B‖ / ‖S‖ (for stochastic Jacobi: ‖ΔB‖ / ‖B‖, the unshot fraction).
+    pub residual: f64,
+    /// A bound on ‖B − Bₖ‖∞ / ‖Bₖ‖∞, when the method has one.
+    pub error_bound: Option<f64>,
+}
+
+/// A solver's result.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Solution {
+    /// Solver used.
+    pub solver: &'static str,
+    /// Reflected exitance B per node.
+    #[serde(skip)]
+    pub b: Vec<Vec3>,
+    /// Irradiance from reflected light per node, F·B (filled by [`finish`] for matrix
+    /// solvers; accumulated directly by stochastic Jacobi).
+    #[serde(skip)]
+    pub indirect: Vec<Vec3>,
+    /// History, in order.
+    pub history: Vec<HistoryEntry>,
+    /// The tolerance was reached.
+    pub converged: bool,
+    /// Iterations done.
+    pub iterations: f64,
+    /// Rays traced by the solver itself (stochastic Jacobi).
+    pub rays: u64,
+    /// Why it stopped, in words.
+    pub stop_reason: String,
+}
+
+/// Area-weighted RMS over nodes and channels.
+pub fn norm(x: &[DVec3], area: &[f32]) -> f64 {
+    let (mut s, mut a) = (0.0f64, 0.0f64);
+    for (v, &w) in x.iter().zip(area) {
+        s += w as f64 * v.length_squared();
+        a += w as f64;
+    }
+    if a > 0.0 { (s / a).sqrt() } else { 0.0 }
+}
+
+/// Largest component over all nodes.
+pub fn max_norm(x: &[DVec3]) -> f64 {
+    x.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()))
+}
+
+/// Widens to double precision.
+pub fn to_f64(x: &[Vec3]) -> Vec<DVec3> {
+    x.iter().map(|v| v.as_dvec3()).collect()
+}
+
+/// Narrows to single precision.
+pub fn to_f32(x: &[DVec3]) -> Vec<Vec3> {
+    x.iter().map(|v| v.as_vec3()).collect()
+}
+
+impl System<'_> {
+    /// Number of unknowns.
+    pub fn len(&self) -> usize {
+        self.source.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.source.is_empty()
+    }
+
+    /// Largest albedo component.
+    pub fn max_albedo(&self) -> f32 {
+        self.albedo
+            .iter()
+            .fold(0.0f32, |m, a| m.max(a.max_element()))
+    }
+
+    /// ρ of node i in double precision.
+    #[inline]
+    pub fn rho(&self, i: usize) -> DVec3 {
+        self.albedo[i].as_dvec3()
+    }
+
+    /// S of node i in double precision.
+    #[inline]
+    pub fn s(&self, i: usize) -> DVec3 {
+        self.source[i].as_dvec3()
+    }
+
+    /// r = S + ρ∘(F·b) − b, in double precision.
+    pub fn residual(&self, b: &[DVec3]) -> Vec<DVec3> {
+        let mut fb = vec![DVec3::ZERO; b.len()];
+        self.transport.mul64(b, &mut fb);
+        (0..b.len())
+            .map(|i| self.s(i) + self.rho(i) * fb[i] - b[i])
+            .collect()
+    }
+
+    /// ‖S‖ (area-weighted RMS), at least 10⁻³⁰⁰.
+    pub fn source_norm(&self) -> f64 {
+        let s: Vec<DVec3> = to_f64(self.source);
+        norm(&s, self.area).max(1e-300)
+    }
+
+    /// ‖r‖ / ‖S‖.
+    pub fn relative_residual(&self, b: &[DVec3]) -> f64 {
+        norm(&self.residual(b), self.area) / self.source_norm()
+    }
+
+    /// The bound ‖B − b‖∞ / ‖b‖∞ ≤ ‖r‖∞ / ((1 − ρ_max)·‖b‖∞), from
+    /// ‖(I − ρF)⁻¹‖∞ ≤ 1/(1 − ρ_max) (F's rows sum to at most 1).
+    pub fn error_bound(&self, b: &[DVec3], r: &[DVec3]) -> Option<f64> {
+        let rho = self.max_albedo() as f64;
+        (rho < 1.0).then(|| max_norm(r) / ((1.0 - rho) * max_norm(b).max(1e-300)))
+    }
+}
+
+/// Records history entries against a start time.
+pub struct Recorder {
+    start: Instant,
+    /// The entries.
+    pub history: Vec<HistoryEntry>,
+}
+
+impl Default for Recorder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Recorder {
+    /// Starts the clock.
+    pub fn new() -> Self {
+        Self {
+            start: Instant::now(),
+            history: Vec::new(),
+        }
+    }
+
+    /// Adds an entry.
+    pub fn record(&mut self, iteration: f64, residual: f64, error_bound: Option<f64>) {
+        self.history.push(HistoryEntry {
+            seconds: self.start.elapsed().as_secs_f64(),
+            iteration,
+            residual,
+            error_bound,
+        });
+    }
+}
+
+/// Fills `indirect` = F·B for a matrix solver's solution.
+pub fn finish(system: &System<'_>, mut solution: Solution) -> Solution {
+    let b = to_f64(&solution.b);
+    let mut fb = vec![DVec3::ZERO; b.len()];
+    system.transport.mul64(&b, &mut fb);
+    solution.indirect = to_f32(&fb);
+    solution
+}
+
+/// Runs a matrix solver (everything but stochastic Jacobi and `Auto`).
+///
+/// # Panics
+/// For [`SolverChoice::Auto`] and [`SolverChoice::StochasticJacobi`] (resolve `Auto` with
+/// [`choose`]; stochastic Jacobi needs the scene, see [`stochastic_jacobi::solve`]).
+pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOptions) -> Solution {
+    let s = match choice {
+        SolverChoice::Jacobi => jacobi::solve(system, options),
+        SolverChoice::GaussSeidel => gauss_seidel::solve(system, options),
+        SolverChoice::Shooting => shooting::solve(system, options),
+        SolverChoice::Krylov => krylov::bicgstab(system, options),
+        SolverChoice::KrylovCg => krylov::conjugate_gradient(system, options),
+        SolverChoice::Direct => direct::solve(system),
+        SolverChoice::Auto | SolverChoice::StochasticJacobi => {
+            panic!("solve_matrix called with {}", choice.name())
+        }
+    };
+    finish(system, s)
+}
+
+/// Largest system the dense LU solver accepts (its n² memory and n³ time).
+pub const DIRECT_MAX_NODES: usize = 4096;
+/// Below this many nodes `Auto` picks the dense LU solve.
+pub const AUTO_DIRECT_NODES: usize = 1500;
+
+/// Resolves `Auto`: (choice, reason).
+pub fn choose(nodes: usize, max_albedo: f32, matrix_fits: bool) -> (SolverChoice, String) {
+    if !matrix_fits {
+        return (
+            SolverChoice::StochasticJacobi,
+            "the transport matrix is over its memory budget: matrix-free stochastic Jacobi".into(),
+        );
+    }
+    if nodes <= AUTO_DIRECT_NODES {
+        return (
+            SolverChoice::Direct,
+            format!("{nodes} nodes: a dense LU solve is exact and quick"),
+        );
+    }
+    if max_albedo > 0.9 {
+        return (
+            SolverChoice::Krylov,
+            format!(
+                "max albedo {max_albedo:.3} makes Jacobi-type iterations slow (ln ε / ln ρ sweeps): BiCGStab"
+            ),
+        );
+    }
+    (
+        SolverChoice::GaussSeidel,
+        format!(
+            "{nodes} nodes, max albedo {max_albedo:.3}: Gauss-Seidel converges in a few sweeps"
+        ),
+    )
+}

@@ -1,0 +1,186 @@
+//! Stochastic Jacobi radiosity, incremental form (Neumann, Bekaert et al.; Dutré et al.,
+//! *Advanced Global Illumination*, §6.3): matrix-free, for scenes whose transport matrix does
+//! not fit in memory.
+//!
+//! Each iteration shoots the unshot radiosity ΔB with N rays:
+//!
+//! 1. the unshot power of node j is Φ_j = lum(|ΔB_j|)·A_j, Φ = Σ Φ_j;
+//! 2. ray k picks its source by the ξ-stratified number ξ_k = (k + u)/N in the cumulative
+//!    distribution of Φ_j (so sources get rays in proportion to their power, with the
+//!    stratification of a systematic sample), starts at a random point of the source texel
+//!    and leaves in a cosine-distributed direction, carrying the RGB power
+//!    ΔB_j·A_j / (N·p_j), p_j = Φ_j/Φ;
+//! 3. at its hit the power is split over the nodes by the basis weights: ΔHᵢ += wᵢ·power/Aᵢ
+//!    (irradiance received);
+//! 4. ΔB ← ρ∘ΔH, B += ΔB, H_indirect += ΔH; N shrinks with Φ so every ray carries about the
+//!    same power.
+//!
+//! The unshot fraction ‖ΔB‖/‖S‖ is the residual of the deterministic iteration; the result is
+//! a Monte Carlo estimate with noise ∝ 1/√(rays). Rays are processed in fixed chunks whose
+//! contributions are merged in order, so the result does not depend on the thread count.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::{Recorder, Solution, norm, to_f64};
+use crate::bake::BakeContext;
+use crate::direct::luminance;
+use crate::progress::Progress;
+use crate::raster::Surface;
+use crate::sampling::{cosine_hemisphere, hash_words, unit_float};
+use crate::transport::{HitMapper, Nodes, RayFate, support_point, trace_to_nodes};
+
+/// Stopping rules and ray budget.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StochasticOptions {
+    /// Rays shot in the first iteration (later iterations shoot fewer, in proportion to the
+    /// unshot power).
+    pub first_iteration_rays: u64,
+    /// Stop when ‖ΔB‖ / ‖S‖ falls below this.
+    pub tolerance: f64,
+    /// Give up after this many iterations.
+    pub max_iterations: u32,
+}
+
+const CHUNK: u64 = 4096;
+
+/// Runs stochastic Jacobi on the nodes with source `source` (S = ρ·H_direct).
+pub fn solve(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    mapper: &HitMapper<'_>,
+    source: &[Vec3],
+    options: &StochasticOptions,
+    progress: &Progress,
+) -> Solution {
+    let n = nodes.len();
+    let mut rec = Recorder::new();
+    let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+    let s_norm = norm(&to_f64(source), &nodes.area).max(1e-300);
+    let mut b = source.to_vec();
+    let mut unshot = source.to_vec();
+    let mut indirect = vec![Vec3::ZERO; n];
+    let mut total_rays = 0u64;
+    let mut first_power = None;
+    let mut iteration = 0u32;
+    rec.record(0.0, 1.0, None);
+    let (converged, reason) = loop {
+        let residual = norm(&to_f64(&unshot), &nodes.area) / s_norm;
+        if residual < options.tolerance {
+            break (
+                true,
+                format!("unshot fraction {residual:.2e} < {:.1e}", options.tolerance),
+            );
+        }
+        if iteration >= options.max_iterations {
+            break (
+                false,
+                format!("stopped after {iteration} iterations at unshot fraction {residual:.2e}"),
+            );
+        }
+        if progress.is_cancelled() {
+            break (false, "cancelled".into());
+        }
+        // 1. Unshot power and its distribution.
+        let mut cdf = Vec::with_capacity(n);
+        let mut total = 0.0f64;
+        for j in 0..n {
+            total += (luminance(unshot[j].abs()) * nodes.area[j]) as f64;
+            cdf.push(total);
+        }
+        if total <= 0.0 {
+            break (true, "no unshot power left".into());
+        }
+        let phi0 = *first_power.get_or_insert(total);
+        let rays = ((options.first_iteration_rays as f64 * total / phi0).ceil() as u64).max(CHUNK);
+        let u0 = unit_float(hash_words(&[ctx.settings.seed, iteration, 0x5707]));
+        let seed = hash_words(&[ctx.settings.seed, iteration]);
+        // 2–3. Shoot in fixed chunks; each chunk returns its sorted deposits.
+        let chunks: Vec<Vec<(u32, Vec3)>> = (0..rays.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let mut deposits: Vec<(u32, Vec3)> = Vec::new();
+                let mut out = [(0u32, 0f32); 4];
+                for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
+                    let xi = ((k as f64 + u0 as f64) / rays as f64) * total;
+                    let j = cdf.partition_point(|&v| v <= xi).min(n - 1);
+                    let pj = (luminance(unshot[j].abs()) * nodes.area[j]) as f64 / total;
+                    if pj <= 0.0 {
+                        continue;
+                    }
+                    let power = unshot[j] * (nodes.area[j] / (rays as f64 * pj) as f32);
+                    let patch = &ctx.patches.patches[nodes.patch[j] as usize];
+                    let key = hash_words(&[seed, k as u32]);
+                    // Start on the source's basis support, ∝ φ_j: tent samples accepted with
+                    // probability weight / (1.5 × texel area) (the weight is the texel area
+                    // inside a chart, so 2/3 are accepted there).
+                    let mut start = None;
+                    for attempt in 0..8u32 {
+                        if let Some((sp, w)) = support_point(
+                            ctx,
+                            &surface,
+                            mapper,
+                            j,
+                            patch,
+                            attempt,
+                            hash_words(&[key, 7]),
+                        ) {
+                            let max_w = 1.5 * patch.texel_size * patch.texel_size;
+                            if unit_float(hash_words(&[key, 8, attempt])) * max_w <= w {
+                                start = Some(sp);
+                                break;
+                            }
+                        }
+                    }
+                    let sp = start.unwrap_or_else(|| crate::direct::representative(patch));
+                    let u = Vec2::new(
+                        unit_float(hash_words(&[key, 1])),
+                        unit_float(hash_words(&[key, 2])),
+                    );
+                    let dir = cosine_hemisphere(sp.normal, u);
+                    if dir.dot(sp.geometric_normal) <= 0.0 {
+                        continue;
+                    }
+                    let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+                    if let RayFate::Nodes(m) = trace_to_nodes(mapper, origin, dir, &mut out) {
+                        for &(i, w) in &out[..m] {
+                            deposits.push((i, power * (w / nodes.area[i as usize])));
+                        }
+                    }
+                }
+                deposits.sort_by_key(|d| d.0);
+                deposits
+            })
+            .collect();
+        total_rays += rays;
+        // 4. Merge in chunk order and update.
+        let mut received = vec![Vec3::ZERO; n];
+        for chunk in chunks {
+            for (i, h) in chunk {
+                received[i as usize] += h;
+            }
+        }
+        for i in 0..n {
+            indirect[i] += received[i];
+            unshot[i] = nodes.albedo[i] * received[i];
+            b[i] += unshot[i];
+        }
+        iteration += 1;
+        rec.record(
+            iteration as f64,
+            norm(&to_f64(&unshot), &nodes.area) / s_norm,
+            None,
+        );
+        progress.advance(1);
+    };
+    Solution {
+        solver: "stochastic-jacobi",
+        b,
+        indirect,
+        history: rec.history,
+        converged,
+        iterations: iteration as f64,
+        rays: total_rays,
+        stop_reason: reason,
+    }
+}

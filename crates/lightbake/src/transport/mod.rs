@@ -1,0 +1,840 @@
+//! Light transport between texel patches: the form-factor matrix F of the radiosity equation
+//! B = S + ρ·F·B (Cohen & Wallace 1993; Dutré et al., *Advanced Global Illumination*, ch. 6).
+//!
+//! # Nodes and bases
+//! Every *valid* texel patch is a node ([`Nodes`]). Radiosity lives at nodes and is
+//! reconstructed over the lightmap grid with one of two bases ([`Basis`]):
+//!
+//! * **piecewise linear** (default): bilinear interpolation of the four texel centres around a
+//!   point, exactly what the GPU's bilinear sampling of the lightmap shows. Only nodes of the
+//!   same instance and chart count; when some of the four are missing (a chart border, a texel
+//!   inside geometry) the rest are renormalised, and when none is left the texel containing
+//!   the point (or its nearest valid neighbour in the chart) takes the whole weight;
+//! * **piecewise constant**: the texel containing the point (classic patch radiosity).
+//!
+//! # Form factors
+//! * [`Transport::build_monte_carlo`]: `rays` cosine-distributed rays per node from its
+//!   representative point, stratified by an Owen-scrambled (0,2)-sequence. Row i of F holds,
+//!   for every node j, the mean basis weight of node j at the rays' hits: F_ij = (1/N)·Σ_k
+//!   w_j(y_k). The irradiance at node i from reflected light is H_i = Σ_j F_ij·B_j. Duplicate
+//!   targets are merged; weights are f32 and columns u32. [`Transport::estimate_bytes`] traces
+//!   a pilot sample of rows first so the memory can be checked against a budget before the
+//!   matrix is built.
+//! * [`hemicube`]: Cohen & Greenberg's hemicube, for comparison.
+//! * The closed-form point-to-polygon factor is [`crate::direct::polygon`].
+//!
+//! Rays that leave the scene escape (the sky is direct light, not part of F); rays that hit
+//! the back of a single-sided surface see the inside of a solid, which is black.
+
+pub mod hemicube;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::bake::BakeContext;
+use crate::bvh::Hit;
+use crate::direct::footprint_point;
+use crate::progress::Progress;
+use crate::raster::{Patch, Surface};
+use crate::sampling::{cosine_hemisphere, sobol_02};
+
+/// How radiosity is reconstructed between texel centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Basis {
+    /// Bilinear over the four surrounding texel centres (what the GPU shows).
+    #[default]
+    Linear,
+    /// Constant over each texel.
+    Constant,
+}
+
+/// Random-number stream of the transport rays (mixed into a texel's key).
+const STREAM_TRANSPORT: u32 = 200;
+/// Footprint samples averaged for a texel's albedo.
+const ALBEDO_SAMPLES: u32 = 16;
+
+/// The unknowns: one node per valid patch.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Nodes {
+    /// Node → patch index.
+    pub patch: Vec<u32>,
+    /// Patch → node index (`u32::MAX` for invalid patches).
+    pub of_patch: Vec<u32>,
+    /// Area of each node's basis function, ∫φᵢ dA, m²: for the constant basis the texel's
+    /// covered area; for the linear basis the surface its bilinear weight spreads over (the
+    /// texel area inside a chart, different at chart borders). Reciprocity (A_i·F_ij =
+    /// A_j·F_ji) and power (B·A) are in these areas.
+    pub area: Vec<f32>,
+    /// Diffuse albedo of each node: base colour × (1 − metallic) × the base-colour texture
+    /// averaged over the texel's footprint.
+    pub albedo: Vec<Vec3>,
+}
+
+impl Nodes {
+    /// One node per valid patch, with its albedo and basis area.
+    pub fn new(ctx: &BakeContext<'_>, basis: Basis) -> Self {
+        let patches = &ctx.patches.patches;
+        let mut of_patch = vec![u32::MAX; patches.len()];
+        let mut patch = Vec::new();
+        for (i, p) in patches.iter().enumerate() {
+            if p.is_valid() {
+                of_patch[i] = patch.len() as u32;
+                patch.push(i as u32);
+            }
+        }
+        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let albedo = patch
+            .par_iter()
+            .map(|&pi| texel_albedo(ctx, &surface, &patches[pi as usize]))
+            .collect();
+        let mut nodes = Self {
+            patch,
+            of_patch,
+            area: Vec::new(),
+            albedo,
+        };
+        nodes.area = basis_areas(ctx, &surface, &nodes, basis);
+        nodes
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.patch.len()
+    }
+
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.patch.is_empty()
+    }
+
+    /// Largest albedo component (the contraction factor bound of Jacobi-type iterations).
+    pub fn max_albedo(&self) -> f32 {
+        self.albedo
+            .iter()
+            .fold(0.0f32, |m, a| m.max(a.max_element()))
+    }
+}
+
+/// Footprint samples per texel for the basis areas.
+const AREA_SAMPLES: u32 = 16;
+
+/// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];
+/// invalid texels contribute their open rim), split over stratified points of its footprint,
+/// given to the nodes by the basis weights at those points.
+fn basis_areas(
+    ctx: &BakeContext<'_>,
+    surface: &Surface<'_>,
+    nodes: &Nodes,
+    basis: Basis,
+) -> Vec<f32> {
+    let mapper = HitMapper::new(*ctx, nodes, basis);
+    let patches = &ctx.patches.patches;
+    let chunks: Vec<Vec<(u32, f32)>> = patches
+        .par_chunks(512)
+        .map(|chunk| {
+            let mut out = Vec::new();
+            let mut w = [(0u32, 0f32); 4];
+            for p in chunk {
+                let Some(rect) = ctx.layout.instances[p.instance as usize] else {
+                    continue;
+                };
+                let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+                let footprint = ctx.patches.footprint_of(p);
+                // Full-texel world area per sample; a valid texel's samples share its
+                // (already visibility-reduced) area instead.
+                let mut points: Vec<(u32, Vec2, usize)> = Vec::with_capacity(AREA_SAMPLES as usize);
+                let mut on_surface = 0;
+                for s in 0..AREA_SAMPLES {
+                    let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
+                    let Some(sp) = footprint.iter().find_map(|&t| surface.point(t, q, 0.0)) else {
+                        continue;
+                    };
+                    on_surface += 1;
+                    let n = mapper.weights_at(sp.triangle, q, &mut w);
+                    let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
+                    else {
+                        continue;
+                    };
+                    let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
+                    if ctx.patches.open_point(p, &sp, anchor_patch, ctx.rays) {
+                        points.push((sp.triangle, q, n));
+                    }
+                }
+                if p.is_valid() && points.is_empty() {
+                    // A sliver: its representative point stands for it.
+                    points.push((p.triangle, texel + Vec2::splat(0.5), 0));
+                }
+                if points.is_empty() {
+                    continue;
+                }
+                let share = if p.is_valid() {
+                    p.area / points.len() as f32
+                } else {
+                    p.area / on_surface.max(1) as f32
+                };
+                for (t, q, _) in points {
+                    let n = mapper.weights_at(t, q, &mut w);
+                    out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
+                }
+            }
+            out
+        })
+        .collect();
+    let mut area = vec![0.0f32; nodes.len()];
+    for chunk in chunks {
+        for (j, a) in chunk {
+            area[j as usize] += a;
+        }
+    }
+    // Every node keeps at least a sliver of its own area.
+    for (i, a) in area.iter_mut().enumerate() {
+        *a = a.max(1e-3 * patches[nodes.patch[i] as usize].area);
+    }
+    area
+}
+
+/// Albedo of one texel: the material's factor times its texture averaged over the footprint.
+fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3 {
+    let inst = &ctx.scene.instances[p.instance as usize];
+    let material = ctx.scene.material_of(inst.mesh);
+    let factor = material.base_color.truncate() * (1.0 - material.metallic);
+    let (Some(tref), Some(uv0)) = (
+        material.base_color_texture,
+        ctx.scene.meshes[inst.mesh].uv0.as_ref(),
+    ) else {
+        return factor;
+    };
+    let texture = &ctx.scene.textures[tref.texture];
+    if tref.tex_coord != 0 {
+        return factor * texture.mean_srgb().truncate();
+    }
+    let mesh = &ctx.scene.meshes[inst.mesh];
+    let mut sum = Vec3::ZERO;
+    let mut rays = 0;
+    for s in 0..ALBEDO_SAMPLES {
+        let sp = footprint_point(
+            ctx.layout,
+            ctx.patches,
+            surface,
+            ctx.rays,
+            p,
+            s,
+            ctx.settings.seed,
+            &mut rays,
+        );
+        let info = ctx.rays.triangles[sp.triangle as usize];
+        let [a, b, c] = mesh.triangle(info.local as usize);
+        let uv = uv0[a] * (1.0 - sp.bary.x - sp.bary.y) + uv0[b] * sp.bary.x + uv0[c] * sp.bary.y;
+        sum += texture.sample_srgb(uv).truncate();
+    }
+    factor * sum / ALBEDO_SAMPLES as f32
+}
+
+/// Turns a ray hit into the nodes (and weights) that represent radiosity there.
+pub struct HitMapper<'a> {
+    ctx: BakeContext<'a>,
+    nodes: &'a Nodes,
+    basis: Basis,
+}
+
+impl<'a> HitMapper<'a> {
+    /// A mapper for `basis`.
+    pub fn new(ctx: BakeContext<'a>, nodes: &'a Nodes, basis: Basis) -> Self {
+        Self { ctx, nodes, basis }
+    }
+
+    /// The basis.
+    pub fn basis(&self) -> Basis {
+        self.basis
+    }
+
+    /// Node weights at a hit, written to `out`; returns how many. Weights sum to 1, or there
+    /// are none (the hit surface is not baked, or shows its back).
+    pub fn weights(&self, hit: &Hit, out: &mut [(u32, f32); 4]) -> usize {
+        let ctx = &self.ctx;
+        let info = ctx.rays.triangles[hit.triangle as usize];
+        if !hit.front_face && !info.double_sided {
+            return 0;
+        }
+        let ii = info.instance as usize;
+        let Some(rect) = ctx.layout.instances[ii] else {
+            return 0;
+        };
+        let inst = &ctx.scene.instances[ii];
+        let mesh = &ctx.scene.meshes[inst.mesh];
+        let uv1 = mesh.uv1.as_ref().expect("unwrapped meshes carry uv1");
+        let [a, b, c] = mesh.triangle(info.local as usize);
+        let uv = uv1[a] * (1.0 - hit.u - hit.v) + uv1[b] * hit.u + uv1[c] * hit.v;
+        let q = uv * Vec2::new(rect.width as f32, rect.height as f32);
+        self.weights_at(hit.triangle, q, out)
+    }
+
+    /// Node weights at texel-space point `q` (in the instance's rectangle) on global triangle
+    /// `triangle`.
+    pub fn weights_at(&self, triangle: u32, q: Vec2, out: &mut [(u32, f32); 4]) -> usize {
+        let ctx = &self.ctx;
+        let info = ctx.rays.triangles[triangle as usize];
+        let ii = info.instance as usize;
+        let Some(rect) = ctx.layout.instances[ii] else {
+            return 0;
+        };
+        let inst = &ctx.scene.instances[ii];
+        let Some(unwrap) = ctx.layout.meshes[inst.mesh].as_ref() else {
+            return 0;
+        };
+        let chart = unwrap.triangle_charts[info.local as usize];
+        let page_w = ctx.layout.pages[rect.page as usize].width;
+        let index = &ctx.patches.page_index[rect.page as usize];
+        // The node at rect-local texel (x, y), if it belongs to this instance and chart.
+        let node_at = |x: i64, y: i64| -> Option<u32> {
+            if x < 0 || y < 0 || x >= rect.width as i64 || y >= rect.height as i64 {
+                return None;
+            }
+            let pi = index[((rect.y as i64 + y) * page_w as i64 + rect.x as i64 + x) as usize];
+            if pi == u32::MAX {
+                return None;
+            }
+            let p = &ctx.patches.patches[pi as usize];
+            if p.instance as usize != ii || p.chart != chart {
+                return None;
+            }
+            let n = self.nodes.of_patch[pi as usize];
+            (n != u32::MAX).then_some(n)
+        };
+        if self.basis == Basis::Linear {
+            let (x, y) = (q.x - 0.5, q.y - 0.5);
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let corners = [
+                (x0, y0, (1.0 - fx) * (1.0 - fy)),
+                (x0 + 1, y0, fx * (1.0 - fy)),
+                (x0, y0 + 1, (1.0 - fx) * fy),
+                (x0 + 1, y0 + 1, fx * fy),
+            ];
+            let mut n = 0;
+            let mut sum = 0.0;
+            for (cx, cy, w) in corners {
+                if w <= 0.0 {
+                    continue;
+                }
+                if let Some(node) = node_at(cx, cy) {
+                    out[n] = (node, w);
+                    sum += w;
+                    n += 1;
+                }
+            }
+            if n > 0 && sum > 0.0 {
+                for e in &mut out[..n] {
+                    e.1 /= sum;
+                }
+                return n;
+            }
+        }
+        // Constant basis, and the linear basis' fallback: the texel under the point, else the
+        // nearest valid texel of the chart around it.
+        let (tx, ty) = (q.x.floor() as i64, q.y.floor() as i64);
+        if let Some(node) = node_at(tx, ty) {
+            out[0] = (node, 1.0);
+            return 1;
+        }
+        let mut best: Option<(f32, u32)> = None;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if let Some(node) = node_at(tx + dx, ty + dy) {
+                    let centre = Vec2::new((tx + dx) as f32 + 0.5, (ty + dy) as f32 + 0.5);
+                    let d = centre.distance_squared(q);
+                    if best.is_none_or(|b| d < b.0) {
+                        best = Some((d, node));
+                    }
+                }
+            }
+        }
+        match best {
+            Some((_, node)) => {
+                out[0] = (node, 1.0);
+                1
+            }
+            None => 0,
+        }
+    }
+}
+
+/// Draws the start of transport ray `k` of node `i` from the node's basis support, as the
+/// Galerkin form of the radiosity equation asks (A_i·F_ij = ∫φᵢ(x)·∫ w_j(y(x, ω)) cosθ/π dω dx,
+/// which is reciprocal): a tent-distributed offset of at most one texel around the node
+/// (piecewise linear) or a uniform point of its texel (piecewise constant), mapped onto the
+/// surface. Returns the point and its importance weight φᵢ(x)·a(x)/density(x), with a(x) the
+/// world area of a texel there; `None` when the offset leaves the surface or the node's chart
+/// or lands on a part of a texel hidden under geometry (those samples carry no weight, as they
+/// carry no area in [`Nodes::area`]).
+pub fn support_point(
+    ctx: &BakeContext<'_>,
+    surface: &Surface<'_>,
+    mapper: &HitMapper<'_>,
+    node: usize,
+    p: &Patch,
+    k: u32,
+    key: u32,
+) -> Option<(crate::raster::SurfacePoint, f32)> {
+    let rect = ctx.layout.instances[p.instance as usize]?;
+    let centre = Vec2::new((p.x - rect.x) as f32 + 0.5, (p.y - rect.y) as f32 + 0.5);
+    let u = sobol_02(k, key);
+    let (offset, density) = match mapper.basis {
+        Basis::Linear => {
+            let tent = |u: f32| {
+                if u < 0.5 {
+                    (2.0 * u).sqrt() - 1.0
+                } else {
+                    1.0 - (2.0 - 2.0 * u).sqrt()
+                }
+            };
+            let d = Vec2::new(tent(u.x), tent(u.y));
+            (d, (1.0 - d.x.abs()) * (1.0 - d.y.abs()))
+        }
+        Basis::Constant => (u - Vec2::splat(0.5), 1.0),
+    };
+    if density <= 0.0 {
+        return None;
+    }
+    let q = centre + offset;
+    // The texel under q, in the same instance and chart.
+    let (tx, ty) = (q.x.floor() as i64, q.y.floor() as i64);
+    if tx < 0 || ty < 0 || tx >= rect.width as i64 || ty >= rect.height as i64 {
+        return None;
+    }
+    let page_w = ctx.layout.pages[rect.page as usize].width;
+    let pi = ctx.patches.page_index[rect.page as usize]
+        [((rect.y as i64 + ty) * page_w as i64 + rect.x as i64 + tx) as usize];
+    if pi == u32::MAX {
+        return None;
+    }
+    let texel = &ctx.patches.patches[pi as usize];
+    if texel.instance != p.instance || texel.chart != p.chart {
+        return None;
+    }
+    let sp = ctx
+        .patches
+        .footprint_of(texel)
+        .iter()
+        .find_map(|&t| surface.point(t, q, 0.0))?;
+    // Hidden under geometry: not part of the surface (the basis areas leave it out too).
+    if !ctx.patches.open_point(texel, &sp, p, ctx.rays) {
+        return None;
+    }
+    let mut w = [(0u32, 0f32); 4];
+    let n = mapper.weights_at(sp.triangle, q, &mut w);
+    let phi = w[..n]
+        .iter()
+        .find(|e| e.0 as usize == node)
+        .map_or(0.0, |e| e.1);
+    if phi <= 0.0 {
+        return None;
+    }
+    Some((sp, phi * texel.texel_size * texel.texel_size / density))
+}
+
+/// Outcome of tracing one ray for transport.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayFate {
+    /// Left the scene.
+    Escaped,
+    /// Hit a surface that carries no radiosity (not baked, or its back).
+    Absorbed,
+    /// Hit nodes (the weights were written).
+    Nodes(usize),
+}
+
+/// Traces one transport ray from `origin` along `dir`.
+#[inline]
+pub fn trace_to_nodes(
+    mapper: &HitMapper<'_>,
+    origin: Vec3,
+    dir: Vec3,
+    out: &mut [(u32, f32); 4],
+) -> RayFate {
+    match mapper.ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
+        None => RayFate::Escaped,
+        Some(hit) => match mapper.weights(&hit, out) {
+            0 => RayFate::Absorbed,
+            n => RayFate::Nodes(n),
+        },
+    }
+}
+
+/// The sparse form-factor matrix F in compressed rows.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Transport {
+    /// Number of nodes (rows and columns).
+    pub n: usize,
+    row_ptr: Vec<u64>,
+    cols: Vec<u32>,
+    vals: Vec<f32>,
+    /// Per row: the fraction of its rays that left the scene.
+    pub escaped: Vec<f32>,
+    /// Rays traced to build it.
+    pub rays: u64,
+    /// Basis the weights are in.
+    pub basis: Basis,
+}
+
+/// What [`Transport::validate`] found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct TransportCheck {
+    /// Largest row sum (must not exceed 1).
+    pub max_row_sum: f32,
+    /// Area-weighted mean row sum (≈ 1 in a closed room).
+    pub mean_row_sum: f32,
+    /// ‖AF − (AF)ᵀ‖_F / ‖AF‖_F with A = diag(area): 0 for exact reciprocity.
+    pub reciprocity_error: f32,
+}
+
+impl Transport {
+    /// Builds F from rows produced in order (used by the builders).
+    fn from_rows(n: usize, rows: Vec<(Vec<(u32, f32)>, f32)>, rays: u64, basis: Basis) -> Self {
+        let nnz: usize = rows.iter().map(|r| r.0.len()).sum();
+        let mut t = Transport {
+            n,
+            row_ptr: Vec::with_capacity(n + 1),
+            cols: Vec::with_capacity(nnz),
+            vals: Vec::with_capacity(nnz),
+            escaped: Vec::with_capacity(n),
+            rays,
+            basis,
+        };
+        t.row_ptr.push(0);
+        for (row, escaped) in rows {
+            for (c, v) in row {
+                t.cols.push(c);
+                t.vals.push(v);
+            }
+            t.row_ptr.push(t.cols.len() as u64);
+            t.escaped.push(escaped);
+        }
+        t
+    }
+
+    /// Stored entries.
+    pub fn nnz(&self) -> usize {
+        self.cols.len()
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> u64 {
+        (self.cols.len() * 8 + self.row_ptr.len() * 8 + self.escaped.len() * 4) as u64
+    }
+
+    /// Row `i`: (columns, weights).
+    pub fn row(&self, i: usize) -> (&[u32], &[f32]) {
+        let (a, b) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
+        (&self.cols[a..b], &self.vals[a..b])
+    }
+
+    /// One row of Monte Carlo transport: `rays` rays from points of node `i`'s basis support,
+    /// cosine-distributed about the surface there, self-normalised by their weights.
+    fn mc_row(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        nodes: &Nodes,
+        i: usize,
+        rays: u32,
+    ) -> (Vec<(u32, f32)>, f32) {
+        let p = &ctx.patches.patches[nodes.patch[i] as usize];
+        let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
+        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let mut row: Vec<(u32, f32)> = Vec::with_capacity(rays as usize * 2);
+        let (mut escaped, mut total) = (0.0f32, 0.0f32);
+        let mut out = [(0u32, 0f32); 4];
+        for k in 0..rays {
+            let Some((sp, weight)) = support_point(ctx, &surface, mapper, i, p, k, key) else {
+                continue;
+            };
+            total += weight;
+            let u = sobol_02(k, key ^ 0x6a09_e667);
+            let dir = cosine_hemisphere(sp.normal, u);
+            if dir.dot(sp.geometric_normal) <= 0.0 {
+                continue; // below the surface: no light arrives from there
+            }
+            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+            match trace_to_nodes(mapper, origin, dir, &mut out) {
+                RayFate::Escaped => escaped += weight,
+                RayFate::Absorbed => {}
+                RayFate::Nodes(n) => row.extend(out[..n].iter().map(|&(j, wj)| (j, wj * weight))),
+            }
+        }
+        if total <= 0.0 {
+            return (Vec::new(), 0.0);
+        }
+        row.sort_unstable_by_key(|e| e.0);
+        let mut merged: Vec<(u32, f32)> = Vec::with_capacity(row.len());
+        for (j, v) in row {
+            match merged.last_mut() {
+                Some(last) if last.0 == j => last.1 += v,
+                _ => merged.push((j, v)),
+            }
+        }
+        for e in &mut merged {
+            e.1 /= total;
+        }
+        merged.shrink_to_fit();
+        (merged, escaped / total)
+    }
+
+    /// Estimated bytes of the Monte Carlo matrix: up to 512 evenly spaced rows are traced and
+    /// their merged lengths extrapolated (× 1.25 for safety).
+    pub fn estimate_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, rays: u32, basis: Basis) -> u64 {
+        let n = nodes.len();
+        if n == 0 {
+            return 0;
+        }
+        let mapper = HitMapper::new(*ctx, nodes, basis);
+        let pilot = n.min(512);
+        let entries: usize = (0..pilot)
+            .into_par_iter()
+            .map(|k| {
+                Self::mc_row(ctx, &mapper, nodes, k * n / pilot, rays)
+                    .0
+                    .len()
+            })
+            .sum();
+        let per_row = entries as f64 / pilot as f64;
+        (n as f64 * (per_row * 8.0 * 1.25 + 12.0)) as u64
+    }
+
+    /// Builds F by Monte Carlo with `rays` rays per node (see the module docs).
+    pub fn build_monte_carlo(
+        ctx: &BakeContext<'_>,
+        nodes: &Nodes,
+        rays: u32,
+        basis: Basis,
+        progress: &Progress,
+    ) -> Self {
+        let mapper = HitMapper::new(*ctx, nodes, basis);
+        let traced = AtomicU64::new(0);
+        let rows: Vec<(Vec<(u32, f32)>, f32)> = (0..nodes.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|i| {
+                if progress.is_cancelled() {
+                    return (Vec::new(), 0.0);
+                }
+                let r = Self::mc_row(ctx, &mapper, nodes, i, rays);
+                traced.fetch_add(rays as u64, Ordering::Relaxed);
+                progress.advance(1);
+                r
+            })
+            .collect();
+        Self::from_rows(nodes.len(), rows, traced.into_inner(), basis)
+    }
+
+    /// y = F·x.
+    pub fn mul(&self, x: &[Vec3], y: &mut [Vec3]) {
+        y.par_iter_mut()
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(i, yi)| {
+                let (c, v) = self.row(i);
+                *yi = c
+                    .iter()
+                    .zip(v)
+                    .fold(Vec3::ZERO, |s, (&j, &w)| s + x[j as usize] * w);
+            });
+    }
+
+    /// y = F·x in double precision (what the solvers use).
+    pub fn mul64(&self, x: &[DVec3], y: &mut [DVec3]) {
+        y.par_iter_mut()
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(i, yi)| {
+                let (c, v) = self.row(i);
+                *yi = c
+                    .iter()
+                    .zip(v)
+                    .fold(DVec3::ZERO, |s, (&j, &w)| s + x[j as usize] * w as f64);
+            });
+    }
+
+    /// Fᵀ in compressed rows (the columns of F, for shooting).
+    pub fn transpose(&self) -> Transport {
+        let mut count = vec![0u64; self.n + 1];
+        for &c in &self.cols {
+            count[c as usize + 1] += 1;
+        }
+        for i in 0..self.n {
+            count[i + 1] += count[i];
+        }
+        let row_ptr = count.clone();
+        let mut next = count;
+        let mut cols = vec![0u32; self.cols.len()];
+        let mut vals = vec![0f32; self.vals.len()];
+        for i in 0..self.n {
+            let (c, v) = self.row(i);
+            for (&j, &w) in c.iter().zip(v) {
+                let k = next[j as usize] as usize;
+                cols[k] = i as u32;
+                vals[k] = w;
+                next[j as usize] += 1;
+            }
+        }
+        Transport {
+            n: self.n,
+            row_ptr,
+            cols,
+            vals,
+            escaped: vec![0.0; self.n],
+            rays: self.rays,
+            basis: self.basis,
+        }
+    }
+
+    /// The reciprocity-symmetrised matrix F̃, for which diag(A)·F̃ is symmetric (what
+    /// conjugate gradients needs), with the same row sums as F.
+    ///
+    /// G = (A·F + (A·F)ᵀ)/2 is symmetric, but its row sums carry the sampling noise of F's
+    /// column sums, and in a stiff scene a 1% change of a row sum moves B by ρ/(1 − ρ)·1%. So
+    /// G is balanced by a symmetric diagonal scaling G̃ = D·G·D whose rows sum to A∘(F·1)
+    /// (symmetric Sinkhorn–Knopp iteration, d ← √(d·t / (G·d))), and F̃ = A⁻¹·G̃.
+    pub fn symmetrized(&self, area: &[f32]) -> Transport {
+        let t = self.transpose();
+        let rows: Vec<Vec<(u32, f64)>> = (0..self.n)
+            .into_par_iter()
+            .map(|i| {
+                let (c1, v1) = self.row(i);
+                let (c2, v2) = t.row(i); // entries F_ji for j in c2
+                let mut merged: Vec<(u32, f64)> = Vec::with_capacity(c1.len() + c2.len());
+                let (mut a, mut b) = (0, 0);
+                while a < c1.len() || b < c2.len() {
+                    let ja = c1.get(a).copied().unwrap_or(u32::MAX);
+                    let jb = c2.get(b).copied().unwrap_or(u32::MAX);
+                    let j = ja.min(jb);
+                    let fij = if ja == j {
+                        a += 1;
+                        v1[a - 1] as f64
+                    } else {
+                        0.0
+                    };
+                    let fji = if jb == j {
+                        b += 1;
+                        v2[b - 1] as f64
+                    } else {
+                        0.0
+                    };
+                    merged.push((
+                        j,
+                        0.5 * (area[i] as f64 * fij + area[j as usize] as f64 * fji),
+                    ));
+                }
+                merged
+            })
+            .collect();
+        // Row sums to restore: A_i · Σ_j F_ij.
+        let target: Vec<f64> = (0..self.n)
+            .map(|i| area[i] as f64 * self.row(i).1.iter().map(|&v| v as f64).sum::<f64>())
+            .collect();
+        let mut d = vec![1.0f64; self.n];
+        for _ in 0..200 {
+            let gd: Vec<f64> = rows
+                .par_iter()
+                .map(|r| r.iter().map(|&(j, g)| g * d[j as usize]).sum())
+                .collect();
+            let mut worst = 0.0f64;
+            for i in 0..self.n {
+                if gd[i] > 0.0 && target[i] > 0.0 {
+                    worst = worst.max((d[i] * gd[i] / target[i] - 1.0).abs());
+                    d[i] = (d[i] * target[i] / gd[i]).sqrt();
+                }
+            }
+            if worst < 1e-10 {
+                break;
+            }
+        }
+        let balanced: Vec<(Vec<(u32, f32)>, f32)> = rows
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let ai = (area[i] as f64).max(1e-30);
+                let row = r
+                    .into_iter()
+                    .map(|(j, g)| (j, (d[i] * g * d[j as usize] / ai) as f32))
+                    .collect();
+                (row, self.escaped[i])
+            })
+            .collect();
+        Self::from_rows(self.n, balanced, self.rays, self.basis)
+    }
+
+    /// Checks row sums (≤ 1) and measures reciprocity.
+    ///
+    /// # Errors
+    /// When a row sums to more than 1 + 10⁻⁴ or holds a non-finite or negative weight.
+    pub fn validate(&self, area: &[f32]) -> Result<TransportCheck, String> {
+        let mut check = TransportCheck::default();
+        let (mut weighted, mut total_area) = (0.0f64, 0.0f64);
+        for i in 0..self.n {
+            let (c, v) = self.row(i);
+            if let Some(k) = v.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+                return Err(format!("row {i}: weight {} for column {}", v[k], c[k]));
+            }
+            if c.windows(2).any(|w| w[0] >= w[1]) {
+                return Err(format!("row {i}: columns are not sorted and unique"));
+            }
+            let sum: f32 = v.iter().sum();
+            if sum > 1.0 + 1e-4 {
+                return Err(format!("row {i} sums to {sum} > 1"));
+            }
+            check.max_row_sum = check.max_row_sum.max(sum);
+            weighted += sum as f64 * area[i] as f64;
+            total_area += area[i] as f64;
+        }
+        check.mean_row_sum = if total_area > 0.0 {
+            (weighted / total_area) as f32
+        } else {
+            0.0
+        };
+        let t = self.transpose();
+        let (mut diff, mut norm) = (0.0f64, 0.0f64);
+        for i in 0..self.n {
+            let (c1, v1) = self.row(i);
+            let (c2, v2) = t.row(i);
+            let lookup = |j: u32| c2.binary_search(&j).map_or(0.0, |k| v2[k]);
+            for (&j, &fij) in c1.iter().zip(v1) {
+                let a = area[i] as f64 * fij as f64;
+                let b = area[j as usize] as f64 * lookup(j) as f64;
+                diff += (a - b) * (a - b);
+                norm += a * a;
+            }
+        }
+        check.reciprocity_error = if norm > 0.0 {
+            (diff / norm).sqrt() as f32
+        } else {
+            0.0
+        };
+        Ok(check)
+    }
+
+    /// Block form factor between two node sets: F_{I→J} = Σ_{i∈I} A_i Σ_{j∈J} F_ij / Σ_{i∈I} A_i.
+    pub fn block_form_factor(&self, area: &[f32], from: &[u32], to: &[u32]) -> f64 {
+        let mut in_to = vec![false; self.n];
+        for &j in to {
+            in_to[j as usize] = true;
+        }
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for &i in from {
+            let (c, v) = self.row(i as usize);
+            let s: f64 = c
+                .iter()
+                .zip(v)
+                .filter(|(j, _)| in_to[**j as usize])
+                .map(|(_, &w)| w as f64)
+                .sum();
+            num += area[i as usize] as f64 * s;
+            den += area[i as usize] as f64;
+        }
+        if den > 0.0 { num / den } else { 0.0 }
+    }
+}
