@@ -701,12 +701,13 @@ impl Transport {
     /// (symmetric Sinkhorn–Knopp iteration, d ← √(d·t / (G·d))), and F̃ = A⁻¹·G̃.
     pub fn symmetrized(&self, area: &[f32]) -> Transport {
         let t = self.transpose();
-        let rows: Vec<Vec<(u32, f64)>> = (0..self.n)
+        // G = (A·F + (A·F)ᵀ)/2, row by row (merging row i of F with column i).
+        let rows: Vec<(Vec<(u32, f32)>, f32)> = (0..self.n)
             .into_par_iter()
             .map(|i| {
                 let (c1, v1) = self.row(i);
                 let (c2, v2) = t.row(i); // entries F_ji for j in c2
-                let mut merged: Vec<(u32, f64)> = Vec::with_capacity(c1.len() + c2.len());
+                let mut merged: Vec<(u32, f32)> = Vec::with_capacity(c1.len() + c2.len());
                 let (mut a, mut b) = (0, 0);
                 while a < c1.len() || b < c2.len() {
                     let ja = c1.get(a).copied().unwrap_or(u32::MAX);
@@ -714,33 +715,36 @@ impl Transport {
                     let j = ja.min(jb);
                     let fij = if ja == j {
                         a += 1;
-                        v1[a - 1] as f64
+                        v1[a - 1]
                     } else {
                         0.0
                     };
                     let fji = if jb == j {
                         b += 1;
-                        v2[b - 1] as f64
+                        v2[b - 1]
                     } else {
                         0.0
                     };
-                    merged.push((
-                        j,
-                        0.5 * (area[i] as f64 * fij + area[j as usize] as f64 * fji),
-                    ));
+                    merged.push((j, 0.5 * (area[i] * fij + area[j as usize] * fji)));
                 }
-                merged
+                (merged, self.escaped[i])
             })
             .collect();
+        drop(t);
+        let mut g = Self::from_rows(self.n, rows, self.rays, self.basis);
         // Row sums to restore: A_i · Σ_j F_ij.
         let target: Vec<f64> = (0..self.n)
             .map(|i| area[i] as f64 * self.row(i).1.iter().map(|&v| v as f64).sum::<f64>())
             .collect();
         let mut d = vec![1.0f64; self.n];
         for _ in 0..200 {
-            let gd: Vec<f64> = rows
-                .par_iter()
-                .map(|r| r.iter().map(|&(j, g)| g * d[j as usize]).sum())
+            let gd: Vec<f64> = (0..self.n)
+                .into_par_iter()
+                .with_min_len(256)
+                .map(|i| {
+                    let (c, v) = g.row(i);
+                    c.iter().zip(v).map(|(&j, &w)| w as f64 * d[j as usize]).sum()
+                })
                 .collect();
             let mut worst = 0.0f64;
             for i in 0..self.n {
@@ -749,23 +753,20 @@ impl Transport {
                     d[i] = (d[i] * target[i] / gd[i]).sqrt();
                 }
             }
-            if worst < 1e-10 {
+            if worst < 1e-8 {
                 break;
             }
         }
-        let balanced: Vec<(Vec<(u32, f32)>, f32)> = rows
-            .into_par_iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let ai = (area[i] as f64).max(1e-30);
-                let row = r
-                    .into_iter()
-                    .map(|(j, g)| (j, (d[i] * g * d[j as usize] / ai) as f32))
-                    .collect();
-                (row, self.escaped[i])
-            })
-            .collect();
-        Self::from_rows(self.n, balanced, self.rays, self.basis)
+        // F̃ = A⁻¹·D·G·D.
+        for i in 0..self.n {
+            let (a, b) = (g.row_ptr[i] as usize, g.row_ptr[i + 1] as usize);
+            let ai = (area[i] as f64).max(1e-30);
+            for k in a..b {
+                let j = g.cols[k] as usize;
+                g.vals[k] = (d[i] * g.vals[k] as f64 * d[j] / ai) as f32;
+            }
+        }
+        g
     }
 
     /// Checks row sums (≤ 1) and measures reciprocity.
