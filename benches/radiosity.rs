@@ -40,7 +40,13 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
     let direct = prep.direct();
     let source = lightbake::indirect::source(&nodes, &direct);
     let start = Instant::now();
-    let transport = Transport::build_monte_carlo(&ctx, &nodes, settings.transport_rays, Basis::Linear, &Progress::new());
+    let transport = Transport::build_monte_carlo(
+        &ctx,
+        &nodes,
+        settings.transport_rays,
+        Basis::Linear,
+        &Progress::new(),
+    );
     eprintln!(
         "{name}: {} nodes; transport {:.2} s, {} rays, {} entries, {:.1} MiB",
         nodes.len(),
@@ -49,12 +55,25 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
         transport.nnz(),
         transport.bytes() as f64 / 1048576.0
     );
-    Case { prep, nodes, transport, source }
+    Case {
+        prep,
+        nodes,
+        transport,
+        source,
+    }
 }
 
 fn table(name: &str, c: &Case) {
-    let system = System { transport: &c.transport, albedo: &c.nodes.albedo, source: &c.source, area: &c.nodes.area };
-    let options = SolveOptions { tolerance: 1e-3, max_iterations: 100_000 };
+    let system = System {
+        transport: &c.transport,
+        albedo: &c.nodes.albedo,
+        source: &c.source,
+        area: &c.nodes.area,
+    };
+    let options = SolveOptions {
+        tolerance: 1e-3,
+        max_iterations: 100_000,
+    };
     eprintln!("{name}: solver, seconds, iterations to relative residual 1e-3");
     for choice in [
         SolverChoice::Jacobi,
@@ -65,19 +84,47 @@ fn table(name: &str, c: &Case) {
         SolverChoice::Direct,
     ] {
         if choice == SolverChoice::Direct && c.nodes.len() > solve::DIRECT_MAX_NODES {
-            eprintln!("  direct: skipped ({} nodes > {})", c.nodes.len(), solve::DIRECT_MAX_NODES);
+            eprintln!(
+                "  direct: skipped ({} nodes > {})",
+                c.nodes.len(),
+                solve::DIRECT_MAX_NODES
+            );
             continue;
         }
         let start = Instant::now();
         let s = solve::solve_matrix(choice, &system, &options);
-        eprintln!("  {:<18} {:>8.3} s {:>9.1}  {}", s.solver, start.elapsed().as_secs_f64(), s.iterations, s.stop_reason);
+        eprintln!(
+            "  {:<18} {:>8.3} s {:>9.1}  {}",
+            s.solver,
+            start.elapsed().as_secs_f64(),
+            s.iterations,
+            s.stop_reason
+        );
     }
     let ctx = c.prep.ctx();
     let mapper = HitMapper::new(ctx, &c.nodes, Basis::Linear);
     let start = Instant::now();
-    let options = StochasticOptions { first_iteration_rays: c.nodes.len() as u64 * 64, tolerance: 1e-3, max_iterations: 100_000 };
-    let s = stochastic_jacobi::solve(&ctx, &c.nodes, &mapper, &c.source, &options, &Progress::new());
-    eprintln!("  {:<18} {:>8.3} s {:>9.1}  {} ({} rays, matrix-free)", s.solver, start.elapsed().as_secs_f64(), s.iterations, s.stop_reason, s.rays);
+    let options = StochasticOptions {
+        first_iteration_rays: c.nodes.len() as u64 * 64,
+        tolerance: 1e-3,
+        max_iterations: 100_000,
+    };
+    let s = stochastic_jacobi::solve(
+        &ctx,
+        &c.nodes,
+        &mapper,
+        &c.source,
+        &options,
+        &Progress::new(),
+    );
+    eprintln!(
+        "  {:<18} {:>8.3} s {:>9.1}  {} ({} rays, matrix-free)",
+        s.solver,
+        start.elapsed().as_secs_f64(),
+        s.iterations,
+        s.stop_reason,
+        s.rays
+    );
 }
 
 fn solvers(c: &mut Criterion) {
@@ -106,24 +153,51 @@ fn solvers(c: &mut Criterion) {
     let n = cornell.nodes.len();
     let x: Vec<DVec3> = solve::to_f64(&cornell.source);
     let mut y = vec![DVec3::ZERO; n];
-    g.bench_function("spmv_jacobi_sweep", |b| b.iter(|| cornell.transport.mul64(black_box(&x), &mut y)));
+    g.bench_function("spmv_jacobi_sweep", |b| {
+        b.iter(|| cornell.transport.mul64(black_box(&x), &mut y))
+    });
     let system = System {
         transport: &cornell.transport,
         albedo: &cornell.nodes.albedo,
         source: &cornell.source,
         area: &cornell.nodes.area,
     };
-    let one = SolveOptions { tolerance: 1e-30, max_iterations: 1 };
-    g.bench_function("gauss_seidel_sweep", |b| b.iter(|| black_box(solve::solve_matrix(SolverChoice::GaussSeidel, &system, &one))));
-    g.bench_function("bicgstab_iteration", |b| b.iter(|| black_box(solve::solve_matrix(SolverChoice::Krylov, &system, &one))));
+    let one = SolveOptions {
+        tolerance: 1e-30,
+        max_iterations: 1,
+    };
+    g.bench_function("gauss_seidel_sweep", |b| {
+        b.iter(|| {
+            black_box(solve::solve_matrix(
+                SolverChoice::GaussSeidel,
+                &system,
+                &one,
+            ))
+        })
+    });
+    g.bench_function("bicgstab_iteration", |b| {
+        b.iter(|| black_box(solve::solve_matrix(SolverChoice::Krylov, &system, &one)))
+    });
     g.finish();
 
-    let small = case("cornell_box 64/m", &cornell_box(CornellLight::Area), Some(64.0));
+    let small = case(
+        "cornell_box 64/m",
+        &cornell_box(CornellLight::Area),
+        Some(64.0),
+    );
     let mut g = c.benchmark_group("form_factors");
     g.sample_size(10);
     let ctx = small.prep.ctx();
     g.bench_function("monte_carlo_128_rays_cornell_64", |b| {
-        b.iter(|| black_box(Transport::build_monte_carlo(&ctx, &small.nodes, 128, Basis::Linear, &Progress::new())))
+        b.iter(|| {
+            black_box(Transport::build_monte_carlo(
+                &ctx,
+                &small.nodes,
+                128,
+                Basis::Linear,
+                &Progress::new(),
+            ))
+        })
     });
     g.finish();
 }

@@ -628,3 +628,39 @@ fn krylov_needs_far_fewer_iterations_than_jacobi_when_stiff() {
         );
     }
 }
+
+#[test]
+fn transport_over_budget_falls_back_or_is_refused() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
+    settings.transport_budget_mib = 1;
+    settings.stochastic_rays_per_node = 64;
+    let out = common::bake(&scene, &settings);
+    let report = out.report.indirect.as_ref().unwrap();
+    assert_eq!(
+        report.solver, "stochastic-jacobi",
+        "{}",
+        report.solver_reason
+    );
+    assert!(report.solver_reason.contains("budget") && report.transport_nnz == 0);
+    assert!(
+        out.report
+            .plan
+            .stages
+            .iter()
+            .any(|s| s.name == "indirect" && s.reason.contains("matrix-free"))
+    );
+    settings.solver = SolverChoice::GaussSeidel;
+    match lightbake::bake(&scene, &settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(
+                breakdown.contains("gauss-seidel") && breakdown.contains("stochastic-jacobi"),
+                "{breakdown}"
+            );
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+}

@@ -743,7 +743,10 @@ impl Transport {
                 .with_min_len(256)
                 .map(|i| {
                     let (c, v) = g.row(i);
-                    c.iter().zip(v).map(|(&j, &w)| w as f64 * d[j as usize]).sum()
+                    c.iter()
+                        .zip(v)
+                        .map(|(&j, &w)| w as f64 * d[j as usize])
+                        .sum()
                 })
                 .collect();
             let mut worst = 0.0f64;
