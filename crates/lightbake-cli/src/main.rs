@@ -17,6 +17,7 @@ use clap::{Parser, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use lightbake::plan::BakePlan;
 use lightbake::progress::Progress;
+use lightbake::sampling::Sequence;
 use lightbake::scene::gltf_import::import_gltf;
 use lightbake::settings::{BakeSettings, LightConvention, Method, Quality};
 use lightbake::solve::SolverChoice;
@@ -42,6 +43,18 @@ enum MethodArg {
     Direct,
     /// Direct light plus interreflection by radiosity over the texels.
     Radiosity,
+    /// Instant radiosity: all light from virtual point lights.
+    Vpl,
+    /// Direct light exact, indirect light from virtual point lights.
+    Hybrid,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SequenceArg {
+    Halton,
+    ScrambledHalton,
+    Jittered,
+    Random,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -109,6 +122,21 @@ struct Args {
     /// Target relative error of the radiosity solve.
     #[arg(long)]
     tolerance: Option<f64>,
+    /// Instant radiosity: particles started from the lights.
+    #[arg(long)]
+    vpl_particles: Option<u32>,
+    /// Instant radiosity: choose the particle count to fit this many seconds of gathering.
+    #[arg(long)]
+    vpl_time_budget: Option<f64>,
+    /// Instant radiosity: number pattern of the walks.
+    #[arg(long, value_enum, default_value = "scrambled-halton")]
+    vpl_sequence: SequenceArg,
+    /// Instant radiosity: clamp distance in metres (default 2% of the scene's diagonal).
+    #[arg(long)]
+    vpl_clamp: Option<f32>,
+    /// Instant radiosity: restore the clamped energy (Kollig & Keller bias compensation).
+    #[arg(long)]
+    bias_compensation: bool,
     /// Lightmap texels per metre (overrides the preset and the scene's own hint).
     #[arg(long)]
     texel_density: Option<f32>,
@@ -184,7 +212,21 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.method = match args.method {
         MethodArg::Direct => Method::Direct,
         MethodArg::Radiosity => Method::Radiosity,
+        MethodArg::Vpl => Method::Vpl,
+        MethodArg::Hybrid => Method::Hybrid,
     };
+    if let Some(v) = args.vpl_particles {
+        s.vpl_particles = v;
+    }
+    s.vpl_time_budget_s = args.vpl_time_budget;
+    s.vpl_sequence = match args.vpl_sequence {
+        SequenceArg::Halton => Sequence::Halton,
+        SequenceArg::ScrambledHalton => Sequence::ScrambledHalton,
+        SequenceArg::Jittered => Sequence::Jittered,
+        SequenceArg::Random => Sequence::Random,
+    };
+    s.vpl_clamp_distance = args.vpl_clamp;
+    s.vpl_bias_compensation = args.bias_compensation;
     s.solver = match args.solver {
         SolverArg::Auto => SolverChoice::Auto,
         SolverArg::Jacobi => SolverChoice::Jacobi,
@@ -277,6 +319,19 @@ fn run(args: Args) -> Result<(), String> {
         output.report.texels.moved,
         output.report.texels.filled
     );
+    if let Some(v) = &output.report.vpl {
+        println!(
+            "instant radiosity: {} particles ({}), {} VPLs, {} shadow rays in {:.2} s ({:.2} Mrays/s), {:.1}% of the VPL light clamped{}",
+            v.particles,
+            v.particles_reason,
+            v.vpls,
+            v.shadow_rays,
+            v.gather_seconds,
+            v.shadow_rays_per_second / 1e6,
+            100.0 * v.clamped_fraction,
+            if v.compensated { " and restored" } else { "" }
+        );
+    }
     if let Some(ind) = &output.report.indirect {
         println!(
             "radiosity: {} nodes, solver {} ({}), {} iterations, {}",

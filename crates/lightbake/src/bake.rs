@@ -21,8 +21,10 @@ use crate::raster::Patches;
 use crate::report::{BakeReport, StageStats, TexelStats};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
+use crate::settings::Method;
 use crate::transport::{Nodes, Transport};
 use crate::unwrap::{Layout, unwrap_scene};
+use crate::vpl::instant_radiosity;
 
 /// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
 /// the texel patches, the settings and the plan.
@@ -144,6 +146,7 @@ fn bake_in_pool(
         ..TexelStats::default()
     };
     let mut indirect_report = None;
+    let mut vpl_report = None;
     let mut solver_reason = None;
     let pages = if plan.nothing_to_bake {
         layout
@@ -179,23 +182,56 @@ fn bake_in_pool(
             settings,
             plan: &plan,
         };
-        let irradiance = stages.run("direct", progress, patches.patches.len() as u64, || {
-            let r = direct_light(&ctx, &emitters, progress);
-            let note = format!(
-                "{} spp, {} light(s), {} emitter triangle(s){}",
-                settings.samples_per_texel,
-                plan.lights.iter().filter(|l| l.instances > 0).count(),
-                emitters.list.len(),
-                if plan.sky {
-                    format!(", {} sky rays/texel", settings.sky_samples)
-                } else {
-                    String::new()
-                }
-            );
-            Ok((r.irradiance, r.rays, note))
-        })?;
+        let vpl_only = settings.method == Method::Vpl;
+        let irradiance = if vpl_only {
+            vec![Vec3::ZERO; patches.patches.len()]
+        } else {
+            stages.run("direct", progress, patches.patches.len() as u64, || {
+                let r = direct_light(&ctx, &emitters, progress);
+                let note = format!(
+                    "{} spp, {} light(s), {} emitter triangle(s){}",
+                    settings.samples_per_texel,
+                    plan.lights.iter().filter(|l| l.instances > 0).count(),
+                    emitters.list.len(),
+                    if plan.sky {
+                        format!(", {} sky rays/texel", settings.sky_samples)
+                    } else {
+                        String::new()
+                    }
+                );
+                Ok((r.irradiance, r.rays, note))
+            })?
+        };
         let mut irradiance = irradiance;
-        if plan.runs("indirect") {
+        if plan.runs("indirect") && matches!(settings.method, Method::Vpl | Method::Hybrid) {
+            let (from_vpls, report) =
+                stages.run("vpl", progress, patches.patches.len() as u64, || {
+                    let direct = (!vpl_only).then_some(irradiance.as_slice());
+                    let (e, report, rays) =
+                        instant_radiosity(&ctx, &emitters, vpl_only, direct, progress);
+                    let note = format!(
+                        "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}",
+                        report.particles,
+                        report.vpls,
+                        report.mean_reflectivity,
+                        100.0 * report.clamped_fraction,
+                        if report.compensated {
+                            ", compensated"
+                        } else {
+                            ""
+                        }
+                    );
+                    Ok(((e, report), rays, note))
+                })?;
+            for (e, v) in irradiance.iter_mut().zip(&from_vpls) {
+                *e += *v;
+            }
+            solver_reason = Some(format!(
+                "instant radiosity: {} particles ({}), {} VPLs, clamp distance {:.3e} m",
+                report.particles, report.particles_reason, report.vpls, report.clamp_distance
+            ));
+            vpl_report = Some(report);
+        } else if plan.runs("indirect") {
             let nodes = stages.run("nodes", progress, 1, || {
                 let nodes = Nodes::new(&ctx, settings.basis);
                 let note = format!(
@@ -302,6 +338,7 @@ fn bake_in_pool(
         plan,
         stages: stages.list,
         indirect: indirect_report,
+        vpl: vpl_report,
         texels,
         triangles: scene.instanced_triangle_count(),
         threads,

@@ -13,6 +13,8 @@
 //! 6. [`direct`]: point, spot, directional, sky and emissive-surface light with shadow rays.
 //! 7. [`transport`], [`solve`], [`indirect`]: radiosity over the texel nodes — form factors
 //!    (Monte Carlo, hemicube, closed form) and the solver family.
+//!    [`vpl`]: instant radiosity — quasi-random walks leave virtual point lights, gathered
+//!    into the texels (methods `vpl` and `hybrid`).
 //! 8. [`lightmap`]: pages of E/π, invalid texels filled, padding dilated.
 //! 9. [`output`]: EXR/HDR/KTX2 + PNG preview, baked glTF, manifest, report; atomically.
 //!
@@ -43,6 +45,7 @@ pub mod output;
 pub mod plan;
 pub mod progress;
 pub mod raster;
+pub mod reference;
 pub mod report;
 pub mod sampling;
 pub mod scene;
@@ -50,6 +53,7 @@ pub mod settings;
 pub mod solve;
 pub mod transport;
 pub mod unwrap;
+pub mod vpl;
 
 pub use bake::{BakeOutput, bake};
 pub use error::{BakeError, Result};

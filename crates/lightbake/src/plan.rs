@@ -210,13 +210,18 @@ impl BakePlan {
             },
         );
         let light_count = lights.iter().filter(|l| l.instances > 0).count();
+        // Method vpl carries all light, direct included, by VPLs.
+        let vpl_only = settings.method == Method::Vpl;
+        let as_vpls = "method 'vpl': the light sources are the first generation of VPLs";
         stage(
             "direct lights",
-            light_count > 0 && work,
+            light_count > 0 && work && !vpl_only,
             if scene.lights.is_empty() {
                 "the scene has no punctual or directional lights".to_string()
             } else if light_count == 0 {
                 "no light reaches a baked instance (range, cone or zero intensity)".to_string()
+            } else if vpl_only {
+                as_vpls.to_string()
             } else {
                 format!(
                     "{light_count} of {} light(s) reach baked instances",
@@ -226,27 +231,34 @@ impl BakePlan {
         );
         stage(
             "area lights",
-            area_lights && work,
-            if area_lights {
-                format!("{emissive_instances} emissive instance(s)")
-            } else {
+            area_lights && work && !vpl_only,
+            if !area_lights {
                 "no emissive surfaces".to_string()
+            } else if vpl_only {
+                as_vpls.to_string()
+            } else {
+                format!("{emissive_instances} emissive instance(s)")
             },
         );
         stage(
             "sky",
-            sky && work,
-            if sky {
-                format!("sky luminance {:?} nits", scene.sky.to_array())
-            } else {
+            sky && work && !vpl_only,
+            if !sky {
                 "the sky is black".to_string()
+            } else if vpl_only {
+                as_vpls.to_string()
+            } else {
+                format!("sky luminance {:?} nits", scene.sky.to_array())
             },
         );
         let all_black = scene
             .instances
             .iter()
-            .filter(|inst| inst.bake)
             .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
+        let particles = settings.vpl_time_budget_s.map_or_else(
+            || format!("{} particles", settings.vpl_particles),
+            |t| format!("particles for a {t} s gather"),
+        );
         let (run_indirect, why) = match settings.method {
             Method::Direct if all_black => (
                 false,
@@ -257,11 +269,11 @@ impl BakePlan {
                 false,
                 "method 'direct' computes no interreflection".to_string(),
             ),
-            Method::Radiosity if all_black => (
+            Method::Radiosity | Method::Hybrid if all_black => (
                 false,
-                "every baked surface has zero albedo: nothing is reflected".to_string(),
+                "every surface has zero albedo: nothing is reflected".to_string(),
             ),
-            Method::Radiosity if !work => (false, why_not.clone()),
+            _ if !work => (false, why_not.clone()),
             Method::Radiosity => (
                 true,
                 format!(
@@ -273,6 +285,25 @@ impl BakePlan {
                     settings.solver.name(),
                     if settings.solver == crate::solve::SolverChoice::Auto {
                         " (chosen once the texels are known)"
+                    } else {
+                        ""
+                    }
+                ),
+            ),
+            Method::Hybrid => (
+                true,
+                format!(
+                    "instant radiosity from the first reflection on: {particles}, {:?} walks",
+                    settings.vpl_sequence
+                ),
+            ),
+            Method::Vpl => (
+                true,
+                format!(
+                    "instant radiosity, all light from VPLs: {particles}, {:?} walks{}",
+                    settings.vpl_sequence,
+                    if all_black {
+                        " (every albedo is zero: no reflections)"
                     } else {
                         ""
                     }

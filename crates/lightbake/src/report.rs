@@ -73,6 +73,9 @@ pub struct BakeReport {
     /// The radiosity pass, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub indirect: Option<crate::indirect::IndirectReport>,
+    /// The instant-radiosity pass, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vpl: Option<crate::vpl::VplReport>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// Repairs, compromises and clamps.

@@ -73,6 +73,90 @@ pub fn halton(dim: usize, i: u64) -> f64 {
     radical_inverse(PRIMES[dim], i)
 }
 
+/// Radical inverse with random digit scrambling: digit k of `i` in base `base` becomes
+/// (digit + s_k) mod base, s_k a hash of (`seed`, k). Keeps the stratification of Φ_b
+/// (each digit position still runs through every value) while decorrelating repeated use.
+#[inline]
+pub fn scrambled_radical_inverse(base: u32, mut i: u64, seed: u32) -> f64 {
+    let inv_base = 1.0 / base as f64;
+    let mut inv = inv_base;
+    let mut result = 0.0;
+    let mut k = 0u32;
+    // Enough digits for double precision (or until the remaining digits are all zero and
+    // their scrambled values vanish below f64 resolution).
+    while inv > 1e-15 {
+        let digit = (i % base as u64) as u32;
+        let shifted = (digit + hash_words(&[seed, k]) % base) % base;
+        result += shifted as f64 * inv;
+        i /= base as u64;
+        inv *= inv_base;
+        k += 1;
+    }
+    result.min(1.0 - f64::EPSILON)
+}
+
+/// A bijection of [0, n) chosen by `seed` (a hash applied by cycle-walking within the next
+/// power of two), to shuffle strata.
+pub fn permute(i: u32, n: u32, seed: u32) -> u32 {
+    debug_assert!(i < n);
+    let bits = 32 - (n.max(2) - 1).leading_zeros();
+    let mask = if bits >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << bits) - 1
+    };
+    let mut x = i;
+    loop {
+        // An invertible mix on `bits` bits: xorshift and odd multiplies, masked.
+        x ^= seed & mask;
+        x = x.wrapping_mul(0x9e37_79b1 | 1) & mask;
+        x ^= (x >> (bits / 2).max(1)) & mask;
+        x = x.wrapping_mul(0x85eb_ca6b | 1) & mask;
+        x ^= (x >> (bits / 2).max(1)) & mask;
+        if x < n {
+            return x;
+        }
+    }
+}
+
+/// Which numbers drive a quasi-random walk, per Keller's comparison of random, jittered and
+/// Halton patterns.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sequence {
+    /// The Halton sequence: dimension d of point i is Φ_{p_d}(i + 1).
+    #[default]
+    Halton,
+    /// Halton with random digit scrambling per dimension (seeded).
+    ScrambledHalton,
+    /// Jittered (stratified) per dimension: ((π_d(i) + ξ)/N), π_d a seeded permutation, as a
+    /// Latin hypercube.
+    Jittered,
+    /// Independent uniform random numbers (hashed from index, dimension and seed).
+    Random,
+}
+
+impl Sequence {
+    /// Component `dim` (< 64) of point `i` of an `n`-point set.
+    pub fn sample(self, i: u32, n: u32, dim: usize, seed: u32) -> f32 {
+        let v = match self {
+            Sequence::Halton => halton(dim, i as u64 + 1),
+            Sequence::ScrambledHalton => scrambled_radical_inverse(
+                PRIMES[dim],
+                i as u64 + 1,
+                hash_words(&[seed, dim as u32]),
+            ),
+            Sequence::Jittered => {
+                let stratum = permute(i, n.max(1), hash_words(&[seed, dim as u32, 0x717]));
+                let xi = unit_float(hash_words(&[seed, dim as u32, i])) as f64;
+                (stratum as f64 + xi) / n.max(1) as f64
+            }
+            Sequence::Random => unit_float(hash_words(&[seed, dim as u32, i, 0xabc])) as f64,
+        };
+        (v as f32).min(1.0 - f32::EPSILON)
+    }
+}
+
 /// Reverses the bits of a 32-bit word.
 #[inline]
 fn reverse_bits(x: u32) -> u32 {
@@ -197,6 +281,51 @@ mod tests {
         assert!((radical_inverse(3, 1) - 1.0 / 3.0).abs() < 1e-15);
         assert!((radical_inverse(3, 5) - (2.0 / 3.0 + 1.0 / 9.0)).abs() < 1e-15);
         assert!((halton(1, 4) - radical_inverse(3, 4)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn permutations_are_bijections() {
+        for n in [1u32, 2, 7, 64, 1000] {
+            let mut seen = vec![false; n as usize];
+            for i in 0..n {
+                let j = permute(i, n, 42) as usize;
+                assert!(!seen[j]);
+                seen[j] = true;
+            }
+        }
+    }
+
+    #[test]
+    fn sequences_are_in_range_and_halton_is_stratified() {
+        for seq in [
+            Sequence::Halton,
+            Sequence::ScrambledHalton,
+            Sequence::Jittered,
+            Sequence::Random,
+        ] {
+            for i in 0..512 {
+                for d in 0..8 {
+                    let v = seq.sample(i, 512, d, 9);
+                    assert!((0.0..1.0).contains(&v), "{seq:?} {v}");
+                }
+            }
+        }
+        // The first 3^4 points of Φ_3 fall one in each of 81 strata, scrambled or not.
+        let mut seen = [0u32; 81];
+        for i in 0..81u64 {
+            seen[(radical_inverse(3, i) * 81.0 + 1e-9) as usize] += 1;
+        }
+        assert!(seen.iter().all(|&c| c == 1));
+        let mut seen = [0u32; 81];
+        for i in 0..81u64 {
+            seen[(scrambled_radical_inverse(3, i, 5) * 81.0 + 1e-9) as usize] += 1;
+        }
+        assert!(seen.iter().all(|&c| c == 1), "{seen:?}");
+        let mut seen = [0u32; 81];
+        for i in 0..81 {
+            seen[(Sequence::Jittered.sample(i, 81, 2, 3) * 81.0) as usize] += 1;
+        }
+        assert!(seen.iter().all(|&c| c == 1));
     }
 
     #[test]

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{BakeError, Result};
+use crate::sampling::Sequence;
 use crate::solve::SolverChoice;
 use crate::transport::Basis;
 
@@ -18,6 +19,11 @@ pub enum Method {
     /// ([`crate::indirect`]). The default.
     #[default]
     Radiosity,
+    /// Instant radiosity: all light from virtual point lights, the light sources themselves
+    /// as the first generation ([`crate::vpl`]).
+    Vpl,
+    /// Direct light exact ([`crate::direct`]), indirect light from virtual point lights.
+    Hybrid,
 }
 
 /// Named quality presets (`--quality preview|medium|high`).
@@ -103,6 +109,25 @@ pub struct BakeSettings {
     pub max_solver_iterations: u32,
     /// Stochastic Jacobi: rays in its first iteration per node. Default 64.
     pub stochastic_rays_per_node: u32,
+    /// Instant radiosity: particles started from the lights (N); about N/(1 − ρ̄) VPLs result.
+    /// Range 1..=10⁷. Default 1024 (medium), 256 (preview), 4096 (high).
+    pub vpl_particles: u32,
+    /// Instant radiosity: choose N to fit this many seconds of gathering instead (measured
+    /// against a pilot). Default none.
+    pub vpl_time_budget_s: Option<f64>,
+    /// Instant radiosity: the number pattern of the walks. Default
+    /// [`Sequence::ScrambledHalton`] (plain Halton converges as fast but its higher bases are
+    /// correlated at small N).
+    pub vpl_sequence: Sequence,
+    /// Instant radiosity: VPLs closer than this (m) are clamped (G ≤ 1/d²). Default 2% of the
+    /// scene's diagonal.
+    pub vpl_clamp_distance: Option<f32>,
+    /// Instant radiosity: restore the clamped energy (Kollig & Keller 2004). Default off.
+    pub vpl_bias_compensation: bool,
+    /// Instant radiosity: rays per texel of the bias compensation. Default 64.
+    pub vpl_compensation_rays: u32,
+    /// Instant radiosity: deepest reflection followed (≤ 29). Default 16.
+    pub vpl_max_depth: u32,
     /// Lightmap texels per metre of world-space surface (per axis). Range (0, 100 000].
     /// Default 32 (medium), 12 (preview), 64 (high). A glTF scene may suggest its own in
     /// `scene.extras.lightbake.texel_density`; [`BakeSettings::texel_density_from_scene`] says
@@ -154,11 +179,12 @@ impl Default for BakeSettings {
 impl BakeSettings {
     /// The settings of a quality preset.
     pub fn preset(quality: Quality) -> Self {
-        let (texel_density, samples_per_texel, sky_samples, transport_rays) = match quality {
-            Quality::Preview => (12.0, 4, 16, 32),
-            Quality::Medium => (32.0, 16, 64, 128),
-            Quality::High => (64.0, 64, 256, 512),
-        };
+        let (texel_density, samples_per_texel, sky_samples, transport_rays, vpl_particles) =
+            match quality {
+                Quality::Preview => (12.0, 4, 16, 32, 256),
+                Quality::Medium => (32.0, 16, 64, 128, 1024),
+                Quality::High => (64.0, 64, 256, 512, 4096),
+            };
         Self {
             method: Method::Radiosity,
             solver: SolverChoice::Auto,
@@ -168,6 +194,13 @@ impl BakeSettings {
             solver_tolerance: 1e-3,
             max_solver_iterations: 20_000,
             stochastic_rays_per_node: 64,
+            vpl_particles,
+            vpl_time_budget_s: None,
+            vpl_sequence: Sequence::ScrambledHalton,
+            vpl_clamp_distance: None,
+            vpl_bias_compensation: false,
+            vpl_compensation_rays: 64,
+            vpl_max_depth: 16,
             texel_density,
             texel_density_from_scene: true,
             padding: 2,
@@ -260,6 +293,38 @@ impl BakeSettings {
                 "max_solver_iterations",
                 self.max_solver_iterations,
                 "solver iterations and stochastic rays must be at least 1",
+            ));
+        }
+        if !(1..=10_000_000).contains(&self.vpl_particles) {
+            return Err(bad(
+                "vpl_particles",
+                self.vpl_particles,
+                "must be 1..=10000000",
+            ));
+        }
+        if let Some(t) = self.vpl_time_budget_s {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(bad(
+                    "vpl_time_budget_s",
+                    t,
+                    "must be a positive number of seconds",
+                ));
+            }
+        }
+        if let Some(d) = self.vpl_clamp_distance {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(bad(
+                    "vpl_clamp_distance",
+                    d,
+                    "must be a positive distance in metres",
+                ));
+            }
+        }
+        if self.vpl_max_depth > crate::vpl::walk::MAX_DEPTH {
+            return Err(bad(
+                "vpl_max_depth",
+                self.vpl_max_depth,
+                "must be at most 29",
             ));
         }
         if self.memory_budget_mib == 0 {

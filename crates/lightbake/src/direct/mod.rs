@@ -75,6 +75,8 @@ pub struct Emitters {
     pub list: Vec<Emitter>,
     /// Cumulative power (luminance-weighted radiance × area × sides), normalised to end at 1.
     cdf: Vec<f32>,
+    /// (global triangle, emitter index), sorted by triangle.
+    by_triangle: Vec<(u32, u32)>,
 }
 
 /// Luminance weights of linear Rec.709 RGB.
@@ -135,7 +137,17 @@ impl Emitters {
                 *c /= total as f32;
             }
         }
-        Self { list, cdf }
+        let mut by_triangle: Vec<(u32, u32)> = list
+            .iter()
+            .enumerate()
+            .map(|(k, e)| (e.triangle, k as u32))
+            .collect();
+        by_triangle.sort_unstable();
+        Self {
+            list,
+            cdf,
+            by_triangle,
+        }
     }
 
     /// Whether there is nothing to sample.
@@ -143,8 +155,21 @@ impl Emitters {
         self.list.is_empty()
     }
 
+    /// The emitter on global triangle `triangle`, if it emits.
+    pub fn index_of(&self, triangle: u32) -> Option<usize> {
+        self.by_triangle
+            .binary_search_by_key(&triangle, |e| e.0)
+            .ok()
+            .map(|k| self.by_triangle[k].1 as usize)
+    }
+
+    /// Probability with which [`Emitters::pick`] picks emitter `k`.
+    pub fn probability(&self, k: usize) -> f32 {
+        self.cdf[k] - if k == 0 { 0.0 } else { self.cdf[k - 1] }
+    }
+
     /// Picks an emitter by power: (index, probability).
-    fn pick(&self, u: f32) -> (usize, f32) {
+    pub fn pick(&self, u: f32) -> (usize, f32) {
         let i = self
             .cdf
             .partition_point(|&c| c <= u)
@@ -155,7 +180,10 @@ impl Emitters {
 }
 
 /// Irradiance of one point light at `sp`, before visibility, and the shadow-ray target.
-fn punctual(light: &crate::scene::Light, sp: &SurfacePoint) -> Option<(Vec3, Vec3, f32)> {
+pub(crate) fn punctual(
+    light: &crate::scene::Light,
+    sp: &SurfacePoint,
+) -> Option<(Vec3, Vec3, f32)> {
     let to_light = light.position - sp.position;
     let d2 = to_light.length_squared();
     if d2 <= 0.0 {

@@ -1,0 +1,208 @@
+//! Gathering VPLs into texel patches (Keller 1997, eq. 3 evaluated per texel instead of per
+//! pixel), with the 1/r² singularity clamped and, optionally, the clamped energy restored by
+//! bias compensation (Kollig & Keller 2004, "Illumination in the Presence of Weak
+//! Singularities").
+//!
+//! A diffuse VPL of power Φ at y (normal n_y) gives the point x (normal n_x) the irradiance
+//! E = Φ/π · G(x, y) · V(x, y), G = cosθ_x·cosθ_y / r². Near corners G grows without bound,
+//! so it is clamped: G_c = min(G, b), **b = 1/d_c²** with d_c the clamp distance
+//! (`vpl_clamp_distance`, by default 2% of the scene's diagonal) — a VPL closer than d_c
+//! contributes as if it were d_c away and facing x. The energy this removes,
+//! Φ/π·(G − b)⁺·V summed over texels (× texel area), is reported.
+//!
+//! Bias compensation adds, at every texel, the light the clamp removed from nearby surfaces:
+//! cosine-distributed rays from x find y′, and E_comp = (1/K)·Σ B(y′)·(1 − b/G(x, y′))⁺, with
+//! B(y′) the exitance there read from the clamped result through the radiosity basis
+//! ([`crate::transport::HitMapper`]). This is the one-bounce form of Kollig & Keller's
+//! recursive correction: exact where B(y′) is, and B(y′) only lacks the clamped part near
+//! its own corners.
+//!
+//! Shadow rays are batched per tile of texels: each tile of 64 neighbouring texels (page
+//! order) visits every VPL in turn, so consecutive rays leave nearby points towards the same
+//! VPL. Before any ray is traced a VPL is culled when it lies behind the texel's surface, the
+//! texel lies behind the VPL's surface, or the texel is outside a punctual light's range.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::walk::{Vpl, VplKind};
+use crate::bake::BakeContext;
+use crate::direct::{punctual, representative};
+use crate::progress::Progress;
+use crate::sampling::{cosine_hemisphere, sobol_02};
+use crate::transport::HitMapper;
+
+/// Texels per gather tile.
+const TILE: usize = 64;
+
+/// What the gather produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Gathered {
+    /// Irradiance per patch, lux, linear RGB.
+    pub irradiance: Vec<Vec3>,
+    /// Irradiance the clamp removed per patch, lux.
+    pub clamped: Vec<Vec3>,
+    /// Shadow rays traced.
+    pub shadow_rays: u64,
+    /// VPL–texel pairs culled before tracing.
+    pub culled: u64,
+}
+
+/// Gathers `vpls` at every valid patch, with G clamped at `bound`.
+pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progress) -> Gathered {
+    let patches = &ctx.patches.patches;
+    let rays_count = AtomicU64::new(0);
+    let culled_count = AtomicU64::new(0);
+    let far = ctx.rays.extent * 4.0 + 1.0;
+    let tiles: Vec<(Vec<Vec3>, Vec<Vec3>)> = patches
+        .par_chunks(TILE)
+        .map(|tile| {
+            let mut e = vec![Vec3::ZERO; tile.len()];
+            let mut lost = vec![Vec3::ZERO; tile.len()];
+            if progress.is_cancelled() {
+                return (e, lost);
+            }
+            let points: Vec<_> = tile.iter().map(representative).collect();
+            let origins: Vec<Vec3> = points
+                .iter()
+                .map(|sp| ctx.rays.offset(sp.position, sp.geometric_normal))
+                .collect();
+            let (mut traced, mut culled) = (0u64, 0u64);
+            for v in vpls {
+                for (k, p) in tile.iter().enumerate() {
+                    if !p.is_valid() {
+                        continue;
+                    }
+                    let sp = &points[k];
+                    match v.kind {
+                        VplKind::Diffuse { normal } => {
+                            let d = v.position - sp.position;
+                            let r2 = d.length_squared();
+                            if r2 <= 0.0 {
+                                continue;
+                            }
+                            let r = r2.sqrt();
+                            let l = d / r;
+                            let cos_x = sp.normal.dot(l);
+                            let cos_y = -normal.dot(l);
+                            if cos_x <= 0.0 || cos_y <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
+                                culled += 1;
+                                continue;
+                            }
+                            traced += 1;
+                            let tmax = r - ctx.rays.epsilon(v.position);
+                            if ctx.rays.occluded(origins[k], l, 0.0, tmax) {
+                                continue;
+                            }
+                            let g = cos_x * cos_y / r2;
+                            let scale = std::f32::consts::FRAC_1_PI;
+                            e[k] += v.power * (scale * g.min(bound));
+                            if g > bound {
+                                lost[k] += v.power * (scale * (g - bound));
+                            }
+                        }
+                        VplKind::Punctual { light } => {
+                            let light = &ctx.scene.lights[light as usize];
+                            let Some((irr, l, d)) = punctual(light, sp) else {
+                                culled += 1;
+                                continue;
+                            };
+                            traced += 1;
+                            let tmax = d - ctx.rays.epsilon(light.position);
+                            if !ctx.rays.occluded(origins[k], l, 0.0, tmax) {
+                                e[k] += irr;
+                            }
+                        }
+                        VplKind::Directional {
+                            direction,
+                            irradiance,
+                        } => {
+                            let l = -direction;
+                            let cos = sp.normal.dot(l);
+                            if cos <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
+                                culled += 1;
+                                continue;
+                            }
+                            traced += 1;
+                            if !ctx.rays.occluded(origins[k], l, 0.0, far) {
+                                e[k] += irradiance * cos;
+                            }
+                        }
+                    }
+                }
+            }
+            rays_count.fetch_add(traced, Ordering::Relaxed);
+            culled_count.fetch_add(culled, Ordering::Relaxed);
+            progress.advance(tile.len() as u64);
+            (e, lost)
+        })
+        .collect();
+    let mut out = Gathered {
+        shadow_rays: rays_count.into_inner(),
+        culled: culled_count.into_inner(),
+        ..Gathered::default()
+    };
+    for (e, lost) in tiles {
+        out.irradiance.extend(e);
+        out.clamped.extend(lost);
+    }
+    out
+}
+
+/// Kollig–Keller compensation (see the module docs): the irradiance the clamp at `bound`
+/// removed, re-estimated with `rays` cosine rays per texel from the exitance `exitance` at the
+/// nodes. Returns (irradiance per patch, rays traced).
+pub fn compensate(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    exitance: &[Vec3],
+    bound: f32,
+    rays: u32,
+    progress: &Progress,
+) -> (Vec<Vec3>, u64) {
+    let traced = AtomicU64::new(0);
+    let out = ctx
+        .patches
+        .patches
+        .par_iter()
+        .map(|p| {
+            if !p.is_valid() {
+                return Vec3::ZERO;
+            }
+            let sp = representative(p);
+            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+            let key = p.rng(ctx.settings.seed, 0xc0a9);
+            let mut sum = Vec3::ZERO;
+            let mut w = [(0u32, 0f32); 4];
+            // Only points closer than where G can exceed the bound matter: r² < 1/bound.
+            let reach = (1.0 / bound).sqrt();
+            for k in 0..rays {
+                let dir = cosine_hemisphere(sp.normal, sobol_02(k, key));
+                if dir.dot(sp.geometric_normal) <= 0.0 {
+                    continue;
+                }
+                traced.fetch_add(1, Ordering::Relaxed);
+                let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, reach) else {
+                    continue;
+                };
+                let info = ctx.rays.triangles[hit.triangle as usize];
+                let cos_x = sp.normal.dot(dir);
+                let cos_y = (-info.normal.dot(dir)).abs();
+                let g = cos_x * cos_y / (hit.t * hit.t);
+                if g <= bound {
+                    continue;
+                }
+                let n = mapper.weights(&hit, &mut w);
+                let b = w[..n]
+                    .iter()
+                    .fold(Vec3::ZERO, |s, &(j, wj)| s + exitance[j as usize] * wj);
+                sum += b * (1.0 - bound / g);
+            }
+            progress.advance(1);
+            sum / rays.max(1) as f32
+        })
+        .collect();
+    (out, traced.into_inner())
+}

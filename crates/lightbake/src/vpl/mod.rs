@@ -1,0 +1,215 @@
+//! Instant radiosity (Keller 1997, "Instant Radiosity", SIGGRAPH 97): light is carried by
+//! virtual point lights left at the vertices of quasi-random walks from the light sources
+//! ([`walk`]), then gathered into every texel with shadow rays ([`gather`]).
+//!
+//! Two methods use it:
+//!
+//! * `vpl`: all light comes from VPLs; the light sources themselves are the first generation
+//!   (punctual lights exactly, emitters and the sun and sky as samples);
+//! * `hybrid`: direct light is computed exactly by [`crate::direct`]; VPLs from the first
+//!   reflection on carry the indirect light.
+//!
+//! The number of particles is set directly (`vpl_particles`) or from a time budget
+//! (`vpl_time_budget_s`, measured against a pilot of shadow rays).
+
+pub mod gather;
+pub mod walk;
+
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::bake::BakeContext;
+use crate::direct::{Emitters, luminance};
+use crate::progress::Progress;
+use crate::sampling::Sequence;
+use crate::transport::{Basis, HitMapper, Nodes};
+pub use walk::{Vpl, VplKind, VplSet, WalkSettings};
+
+/// Counters of the instant-radiosity pass, for the report.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct VplReport {
+    /// Particles started (N).
+    pub particles: u32,
+    /// How N was chosen.
+    pub particles_reason: String,
+    /// Number pattern.
+    pub sequence: Sequence,
+    /// VPLs made.
+    pub vpls: usize,
+    /// VPLs per path depth.
+    pub per_depth: Vec<u32>,
+    /// Keller's ρ̄.
+    pub mean_reflectivity: f32,
+    /// The clamp distance d_c (m); G is clamped at 1/d_c².
+    pub clamp_distance: f32,
+    /// Share of the gathered VPL light the clamp removed (before any compensation).
+    pub clamped_fraction: f64,
+    /// Whether bias compensation ran.
+    pub compensated: bool,
+    /// Shadow rays of the gather.
+    pub shadow_rays: u64,
+    /// VPL–texel pairs culled before tracing.
+    pub culled: u64,
+    /// Gather wall time, s.
+    pub gather_seconds: f64,
+    /// Shadow rays per second in the gather.
+    pub shadow_rays_per_second: f64,
+}
+
+/// The clamp distance for a scene: the setting, or 2% of the scene's diagonal.
+pub fn clamp_distance(ctx: &BakeContext<'_>) -> f32 {
+    ctx.settings
+        .vpl_clamp_distance
+        .unwrap_or(0.02 * ctx.rays.extent)
+        .max(1e-9)
+}
+
+/// Chooses N: the setting, or what fits the time budget at the measured shadow-ray rate.
+fn particle_count(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    first_generation: bool,
+) -> (u32, String) {
+    let s = ctx.settings;
+    let Some(budget) = s.vpl_time_budget_s else {
+        return (s.vpl_particles, "set in the settings".into());
+    };
+    // Pilot: a small walk and a gather over a sample of texels.
+    let pilot = walk::walk(
+        ctx.scene,
+        ctx.rays,
+        emitters,
+        &WalkSettings {
+            particles: 64,
+            sequence: s.vpl_sequence,
+            seed: s.seed,
+            max_depth: s.vpl_max_depth,
+            first_generation,
+        },
+    );
+    let patches = &ctx.patches.patches;
+    let step = (patches.len() / 256).max(1);
+    let sample: Vec<crate::raster::Patch> = patches.iter().step_by(step).copied().collect();
+    let sub = crate::raster::Patches {
+        patches: sample,
+        ..crate::raster::Patches::default()
+    };
+    let sub_ctx = BakeContext {
+        patches: &sub,
+        ..*ctx
+    };
+    let start = Instant::now();
+    let g = gather::gather(&sub_ctx, &pilot.vpls, 1e30, &Progress::new());
+    let seconds = start.elapsed().as_secs_f64().max(1e-6);
+    let pairs = (sub.patches.len() * pilot.vpls.len().max(1)) as f64;
+    let seconds_per_pair = seconds / pairs;
+    let vpls_per_particle = pilot.vpls.len().max(1) as f64 / 64.0;
+    let n = (budget / (seconds_per_pair * patches.len().max(1) as f64 * vpls_per_particle)).floor();
+    let n = n.clamp(16.0, 1e7) as u32;
+    (
+        n,
+        format!(
+            "time budget {budget} s at {:.2} µs per VPL–texel pair ({} shadow rays in the pilot)",
+            seconds_per_pair * 1e6,
+            g.shadow_rays
+        ),
+    )
+}
+
+/// Runs the walk, the gather and (optionally) the compensation. `first_generation`: method
+/// `vpl` (true) or `hybrid` (false). `direct`: per-patch direct irradiance already computed
+/// (hybrid), used as the exitance source of the compensation. Returns per-patch irradiance
+/// from the VPLs (lux) and the report.
+pub fn instant_radiosity(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    first_generation: bool,
+    direct: Option<&[Vec3]>,
+    progress: &Progress,
+) -> (Vec<Vec3>, VplReport, u64) {
+    let s = ctx.settings;
+    let (particles, reason) = particle_count(ctx, emitters, first_generation);
+    let set = walk::walk(
+        ctx.scene,
+        ctx.rays,
+        emitters,
+        &WalkSettings {
+            particles,
+            sequence: s.vpl_sequence,
+            seed: s.seed,
+            max_depth: s.vpl_max_depth,
+            first_generation,
+        },
+    );
+    let d_c = clamp_distance(ctx);
+    let bound = 1.0 / (d_c * d_c);
+    let start = Instant::now();
+    let gathered = gather::gather(ctx, &set.vpls, bound, progress);
+    let gather_seconds = start.elapsed().as_secs_f64();
+    let weigh = |v: &[Vec3]| -> f64 {
+        v.iter()
+            .zip(&ctx.patches.patches)
+            .map(|(e, p)| luminance(*e) as f64 * p.area as f64)
+            .sum()
+    };
+    let total = weigh(&gathered.irradiance) + weigh(&gathered.clamped);
+    let mut irradiance = gathered.irradiance;
+    let mut rays = set.rays + gathered.shadow_rays;
+    let compensated = s.vpl_bias_compensation;
+    if compensated {
+        // Exitance at the nodes: reflection of what has been gathered (plus direct light in
+        // hybrid), and emission (its near field was clamped too in method vpl).
+        let nodes = Nodes::new(ctx, Basis::Linear);
+        let exitance: Vec<Vec3> = nodes
+            .patch
+            .iter()
+            .zip(&nodes.albedo)
+            .map(|(&pi, rho)| {
+                let p = &ctx.patches.patches[pi as usize];
+                let emitted = if first_generation {
+                    let mesh = ctx.scene.instances[p.instance as usize].mesh;
+                    ctx.scene.material_of(mesh).emissive * std::f32::consts::PI
+                } else {
+                    Vec3::ZERO
+                };
+                let i = pi as usize;
+                *rho * (irradiance[i] + direct.map_or(Vec3::ZERO, |d| d[i])) + emitted
+            })
+            .collect();
+        let mapper = HitMapper::new(*ctx, &nodes, Basis::Linear);
+        let (extra, traced) = gather::compensate(
+            ctx,
+            &mapper,
+            &exitance,
+            bound,
+            s.vpl_compensation_rays,
+            progress,
+        );
+        rays += traced;
+        for (e, x) in irradiance.iter_mut().zip(extra) {
+            *e += x;
+        }
+    }
+    let report = VplReport {
+        particles,
+        particles_reason: reason,
+        sequence: s.vpl_sequence,
+        vpls: set.vpls.len(),
+        per_depth: set.per_depth.clone(),
+        mean_reflectivity: set.mean_reflectivity,
+        clamp_distance: d_c,
+        clamped_fraction: if total > 0.0 {
+            weigh(&gathered.clamped) / total
+        } else {
+            0.0
+        },
+        compensated,
+        shadow_rays: gathered.shadow_rays,
+        culled: gathered.culled,
+        gather_seconds,
+        shadow_rays_per_second: gathered.shadow_rays as f64 / gather_seconds.max(1e-9),
+    };
+    (irradiance, report, rays)
+}
