@@ -69,6 +69,7 @@ fn table(name: &str, c: &Case) {
         albedo: &c.nodes.albedo,
         source: &c.source,
         area: &c.nodes.area,
+        progress: None,
     };
     let options = SolveOptions {
         tolerance: 1e-3,
@@ -161,6 +162,7 @@ fn solvers(c: &mut Criterion) {
         albedo: &cornell.nodes.albedo,
         source: &cornell.source,
         area: &cornell.nodes.area,
+        progress: None,
     };
     let one = SolveOptions {
         tolerance: 1e-30,

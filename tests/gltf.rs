@@ -132,6 +132,14 @@ fn gltf_round_trip_keeps_the_scene_and_adds_texcoord1() {
             assert_eq!(extras["image"], entry["image"]);
             assert!(out_dir.join(entry["image"].as_str().unwrap()).exists());
         }
+        // Every punctual light is flagged as baked; the area-light box has none.
+        let lights = json
+            .pointer("/extensions/KHR_lights_punctual/lights")
+            .and_then(Value::as_array);
+        assert_eq!(lights.map_or(0, Vec::len), imported.scene.lights.len());
+        for l in lights.into_iter().flatten() {
+            assert_eq!(l["extras"]["lightbake"]["baked"], Value::Bool(true), "{l}");
+        }
         // Baking the baked file keeps the UVs it now has.
         let plan = lightbake::plan::BakePlan::new(&baked.scene, &settings);
         assert_eq!(plan.meshes_to_unwrap, 0);

@@ -124,6 +124,7 @@ fn iterative_solvers_agree_with_the_dense_solve() {
         albedo: &nodes.albedo,
         source: &source,
         area: &nodes.area,
+        progress: None,
     };
     let options = SolveOptions {
         tolerance: 1e-7,
@@ -176,6 +177,7 @@ fn stochastic_jacobi_converges_to_the_dense_solve() {
         albedo: &nodes.albedo,
         source: &source,
         area: &nodes.area,
+        progress: None,
     };
     let reference = solve::solve_matrix(SolverChoice::Direct, &system, &SolveOptions::default());
     let ctx = prep.ctx();
@@ -462,6 +464,7 @@ fn energy_is_conserved() {
         albedo: &nodes.albedo,
         source: &source,
         area: &nodes.area,
+        progress: None,
     };
     let s = solve::solve_matrix(
         SolverChoice::GaussSeidel,
@@ -556,9 +559,10 @@ fn shooting_ambient_term_improves_a_partial_solution() {
         albedo: &nodes.albedo,
         source: &source,
         area: &nodes.area,
+        progress: None,
     };
     let reference = solve::solve_matrix(SolverChoice::Direct, &system, &SolveOptions::default());
-    let mut rec = solve::Recorder::new();
+    let mut rec = solve::Recorder::new(None);
     let (state, _) = solve::shooting::shoot(
         &system,
         &SolveOptions::default(),
@@ -594,6 +598,7 @@ fn krylov_needs_far_fewer_iterations_than_jacobi_when_stiff() {
             albedo: &nodes.albedo,
             source: &source,
             area: &nodes.area,
+            progress: None,
         };
         let options = SolveOptions {
             tolerance: 1e-6,

@@ -125,6 +125,7 @@ pub fn radiosity_indirect(
         albedo: &nodes.albedo,
         source: &source,
         area: &nodes.area,
+        progress: None,
     };
     let s = solve_matrix(
         SolverChoice::GaussSeidel,

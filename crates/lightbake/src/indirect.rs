@@ -150,6 +150,7 @@ pub fn solve_system(
                 albedo: &nodes.albedo,
                 source,
                 area: &nodes.area,
+                progress: Some(progress),
             };
             let options = SolveOptions {
                 tolerance: residual_tolerance,

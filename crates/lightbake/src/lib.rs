@@ -57,5 +57,7 @@ pub mod vpl;
 
 pub use bake::{BakeOutput, bake};
 pub use error::{BakeError, Result};
+/// The `glam` the scene types use (re-exported so engine layers name the same version).
+pub use glam;
 pub use scene::Scene;
 pub use settings::BakeSettings;

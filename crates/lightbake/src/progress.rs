@@ -6,20 +6,38 @@
 //! [`crate::BakeError::Cancelled`] without writing anything.
 
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
 /// Thread-safe bake progress.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Progress {
     stage: Mutex<String>,
     stage_index: AtomicU64,
     done: AtomicU64,
     total: AtomicU64,
+    /// f32 bits of the running stage's error estimate; `NO_ESTIMATE` when it has none.
+    estimate: AtomicU32,
     cancelled: AtomicBool,
 }
 
+/// Bit pattern of "no estimate" (a NaN).
+const NO_ESTIMATE: u32 = f32::NAN.to_bits();
+
+impl Default for Progress {
+    fn default() -> Self {
+        Self {
+            stage: Mutex::default(),
+            stage_index: AtomicU64::new(0),
+            done: AtomicU64::new(0),
+            total: AtomicU64::new(0),
+            estimate: AtomicU32::new(NO_ESTIMATE),
+            cancelled: AtomicBool::new(false),
+        }
+    }
+}
+
 /// A copy of the progress at one moment.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ProgressSnapshot {
     /// Name of the running stage.
     pub stage: String,
@@ -29,6 +47,11 @@ pub struct ProgressSnapshot {
     pub done: u64,
     /// Work units in this stage (0 when unknown).
     pub total: u64,
+    /// The running stage's own estimate of the relative error of what it has computed so far
+    /// (the radiosity solvers publish theirs after every sweep: the error bound
+    /// ‖B − Bₖ‖∞/‖Bₖ‖∞ when the method has one, else the relative residual). `None` when the
+    /// stage has no estimate.
+    pub error_estimate: Option<f32>,
 }
 
 impl ProgressSnapshot {
@@ -53,7 +76,19 @@ impl Progress {
         *self.stage.lock().unwrap_or_else(|e| e.into_inner()) = stage.to_string();
         self.done.store(0, Ordering::Relaxed);
         self.total.store(total, Ordering::Relaxed);
+        self.estimate.store(NO_ESTIMATE, Ordering::Relaxed);
         self.stage_index.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Publishes the running stage's estimate of its relative error (see
+    /// [`ProgressSnapshot::error_estimate`]). Non-finite values clear it.
+    pub fn set_error_estimate(&self, relative_error: f64) {
+        let bits = if relative_error.is_finite() {
+            (relative_error as f32).to_bits()
+        } else {
+            NO_ESTIMATE
+        };
+        self.estimate.store(bits, Ordering::Relaxed);
     }
 
     /// Records `n` more units done.
@@ -78,6 +113,8 @@ impl Progress {
             stage_index: self.stage_index.load(Ordering::Relaxed),
             done: self.done.load(Ordering::Relaxed),
             total: self.total.load(Ordering::Relaxed),
+            error_estimate: Some(f32::from_bits(self.estimate.load(Ordering::Relaxed)))
+                .filter(|e| e.is_finite()),
         }
     }
 }
@@ -95,6 +132,18 @@ mod tests {
         p.begin("b", 0);
         let s = p.snapshot();
         assert_eq!((s.stage.as_str(), s.stage_index, s.done), ("b", 2, 0));
+        assert_eq!(s.error_estimate, None);
+        p.set_error_estimate(0.25);
+        assert_eq!(p.snapshot().error_estimate, Some(0.25));
+        p.begin("c", 1);
+        assert_eq!(
+            p.snapshot().error_estimate,
+            None,
+            "a new stage has no estimate yet"
+        );
+        p.set_error_estimate(0.0);
+        assert_eq!(p.snapshot().error_estimate, Some(0.0));
+        assert_eq!(Progress::default().snapshot().error_estimate, None);
         assert!(!p.is_cancelled());
         p.cancel();
         assert!(p.is_cancelled());

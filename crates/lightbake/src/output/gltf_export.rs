@@ -1,7 +1,7 @@
 //! The baked glTF: the input document, verbatim where possible, plus `TEXCOORD_1` on every
 //! baked primitive and, on every baked node, `extras.lightbake.lightmaps` listing each
 //! primitive's page image and `uv_rect` (what Bevy's `Lightmap` needs; Bevy exposes node
-//! extras as `GltfExtras`).
+//! extras as `GltfExtras`). Every `KHR_lights_punctual` light gets `extras.lightbake.baked`.
 //!
 //! A primitive that xatlas unwrapped has its vertices split along chart seams, so all of its
 //! vertex attributes (and morph targets) are gathered into new accessors, with new triangle
@@ -293,6 +293,22 @@ pub fn baked_gltf(
             .map(|l| json!({ "primitive": l.primitive, "page": l.page, "image": l.image, "uv_rect": l.uv_rect }))
             .collect();
         node_json["extras"]["lightbake"] = json!({ "lightmaps": entries });
+    }
+
+    // 3b. Mark every punctual light as baked (`extras.lightbake.baked`), so an engine that
+    // loads the baked glTF can keep the light for specular and dynamic objects but stop it
+    // lighting lightmapped surfaces a second time (Bevy: `affects_lightmapped_mesh_diffuse`,
+    // which the `bevy_lightbake` plugin sets from this flag).
+    if let Some(lights) = json
+        .pointer_mut("/extensions/KHR_lights_punctual/lights")
+        .and_then(Value::as_array_mut)
+    {
+        for light in lights.iter_mut().filter(|l| l.is_object()) {
+            if !light["extras"].is_object() {
+                light["extras"] = json!({});
+            }
+            light["extras"]["lightbake"] = json!({ "baked": true });
+        }
     }
 
     // 4. Images: copy (gltf) or embed (glb) external files.

@@ -65,7 +65,7 @@ pub fn solve(system: &System<'_>) -> Solution {
         "dense LU limited to {} nodes",
         super::DIRECT_MAX_NODES
     );
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     let mut b = vec![Vec3::ZERO; n];
     let mut ok = true;
     for c in 0..3 {

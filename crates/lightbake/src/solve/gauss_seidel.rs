@@ -13,7 +13,7 @@ use super::{Recorder, Solution, SolveOptions, System, max_norm, to_f32, to_f64};
 /// Solves `system` by Gauss–Seidel iteration.
 pub fn solve(system: &System<'_>, options: &SolveOptions) -> Solution {
     let n = system.len();
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     let rho_max = system.max_albedo() as f64;
     let mut b = to_f64(system.source);
     rec.record(0.0, system.relative_residual(&b), None);

@@ -13,7 +13,7 @@ use super::{Recorder, Solution, SolveOptions, System, max_norm, norm, to_f32, to
 /// Solves `system` by Jacobi iteration.
 pub fn solve(system: &System<'_>, options: &SolveOptions) -> Solution {
     let n = system.len();
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     let rho_max = system.max_albedo() as f64;
     let s_norm = system.source_norm();
     let mut b = to_f64(system.source);

@@ -39,7 +39,7 @@ fn apply(system: &System<'_>, x: &[DVec3], y: &mut [DVec3]) {
 /// BiCGStab on (I − ρF)·B = S from B₀ = S.
 pub fn bicgstab(system: &System<'_>, options: &SolveOptions) -> Solution {
     let n = system.len();
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     let s_norm = system.source_norm();
     let mut x = to_f64(system.source);
     let mut tmp = vec![DVec3::ZERO; n];
@@ -129,7 +129,7 @@ pub fn conjugate_gradient(system: &System<'_>, options: &SolveOptions) -> Soluti
 pub fn cg_on_symmetric(system: &System<'_>, options: &SolveOptions) -> Solution {
     let n = system.len();
     let f = system.transport;
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     // Per channel: known = ρ == 0 (B = S); inv_rho = 1/ρ elsewhere and 0 where known.
     let rho: Vec<DVec3> = (0..n).map(|i| system.rho(i)).collect();
     let known: Vec<DVec3> = rho

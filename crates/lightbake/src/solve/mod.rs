@@ -29,6 +29,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::progress::Progress;
 use crate::transport::Transport;
 
 /// Which solver to use.
@@ -87,6 +88,9 @@ pub struct System<'a> {
     pub source: &'a [Vec3],
     /// Node areas (weights of the norms).
     pub area: &'a [f32],
+    /// Where to publish the error estimate after every sweep (see
+    /// [`crate::progress::ProgressSnapshot::error_estimate`]), if anywhere.
+    pub progress: Option<&'a Progress>,
 }
 
 /// Stopping rules.
@@ -228,30 +232,30 @@ impl System<'_> {
     }
 }
 
-/// Records history entries against a start time.
-pub struct Recorder {
+/// Records history entries against a start time, and publishes each one's error estimate.
+pub struct Recorder<'a> {
     start: Instant,
+    progress: Option<&'a Progress>,
     /// The entries.
     pub history: Vec<HistoryEntry>,
 }
 
-impl Default for Recorder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Recorder {
-    /// Starts the clock.
-    pub fn new() -> Self {
+impl<'a> Recorder<'a> {
+    /// Starts the clock. Each entry's error bound (or, without one, its residual) is published
+    /// to `progress`.
+    pub fn new(progress: Option<&'a Progress>) -> Self {
         Self {
             start: Instant::now(),
+            progress,
             history: Vec::new(),
         }
     }
 
     /// Adds an entry.
     pub fn record(&mut self, iteration: f64, residual: f64, error_bound: Option<f64>) {
+        if let Some(p) = self.progress {
+            p.set_error_estimate(error_bound.unwrap_or(residual));
+        }
         self.history.push(HistoryEntry {
             seconds: self.start.elapsed().as_secs_f64(),
             iteration,

@@ -195,7 +195,7 @@ pub fn shoot(
 
 /// Solves `system` by progressive refinement.
 pub fn solve(system: &System<'_>, options: &SolveOptions) -> Solution {
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(system.progress);
     let (state, converged) = shoot(system, options, u64::MAX, &mut rec);
     let n = system.len().max(1) as f64;
     let residual = rec.history.last().map_or(0.0, |h| h.residual);

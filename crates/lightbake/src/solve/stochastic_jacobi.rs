@@ -54,7 +54,7 @@ pub fn solve(
     progress: &Progress,
 ) -> Solution {
     let n = nodes.len();
-    let mut rec = Recorder::new();
+    let mut rec = Recorder::new(Some(progress));
     let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
     let s_norm = norm(&to_f64(source), &nodes.area).max(1e-300);
     let mut b = source.to_vec();

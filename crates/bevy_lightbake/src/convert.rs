@@ -1,0 +1,465 @@
+//! The marked Bevy world → the core's [`Scene`], and the unit conversions between the two.
+//!
+//! | Bevy 0.19 | core scene | conversion |
+//! |---|---|---|
+//! | `PointLight::intensity`, `SpotLight::intensity` (lumens) | candela | I = Φ / 4π (Bevy's own shading divides by 4π) |
+//! | `PointLight::range`, `SpotLight::range` (m) | `range` | same; Bevy's window (1 − (d/r)⁴)² |
+//! | `SpotLight::{inner,outer}_angle` (rad) | cone angles | same |
+//! | `DirectionalLight::illuminance` (lux) | lux | same; `SunDisk::angular_size / 2` is the angular radius |
+//! | `Color` | linear RGB | `Color::to_linear` |
+//! | `StandardMaterial::emissive` (`LinearRgba`, nits) | `emissive`, nits | same |
+//! | `StandardMaterial::{base_color, base_color_texture, metallic, double_sided}` | same | linear; sRGB texture |
+//! | `GlobalAmbientLight::{color, brightness}` (nits) | sky, nits | `color × brightness` |
+//! | `GlobalTransform` | `Instance::transform` | same matrix |
+//!
+//! See `docs/units.md` for what a texel stores (E/π, shown by Bevy with `lightmap_exposure` 1).
+
+use std::collections::HashMap;
+use std::f32::consts::PI;
+
+use bevy::asset::AssetId;
+use bevy::image::{ImageAddressMode, ImageSampler};
+use bevy::light::{GlobalAmbientLight, SunDisk};
+use bevy::mesh::{Indices, PrimitiveTopology, UvChannel, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use lightbake::scene::{
+    Instance as CoreInstance, Light as CoreLight, LightKind, Material as CoreMaterial,
+    Mesh as CoreMesh, Scene, Texture as CoreTexture, TextureRef, Wrap,
+};
+
+use crate::components::{Lightbaked, NotBaked, SkySource};
+
+/// Which Bevy entity and asset each part of the core scene came from, to carry the bake's
+/// results back.
+#[derive(Clone, Debug, Default)]
+pub struct SceneMapping {
+    /// Per core instance: its mesh entity.
+    pub instances: Vec<Entity>,
+    /// Per core mesh: the Bevy mesh it was read from.
+    pub meshes: Vec<MeshSource>,
+    /// Baked light entities.
+    pub lights: Vec<Entity>,
+    /// The sky was taken from `GlobalAmbientLight`.
+    pub sky_from_ambient: bool,
+}
+
+/// The Bevy mesh behind one core mesh.
+#[derive(Clone, Debug)]
+pub struct MeshSource {
+    /// The asset the entities use.
+    pub handle: Handle<Mesh>,
+    /// A copy of the asset as it was read (the bake's vertex remap applies to this).
+    pub original: Mesh,
+    /// Another core mesh (another material on the same asset) came first: this one gets a
+    /// new asset of its own, since its unwrap differs.
+    pub needs_own_asset: bool,
+}
+
+/// Linear RGB of a Bevy colour as the core's vector.
+pub fn linear_rgb(c: Color) -> lightbake::glam::Vec3 {
+    let l = c.to_linear();
+    lightbake::glam::Vec3::new(l.red, l.green, l.blue)
+}
+
+/// Bevy's luminous power (lumens) of a point or spot light → luminous intensity (candela).
+pub fn lumens_to_candela(lumens: f32) -> f32 {
+    lumens / (4.0 * PI)
+}
+
+fn affine(t: &GlobalTransform) -> lightbake::glam::Affine3A {
+    lightbake::glam::Affine3A::from_cols_array(&t.affine().to_cols_array())
+}
+
+fn vec3(v: Vec3) -> lightbake::glam::Vec3 {
+    lightbake::glam::Vec3::from_array(v.to_array())
+}
+
+/// The name used in messages: the entity's `Name`, else its id.
+pub fn entity_label(entity: Entity, name: Option<&Name>) -> String {
+    name.map_or_else(|| format!("entity {entity}"), |n| n.as_str().to_string())
+}
+
+/// Reads a Bevy mesh as a core mesh (no material yet).
+///
+/// # Errors
+/// A message naming `label` when the mesh cannot be baked (not a triangle list, no
+/// positions, attribute formats the baker does not read, data only on the GPU).
+pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, String> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(format!(
+            "{label}: the mesh is a {:?}; only triangle lists can be baked",
+            mesh.primitive_topology()
+        ));
+    }
+    let unreadable = |e| {
+        format!(
+            "{label}: mesh data is not readable on the CPU ({e}); keep RenderAssetUsages::MAIN_WORLD on baked meshes"
+        )
+    };
+    let float3 = |attr, what: &str| -> Result<Option<Vec<lightbake::glam::Vec3>>, String> {
+        match mesh.try_attribute_option(attr).map_err(unreadable)? {
+            None => Ok(None),
+            Some(VertexAttributeValues::Float32x3(v)) => Ok(Some(
+                v.iter()
+                    .map(|p| lightbake::glam::Vec3::from_array(*p))
+                    .collect(),
+            )),
+            Some(other) => Err(format!(
+                "{label}: {what} are {:?}; expected Float32x3",
+                other.enum_variant_name()
+            )),
+        }
+    };
+    let float2 = |attr, what: &str| -> Result<Option<Vec<lightbake::glam::Vec2>>, String> {
+        match mesh.try_attribute_option(attr).map_err(unreadable)? {
+            None => Ok(None),
+            Some(VertexAttributeValues::Float32x2(v)) => Ok(Some(
+                v.iter()
+                    .map(|p| lightbake::glam::Vec2::from_array(*p))
+                    .collect(),
+            )),
+            Some(other) => Err(format!(
+                "{label}: {what} are {:?}; expected Float32x2",
+                other.enum_variant_name()
+            )),
+        }
+    };
+    let positions = float3(Mesh::ATTRIBUTE_POSITION, "positions")?
+        .ok_or_else(|| format!("{label}: the mesh has no positions"))?;
+    let normals = float3(Mesh::ATTRIBUTE_NORMAL, "normals")?;
+    let uv0 = float2(Mesh::ATTRIBUTE_UV_0, "UV_0 coordinates")?;
+    let uv1 = float2(Mesh::ATTRIBUTE_UV_1, "UV_1 coordinates")?;
+    let indices: Vec<u32> = match mesh.try_indices_option().map_err(unreadable)? {
+        Some(Indices::U16(i)) => i.iter().map(|&i| i as u32).collect(),
+        Some(Indices::U32(i)) => i.clone(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let mut core = CoreMesh {
+        name: label.to_string(),
+        normals: normals.unwrap_or_default(),
+        positions,
+        uv0,
+        uv1,
+        indices,
+        material: None,
+        source: None,
+    };
+    if core.normals.len() != core.positions.len() {
+        core.compute_normals();
+    }
+    Ok(core)
+}
+
+/// A Bevy image as a core texture (8-bit RGBA only).
+///
+/// # Errors
+/// A message when the format is not 8-bit RGBA or the pixels are not on the CPU.
+pub fn core_texture(image: &Image, label: &str) -> Result<CoreTexture, String> {
+    let format = image.texture_descriptor.format;
+    if !matches!(
+        format,
+        TextureFormat::Rgba8UnormSrgb | TextureFormat::Rgba8Unorm
+    ) {
+        return Err(format!(
+            "{label}: texture format {format:?} is not read by the baker (8-bit RGBA only); its mean colour is taken as white"
+        ));
+    }
+    let data = image
+        .data
+        .as_ref()
+        .ok_or_else(|| format!("{label}: texture pixels are not on the CPU"))?;
+    let wrap = |m: ImageAddressMode| match m {
+        ImageAddressMode::Repeat => Wrap::Repeat,
+        ImageAddressMode::MirrorRepeat => Wrap::MirroredRepeat,
+        _ => Wrap::ClampToEdge,
+    };
+    let (wrap_u, wrap_v) = match &image.sampler {
+        ImageSampler::Descriptor(d) => (wrap(d.address_mode_u), wrap(d.address_mode_v)),
+        ImageSampler::Default => (Wrap::Repeat, Wrap::Repeat),
+    };
+    Ok(CoreTexture {
+        name: label.to_string(),
+        width: image.width(),
+        height: image.height(),
+        rgba8: data
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        wrap_u,
+        wrap_v,
+    })
+}
+
+/// Builds core materials (with their textures) from Bevy materials, once per asset.
+#[derive(Default)]
+struct Materials {
+    by_id: HashMap<AssetId<StandardMaterial>, usize>,
+    textures: HashMap<AssetId<Image>, Option<usize>>,
+}
+
+impl Materials {
+    fn texture(
+        &mut self,
+        scene: &mut Scene,
+        images: &Assets<Image>,
+        handle: Option<&Handle<Image>>,
+        channel: UvChannel,
+        label: &str,
+    ) -> Option<TextureRef> {
+        let handle = handle?;
+        let index = *self.textures.entry(handle.id()).or_insert_with(|| {
+            let Some(image) = images.get(handle) else {
+                scene
+                    .warnings
+                    .push(format!("{label}: texture not loaded yet; baked without it"));
+                return None;
+            };
+            match core_texture(image, label) {
+                Ok(t) => {
+                    scene.textures.push(t);
+                    Some(scene.textures.len() - 1)
+                }
+                Err(e) => {
+                    scene.warnings.push(e);
+                    None
+                }
+            }
+        });
+        index.map(|texture| TextureRef {
+            texture,
+            tex_coord: match channel {
+                UvChannel::Uv0 => 0,
+                UvChannel::Uv1 => 1,
+            },
+        })
+    }
+
+    fn get(
+        &mut self,
+        scene: &mut Scene,
+        images: &Assets<Image>,
+        materials: &Assets<StandardMaterial>,
+        handle: Option<&Handle<StandardMaterial>>,
+    ) -> Option<usize> {
+        let handle = handle?;
+        if let Some(&m) = self.by_id.get(&handle.id()) {
+            return Some(m);
+        }
+        let Some(mat) = materials.get(handle) else {
+            scene.warnings.push(format!(
+                "material {:?} is not loaded; the glTF default (white) was used",
+                handle.id()
+            ));
+            return None;
+        };
+        let label = format!("material {:?}", handle.id());
+        let base = mat.base_color.to_linear();
+        let core = CoreMaterial {
+            name: label.clone(),
+            base_color: lightbake::glam::Vec4::new(base.red, base.green, base.blue, base.alpha),
+            base_color_texture: self.texture(
+                scene,
+                images,
+                mat.base_color_texture.as_ref(),
+                mat.base_color_channel.clone(),
+                &format!("{label} base colour"),
+            ),
+            metallic: mat.metallic,
+            emissive: lightbake::glam::Vec3::new(
+                mat.emissive.red,
+                mat.emissive.green,
+                mat.emissive.blue,
+            ),
+            emissive_texture: self.texture(
+                scene,
+                images,
+                mat.emissive_texture.as_ref(),
+                mat.emissive_channel.clone(),
+                &format!("{label} emissive"),
+            ),
+            double_sided: mat.double_sided,
+        };
+        if mat.lightmap_exposure != 1.0 {
+            scene.warnings.push(format!(
+                "{label}: lightmap_exposure is {}; lightmaps are made for 1, so Bevy will show the baked light scaled by it",
+                mat.lightmap_exposure
+            ));
+        }
+        let index = scene.add_material(core);
+        self.by_id.insert(handle.id(), index);
+        Some(index)
+    }
+}
+
+/// Converts every `Lightbaked` mesh entity and every light without [`NotBaked`] into a core
+/// scene named `name`. Entities are taken in the order of their `Name` (then id), so the same
+/// world gives the same scene and the same bake.
+///
+/// # Errors
+/// A message naming the entity whose mesh cannot be read.
+pub fn extract_scene(
+    world: &mut World,
+    name: &str,
+    sky: SkySource,
+    texel_density: f32,
+) -> Result<(Scene, SceneMapping), String> {
+    let mut scene = Scene {
+        name: name.to_string(),
+        ..Scene::default()
+    };
+    let mut mapping = SceneMapping::default();
+
+    // 1. Meshes and instances, in a stable order.
+    let mut query = world.query::<(
+        Entity,
+        &Mesh3d,
+        Option<&MeshMaterial3d<StandardMaterial>>,
+        &GlobalTransform,
+        &Lightbaked,
+        Option<&Name>,
+    )>();
+    let mut rows: Vec<_> = query
+        .iter(world)
+        .map(|(e, m, mat, t, lb, n)| {
+            (
+                entity_label(e, n),
+                e,
+                m.0.clone(),
+                mat.map(|m| m.0.clone()),
+                *t,
+                *lb,
+            )
+        })
+        .collect();
+    rows.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
+    let meshes = world.resource::<Assets<Mesh>>();
+    let images = world.resource::<Assets<Image>>();
+    let materials = world.resource::<Assets<StandardMaterial>>();
+    let mut mats = Materials::default();
+    let mut core_meshes: HashMap<(AssetId<Mesh>, Option<AssetId<StandardMaterial>>), usize> =
+        HashMap::new();
+    for (label, entity, mesh_handle, mat_handle, transform, baked) in rows {
+        let key = (mesh_handle.id(), mat_handle.as_ref().map(Handle::id));
+        let mesh_index = match core_meshes.get(&key) {
+            Some(&m) => m,
+            None => {
+                let mesh = meshes.get(&mesh_handle).ok_or_else(|| {
+                    format!("{label}: its mesh is not loaded yet; bake once it is")
+                })?;
+                if mesh.has_morph_targets() {
+                    scene.warnings.push(format!(
+                        "{label}: morph targets are ignored; the mesh is baked in its rest pose"
+                    ));
+                }
+                let mut core = core_mesh(mesh, &label)?;
+                core.material = mats.get(&mut scene, images, materials, mat_handle.as_ref());
+                let needs_own_asset = mapping.meshes.iter().any(|s| s.handle == mesh_handle);
+                mapping.meshes.push(MeshSource {
+                    handle: mesh_handle.clone(),
+                    original: mesh.clone(),
+                    needs_own_asset,
+                });
+                let m = scene.add_mesh(core);
+                core_meshes.insert(key, m);
+                m
+            }
+        };
+        let mut instance = CoreInstance::new(label, mesh_index, affine(&transform));
+        instance.bake = baked.receive_lightmap;
+        if let Some(d) = baked.texel_density {
+            instance.texel_density_scale = d / texel_density;
+        }
+        scene.instances.push(instance);
+        mapping.instances.push(entity);
+    }
+
+    // 2. Lights.
+    let mut lights: Vec<(String, Entity, CoreLight)> = Vec::new();
+    let mut q = world.query_filtered::<(Entity, &PointLight, &GlobalTransform, Option<&Name>), Without<NotBaked>>();
+    for (e, l, t, n) in q.iter(world) {
+        let name = entity_label(e, n);
+        lights.push((
+            name.clone(),
+            e,
+            CoreLight {
+                name,
+                kind: LightKind::Point,
+                color: linear_rgb(l.color),
+                intensity: lumens_to_candela(l.intensity),
+                range: Some(l.range),
+                position: vec3(t.translation()),
+                direction: vec3(t.forward().as_vec3()),
+            },
+        ));
+    }
+    let mut q = world
+        .query_filtered::<(Entity, &SpotLight, &GlobalTransform, Option<&Name>), Without<NotBaked>>(
+        );
+    for (e, l, t, n) in q.iter(world) {
+        let name = entity_label(e, n);
+        lights.push((
+            name.clone(),
+            e,
+            CoreLight {
+                name,
+                kind: LightKind::Spot {
+                    inner_cone_angle: l.inner_angle.min(l.outer_angle),
+                    outer_cone_angle: l.outer_angle,
+                },
+                color: linear_rgb(l.color),
+                intensity: lumens_to_candela(l.intensity),
+                range: Some(l.range),
+                position: vec3(t.translation()),
+                direction: vec3(t.forward().as_vec3()),
+            },
+        ));
+    }
+    let mut q = world.query_filtered::<(
+        Entity,
+        &DirectionalLight,
+        &GlobalTransform,
+        Option<&SunDisk>,
+        Option<&Name>,
+    ), Without<NotBaked>>();
+    for (e, l, t, disk, n) in q.iter(world) {
+        let name = entity_label(e, n);
+        lights.push((
+            name.clone(),
+            e,
+            CoreLight {
+                name,
+                kind: LightKind::Directional {
+                    angular_radius: disk.map_or(0.0, |d| 0.5 * d.angular_size),
+                },
+                color: linear_rgb(l.color),
+                intensity: l.illuminance,
+                range: None,
+                position: vec3(t.translation()),
+                direction: vec3(t.forward().as_vec3()),
+            },
+        ));
+    }
+    lights.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
+    for (_, e, l) in lights {
+        scene.lights.push(l);
+        mapping.lights.push(e);
+    }
+
+    // 3. Sky.
+    scene.sky = match sky {
+        SkySource::GlobalAmbient => {
+            let a = world.get_resource::<GlobalAmbientLight>();
+            mapping.sky_from_ambient = a.is_some();
+            a.map_or(lightbake::glam::Vec3::ZERO, |a| {
+                linear_rgb(a.color) * a.brightness
+            })
+        }
+        SkySource::ClearColor { nits } => world
+            .get_resource::<ClearColor>()
+            .map_or(lightbake::glam::Vec3::ZERO, |c| linear_rgb(c.0) * nits),
+        SkySource::Nits(v) => vec3(v),
+        SkySource::None => lightbake::glam::Vec3::ZERO,
+    };
+    Ok((scene, mapping))
+}

@@ -1,0 +1,152 @@
+//! # bevy_lightbake
+//!
+//! Bake lightmaps inside a Bevy 0.19 game with the [`lightbake`] baker, and show lightmaps
+//! baked by the `bake` command.
+//!
+//! * Mark static meshes with [`Lightbaked`]. Every `PointLight`, `SpotLight` and
+//!   `DirectionalLight` (unless marked [`NotBaked`]), every emissive `StandardMaterial` and
+//!   the `GlobalAmbientLight` (as a sky; see [`SkySource`]) are baked.
+//! * Write a [`RequestBake`] message. The world is converted into the core's scene and baked
+//!   on a background thread with its own worker pool (cores − 1 threads by default), so the
+//!   game keeps running (not on Bevy's `AsyncComputeTaskPool`, whose one thread on a small
+//!   machine also compiles the render pipelines); [`BakeStatus`] shows the stage, fraction and the solver's error estimate;
+//!   [`CancelBake`] stops it. When it is done the meshes get `Mesh::ATTRIBUTE_UV_1`, the
+//!   entities get Bevy's `bevy::pbr::Lightmap`, the baked lights get
+//!   `affects_lightmapped_mesh_diffuse = false`, and [`BakeFinished`] is written.
+//! * The lightmaps are written (temporary file, then rename) into
+//!   `assets/<output_dir>/lightmaps/` and loaded through the `AssetServer`; with Bevy's
+//!   `file_watcher` (this crate's default feature) a rewrite by the `bake` command shows up in
+//!   the running game.
+//! * A glTF baked by the `bake` command gets its lightmaps as soon as its scene spawns.
+//!
+//! Texels store irradiance / π, shown by Bevy with `lightmap_exposure = 1` (the default);
+//! units are Bevy's (lumens, lux, nits). See `docs/units.md`.
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_lightbake::prelude::*;
+//!
+//! fn main() {
+//!     App::new()
+//!         .add_plugins((DefaultPlugins, LightbakePlugin))
+//!         .add_systems(Startup, setup)
+//!         .run();
+//! }
+//!
+//! fn setup(
+//!     mut commands: Commands,
+//!     mut meshes: ResMut<Assets<Mesh>>,
+//!     mut materials: ResMut<Assets<StandardMaterial>>,
+//!     mut bake: MessageWriter<RequestBake>,
+//! ) {
+//!     commands.spawn((
+//!         Mesh3d(meshes.add(Plane3d::default().mesh().size(10.0, 10.0))),
+//!         MeshMaterial3d(materials.add(Color::WHITE)),
+//!         Lightbaked::default(),
+//!     ));
+//!     commands.spawn((PointLight::default(), Transform::from_xyz(0.0, 3.0, 0.0)));
+//!     commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 6.0, 8.0).looking_at(Vec3::ZERO, Vec3::Y)));
+//!     bake.write(RequestBake::default());
+//! }
+//! ```
+
+// Bevy systems name their data in their signatures: long query types and many parameters are
+// the idiom (Bevy's own crates allow both).
+#![allow(clippy::type_complexity, clippy::too_many_arguments)]
+
+pub mod capture;
+pub mod components;
+pub mod convert;
+pub mod gltf;
+pub mod images;
+pub mod sample;
+pub mod spawn;
+pub mod systems;
+
+use bevy::asset::AssetEventSystems;
+use bevy::prelude::*;
+
+pub use components::{
+    BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
+    Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
+};
+pub use lightbake;
+
+/// The usual imports.
+pub mod prelude {
+    pub use crate::components::{
+        BakeFinished, BakeOutcome, BakePhase, BakeStatus, CancelBake, LightbakeConfig, Lightbaked,
+        Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
+    };
+    pub use crate::{LightbakePlugin, LightbakeSystems};
+    pub use lightbake::BakeSettings;
+}
+
+/// Ordering of the plugin's systems.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LightbakeSystems {
+    /// `Update`: read [`RequestBake`] / [`CancelBake`].
+    Requests,
+    /// `Update`, after `Requests`: start a bake, poll the running one, apply its results.
+    Bake,
+    /// `Update`, after `Bake`: find lightmaps of baked glTF scenes.
+    Gltf,
+    /// `PostUpdate`, after the asset events and before Bevy's mesh re-specialization check:
+    /// prepare lightmap images and insert, remove or re-insert Bevy's `Lightmap` components.
+    Lightmaps,
+}
+
+/// The plugin. Add it after Bevy's `DefaultPlugins` (it needs assets, meshes, images and the
+/// PBR types); configure it with the [`LightbakeConfig`] resource.
+#[derive(Default)]
+pub struct LightbakePlugin;
+
+impl Plugin for LightbakePlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<LightbakeConfig>()
+            .init_resource::<BakeStatus>()
+            .init_resource::<ShowLightmaps>()
+            .init_resource::<systems::PendingRequest>()
+            .init_resource::<systems::MemoryPages>()
+            .init_resource::<systems::ResizedImages>()
+            .add_message::<RequestBake>()
+            .add_message::<CancelBake>()
+            .add_message::<BakeFinished>()
+            .register_type::<Lightbaked>()
+            .register_type::<NotBaked>()
+            .configure_sets(
+                Update,
+                (
+                    LightbakeSystems::Requests,
+                    LightbakeSystems::Bake,
+                    LightbakeSystems::Gltf,
+                )
+                    .chain(),
+            )
+            .configure_sets(
+                PostUpdate,
+                LightbakeSystems::Lightmaps
+                    .after(AssetEventSystems)
+                    // Before Bevy decides which meshes need a new pipeline (see
+                    // `systems::sync_lightmaps`).
+                    .before(bevy::pbr::check_entities_needing_specialization::<StandardMaterial>),
+            )
+            .add_systems(
+                Update,
+                (
+                    systems::read_requests.in_set(LightbakeSystems::Requests),
+                    (systems::start_bake, systems::poll_bake)
+                        .chain()
+                        .in_set(LightbakeSystems::Bake),
+                    (gltf::attach_gltf_lightmaps, gltf::mark_baked_gltf_lights)
+                        .in_set(LightbakeSystems::Gltf),
+                ),
+            )
+            .add_systems(
+                PostUpdate,
+                (systems::prepare_lightmap_images, systems::sync_lightmaps)
+                    .chain()
+                    .in_set(LightbakeSystems::Lightmaps),
+            );
+    }
+}

@@ -1,0 +1,490 @@
+//! The plugin's systems: take bake requests, run the core baker in the background, carry its
+//! results back into the world, and keep Bevy's `Lightmap` components in step with their
+//! images.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+use std::time::Instant;
+
+use bevy::asset::AssetId;
+use bevy::diagnostic::FrameCount;
+use bevy::light::GlobalAmbientLight;
+use bevy::mesh::{Indices, MeshAccessError};
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use lightbake::progress::Progress;
+use lightbake::unwrap::{MeshUnwrap, UvOrigin};
+use lightbake::{BakeError, BakeOutput, BakeSettings, Scene};
+
+use crate::components::{
+    BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
+    Lightmapped, RequestBake, ShowLightmaps,
+};
+use crate::convert::{SceneMapping, extract_scene};
+use crate::images::{is_ready, narrow_to_half, page_image};
+
+/// A bake request waiting for the running bake (if any) to stop.
+#[derive(Resource, Default)]
+pub(crate) struct PendingRequest(Option<RequestBake>);
+
+/// What the bake task hands back.
+struct Finished {
+    output: BakeOutput,
+    /// Asset paths of the page images written, when files were written.
+    page_paths: Option<Vec<String>>,
+}
+
+/// The running bake.
+///
+/// It runs on a thread of its own (with its own rayon pool of `settings.threads` workers),
+/// not on Bevy's `AsyncComputeTaskPool`: Bevy compiles render pipelines on that pool, which
+/// has a single thread on a 2-core machine, and a bake holding it froze the first frames of
+/// the Cornell example for 2.8 s (measured), waiting for pipelines. The frame loop only polls
+/// [`std::thread::JoinHandle::is_finished`].
+#[derive(Resource)]
+pub(crate) struct BakeJob {
+    thread: Option<std::thread::JoinHandle<Result<Finished, BakeError>>>,
+    progress: Arc<Progress>,
+    started: Instant,
+    mapping: SceneMapping,
+}
+
+/// In-memory page images of earlier bakes, reused so a re-bake of the same size updates the
+/// GPU texture in place.
+#[derive(Resource, Default)]
+pub(crate) struct MemoryPages(Vec<Handle<Image>>);
+
+/// Images whose size changed this frame (their `Lightmap`s must be re-inserted).
+#[derive(Resource, Default)]
+pub(crate) struct ResizedImages(HashSet<AssetId<Image>>);
+
+/// A `Lightmap` removed to be re-inserted: not before this frame.
+#[derive(Component, Clone, Copy, Debug)]
+pub(crate) struct ReinsertAfter(u32);
+
+/// Takes [`RequestBake`] and [`CancelBake`] messages. A request while a bake runs cancels
+/// that bake; the new one starts when it has stopped.
+pub(crate) fn read_requests(
+    mut requests: MessageReader<RequestBake>,
+    mut cancels: MessageReader<CancelBake>,
+    mut pending: ResMut<PendingRequest>,
+    job: Option<Res<BakeJob>>,
+) {
+    if let Some(r) = requests.read().last() {
+        pending.0 = Some(r.clone());
+        if let Some(job) = &job {
+            job.progress.cancel();
+        }
+    }
+    if cancels.read().count() > 0 {
+        pending.0 = None;
+        if let Some(job) = &job {
+            job.progress.cancel();
+        }
+    }
+}
+
+/// Starts the pending bake when none is running: converts the marked world into a core
+/// scene here (cheap), then bakes and writes files on the bake thread (see [`BakeJob`]).
+pub(crate) fn start_bake(world: &mut World) {
+    if world.contains_resource::<BakeJob>() {
+        return;
+    }
+    let Some(request) = world.resource_mut::<PendingRequest>().0.take() else {
+        return;
+    };
+    let started = Instant::now();
+    let config = world.resource::<LightbakeConfig>().clone();
+    let settings = request.settings.unwrap_or_else(|| config.settings.clone());
+    let (scene, mapping) =
+        match extract_scene(world, "bevy world", config.sky, settings.texel_density) {
+            Ok(x) => x,
+            Err(message) => return fail(world, started, message),
+        };
+    for w in &scene.warnings {
+        warn!("lightbake: {w}");
+    }
+    let progress = Arc::new(Progress::new());
+    let out_dir = config
+        .write_files
+        .then(|| config.assets_folder.join(&config.output_dir));
+    let task_progress = progress.clone();
+    let output_dir = config.output_dir.clone();
+    let spawned = std::thread::Builder::new()
+        .name("lightbake".into())
+        .spawn(move || {
+            bake_and_write(
+                &scene,
+                &settings,
+                &task_progress,
+                out_dir.as_deref(),
+                &output_dir,
+            )
+        });
+    let thread = match spawned {
+        Ok(t) => t,
+        Err(e) => return fail(world, started, format!("cannot start the bake thread: {e}")),
+    };
+    world.insert_resource(BakeJob {
+        thread: Some(thread),
+        progress,
+        started,
+        mapping,
+    });
+    let mut status = world.resource_mut::<BakeStatus>();
+    status.phase = BakePhase::Running;
+    status.stage.clear();
+    status.stage_index = 0;
+    status.fraction = 0.0;
+    status.error_estimate = None;
+    status.elapsed_seconds = 0.0;
+}
+
+/// The task body: bake, then (optionally) write the outputs atomically into the assets folder.
+fn bake_and_write(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    out_dir: Option<&std::path::Path>,
+    output_dir: &str,
+) -> Result<Finished, BakeError> {
+    let output = lightbake::bake(scene, settings, progress)?;
+    let page_paths = match out_dir {
+        Some(dir) => {
+            lightbake::output::write_outputs(dir, &output, scene, None, settings)?;
+            let pages = lightbake::output::page_files(&output, settings);
+            Some(
+                pages
+                    .iter()
+                    .map(|p| format!("{output_dir}/{}", p.primary().unwrap_or_default()))
+                    .collect(),
+            )
+        }
+        None => None,
+    };
+    Ok(Finished { output, page_paths })
+}
+
+fn fail(world: &mut World, started: Instant, message: String) {
+    error!("lightbake: {message}");
+    world.resource_mut::<BakeStatus>().phase = BakePhase::Failed(message.clone());
+    world.write_message(BakeFinished {
+        outcome: BakeOutcome::Failed(message),
+        seconds: started.elapsed().as_secs_f64(),
+        lightmapped: 0,
+    });
+}
+
+/// Copies the running bake's progress into [`BakeStatus`] and, when it has finished, applies
+/// its results.
+pub(crate) fn poll_bake(world: &mut World) {
+    let Some(mut job) = world.remove_resource::<BakeJob>() else {
+        return;
+    };
+    let snap = job.progress.snapshot();
+    {
+        let mut status = world.resource_mut::<BakeStatus>();
+        status.stage = snap.stage.clone();
+        status.stage_index = snap.stage_index;
+        status.fraction = snap.fraction();
+        status.error_estimate = snap.error_estimate;
+        status.elapsed_seconds = job.started.elapsed().as_secs_f32();
+    }
+    if !job.thread.as_ref().is_some_and(|t| t.is_finished()) {
+        world.insert_resource(job);
+        return;
+    }
+    let result = match job.thread.take().map(std::thread::JoinHandle::join) {
+        Some(Ok(result)) => result,
+        _ => {
+            return fail(
+                world,
+                job.started,
+                "the bake thread panicked (a bug in lightbake; please report it)".into(),
+            );
+        }
+    };
+    let seconds = job.started.elapsed().as_secs_f64();
+    match result {
+        Ok(finished) => {
+            let lightmapped = apply_bake(world, finished, &job.mapping);
+            info!("lightbake: baked {lightmapped} mesh(es) in {seconds:.2} s");
+            world.write_message(BakeFinished {
+                outcome: BakeOutcome::Baked,
+                seconds,
+                lightmapped,
+            });
+        }
+        Err(BakeError::Cancelled) => {
+            info!("lightbake: bake cancelled after {seconds:.2} s");
+            world.resource_mut::<BakeStatus>().phase = BakePhase::Cancelled;
+            world.write_message(BakeFinished {
+                outcome: BakeOutcome::Cancelled,
+                seconds,
+                lightmapped: 0,
+            });
+        }
+        Err(e) => fail(world, job.started, e.to_string()),
+    }
+}
+
+/// `original` with the unwrap's vertex split applied to every attribute, its triangle list
+/// replaced and `UV_1` set.
+///
+/// # Errors
+/// When the mesh's data is only on the GPU.
+pub fn apply_unwrap(original: &Mesh, unwrap: &MeshUnwrap) -> Result<Mesh, MeshAccessError> {
+    let mut mesh = original.clone();
+    if let Some(xref) = &unwrap.xref {
+        // New vertex k is old vertex xref[k]: Bevy's own "duplicate by index list" gathers
+        // every attribute (tangents, colours, joints, ...) that way.
+        mesh.try_insert_indices(Indices::U32(xref.clone()))?;
+        mesh.try_duplicate_vertices()?;
+    }
+    let uv1: Vec<[f32; 2]> = unwrap.uv1.iter().map(|v| v.to_array()).collect();
+    mesh.try_insert_attribute(Mesh::ATTRIBUTE_UV_1, uv1)?;
+    mesh.try_insert_indices(Indices::U32(unwrap.indices.clone()))?;
+    Ok(mesh)
+}
+
+/// Puts a finished bake into the world: meshes get `UV_1`, baked mesh entities get
+/// [`Lightmapped`], baked lights stop lighting lightmapped meshes. Returns how many mesh
+/// entities got a lightmap.
+fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> usize {
+    let Finished { output, page_paths } = finished;
+    let layout = &output.layout;
+
+    // 1. Meshes: the unwrap's UV_1 (and vertex split), in place or as a new asset.
+    let mut new_handles: HashMap<usize, Handle<Mesh>> = HashMap::new();
+    for (m, source) in mapping.meshes.iter().enumerate() {
+        let Some(unwrap) = &layout.meshes[m] else {
+            continue;
+        };
+        if unwrap.origin == UvOrigin::Existing && unwrap.xref.is_none() && !source.needs_own_asset {
+            continue; // it already has these UVs
+        }
+        let mesh = match apply_unwrap(&source.original, unwrap) {
+            Ok(mesh) => mesh,
+            Err(e) => {
+                warn!("lightbake: cannot add UV_1 to a baked mesh ({e}); it gets no lightmap");
+                continue;
+            }
+        };
+        let mut meshes = world.resource_mut::<Assets<Mesh>>();
+        if source.needs_own_asset {
+            new_handles.insert(m, meshes.add(mesh));
+        } else if meshes.insert(source.handle.id(), mesh).is_err() {
+            warn!("lightbake: a baked mesh asset was removed during the bake");
+        }
+    }
+
+    // 2. Page images: loaded from the files just written, or made in memory.
+    let handles: Vec<Handle<Image>> = match &page_paths {
+        Some(paths) => {
+            let server = world.resource::<AssetServer>().clone();
+            paths
+                .iter()
+                .map(|p| match server.get_handle::<Image>(p) {
+                    Some(h) => {
+                        server.reload(p);
+                        h
+                    }
+                    None => server.load(p),
+                })
+                .collect()
+        }
+        None => {
+            let mut kept = std::mem::take(&mut world.resource_mut::<MemoryPages>().0);
+            let mut images = world.resource_mut::<Assets<Image>>();
+            kept.truncate(output.pages.len());
+            for (i, page) in output.pages.iter().enumerate() {
+                let image = page_image(page);
+                match kept.get(i) {
+                    Some(h) if images.insert(h.id(), image.clone()).is_ok() => {}
+                    Some(_) => kept[i] = images.add(image),
+                    None => kept.push(images.add(image)),
+                }
+            }
+            world.resource_mut::<MemoryPages>().0 = kept.clone();
+            kept
+        }
+    };
+
+    // 3. Entities: a lightmap each (and their own mesh where the asset was split off).
+    let mut lightmapped = 0;
+    for (i, &entity) in mapping.instances.iter().enumerate() {
+        let Some(rect) = layout.instances[i] else {
+            continue;
+        };
+        let Ok(mut e) = world.get_entity_mut(entity) else {
+            continue; // despawned during the bake
+        };
+        let mesh_index = output.baked_scene.instances[i].mesh;
+        if let Some(h) = new_handles.get(&mesh_index) {
+            e.insert(Mesh3d(h.clone()));
+        }
+        let [u0, v0, u1, v1] = rect.uv_rect(layout.pages[rect.page as usize]);
+        e.insert(Lightmapped {
+            image: handles[rect.page as usize].clone(),
+            uv_rect: Rect::new(u0, v0, u1, v1),
+        });
+        lightmapped += 1;
+    }
+
+    // 4. Lights: their diffuse light is in the lightmaps now.
+    for &entity in &mapping.lights {
+        let Ok(mut e) = world.get_entity_mut(entity) else {
+            continue;
+        };
+        if let Some(mut l) = e.get_mut::<PointLight>() {
+            l.affects_lightmapped_mesh_diffuse = false;
+        }
+        if let Some(mut l) = e.get_mut::<SpotLight>() {
+            l.affects_lightmapped_mesh_diffuse = false;
+        }
+        if let Some(mut l) = e.get_mut::<DirectionalLight>() {
+            l.affects_lightmapped_mesh_diffuse = false;
+        }
+        e.insert(BakedLight);
+    }
+    if mapping.sky_from_ambient
+        && let Some(mut a) = world.get_resource_mut::<GlobalAmbientLight>()
+    {
+        a.affects_lightmapped_meshes = false;
+    }
+
+    for w in &output.report.warnings {
+        warn!("lightbake: {w}");
+    }
+    let mut status = world.resource_mut::<BakeStatus>();
+    status.phase = BakePhase::Done;
+    status.completed += 1;
+    status.fraction = 1.0;
+    status.last_report = Some(Box::new(output.report));
+    lightmapped
+}
+
+/// Narrows lightmap images Bevy loaded as `Rgba32Float` (EXR, HDR) to `Rgba16Float`, and
+/// notes those whose size changed. Runs in `PostUpdate` right after the asset events are
+/// published, so the render world never sees the wide version (a same-size reload then
+/// updates the GPU texture in place).
+pub(crate) fn prepare_lightmap_images(
+    mut events: MessageReader<AssetEvent<Image>>,
+    mut images: ResMut<Assets<Image>>,
+    lightmapped: Query<&Lightmapped>,
+    mut sizes: Local<HashMap<AssetId<Image>, UVec2>>,
+    mut resized: ResMut<ResizedImages>,
+) {
+    let ours: HashSet<AssetId<Image>> = lightmapped.iter().map(|l| l.image.id()).collect();
+    let mut touched = HashSet::new();
+    for event in events.read() {
+        if let AssetEvent::Added { id }
+        | AssetEvent::Modified { id }
+        | AssetEvent::LoadedWithDependencies { id } = event
+            && ours.contains(id)
+        {
+            touched.insert(*id);
+        }
+    }
+    // Images that finished loading before anything referred to them send no new event.
+    for id in &ours {
+        if !sizes.contains_key(id) && images.get(*id).is_some() {
+            touched.insert(*id);
+        }
+    }
+    for id in touched {
+        let Some(image) = images.get(id) else {
+            continue;
+        };
+        if !is_ready(image)
+            && let Some(mut image) = images.get_mut(id)
+        {
+            narrow_to_half(&mut image);
+        }
+        let Some(image) = images.get(id) else {
+            continue;
+        };
+        if let Some(old) = sizes.insert(id, image.size())
+            && old != image.size()
+        {
+            resized.0.insert(id);
+        }
+    }
+}
+
+/// Keeps each [`Lightmapped`] entity's Bevy `Lightmap` in step: inserted when its image is
+/// ready and [`ShowLightmaps`] is on, removed when it is off, and removed and re-inserted a
+/// frame later when the image or rectangle changes (Bevy's renderer reads a `Lightmap` only
+/// when it first appears).
+pub(crate) fn sync_lightmaps(
+    mut commands: Commands,
+    show: Res<ShowLightmaps>,
+    images: Res<Assets<Image>>,
+    frame: Res<FrameCount>,
+    config: Res<LightbakeConfig>,
+    mut resized: ResMut<ResizedImages>,
+    mut ambient: Option<ResMut<GlobalAmbientLight>>,
+    mut query: Query<(
+        Entity,
+        &Lightmapped,
+        Option<&Lightmap>,
+        Option<&ReinsertAfter>,
+        Option<&mut Mesh3d>,
+    )>,
+) {
+    let mut attached = false;
+    for (entity, wanted, current, wait, mut mesh) in &mut query {
+        // Bevy 0.19 chooses a mesh's pipeline (lightmapped or not) only when the mesh entity
+        // changes (`check_entities_needing_specialization`), not when a `Lightmap` comes or
+        // goes; a stale choice draws with the wrong bind group layout, a validation error.
+        // So every insertion and removal also marks `Mesh3d` changed (this set runs before
+        // that check).
+        let mut respecialize = || {
+            if let Some(m) = mesh.as_mut() {
+                m.set_changed();
+            }
+        };
+        let ready = show.0 && images.get(&wanted.image).is_some_and(is_ready);
+        match (ready, current) {
+            (false, Some(_)) => {
+                commands.entity(entity).remove::<Lightmap>();
+                respecialize();
+            }
+            (false, None) => {}
+            (true, None) => {
+                if wait.is_none_or(|w| frame.0 >= w.0) {
+                    commands
+                        .entity(entity)
+                        .remove::<ReinsertAfter>()
+                        .insert(Lightmap {
+                            image: wanted.image.clone(),
+                            uv_rect: wanted.uv_rect,
+                            bicubic_sampling: false,
+                        });
+                    respecialize();
+                    attached = true;
+                }
+            }
+            (true, Some(cur)) => {
+                if cur.image != wanted.image
+                    || cur.uv_rect != wanted.uv_rect
+                    || resized.0.contains(&wanted.image.id())
+                {
+                    commands
+                        .entity(entity)
+                        .remove::<Lightmap>()
+                        .insert(ReinsertAfter(frame.0.wrapping_add(1)));
+                    respecialize();
+                }
+            }
+        }
+    }
+    resized.0.clear();
+    if attached
+        && config.disable_ambient_on_lightmapped
+        && let Some(a) = ambient.as_mut()
+        && a.affects_lightmapped_meshes
+    {
+        a.affects_lightmapped_meshes = false;
+    }
+}

@@ -1,0 +1,108 @@
+//! Shared by the Bevy examples and the render tests (`#[path]`-included): the plugin set for a
+//! window or for headless rendering, and the `--screenshot PATH` command line.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use bevy::app::{PluginGroupBuilder, ScheduleRunnerPlugin};
+use bevy::prelude::*;
+use bevy::window::ExitCondition;
+use bevy_lightbake::capture::{FrameCapture, FrameCapturePlugin};
+
+/// `--screenshot PATH` from the command line, if given.
+pub fn screenshot_arg() -> Option<PathBuf> {
+    let args: Vec<String> = std::env::args().collect();
+    args.iter()
+        .position(|a| a == "--screenshot")
+        .map(|i| PathBuf::from(args.get(i + 1).expect("--screenshot needs a PATH")))
+}
+
+/// The first argument that is not an option (or an option's value), if any.
+pub fn positional_arg() -> Option<String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut skip = false;
+    for a in args {
+        if skip {
+            skip = false;
+            continue;
+        }
+        if a == "--screenshot" {
+            skip = true;
+            continue;
+        }
+        if !a.starts_with("--") {
+            return Some(a);
+        }
+    }
+    None
+}
+
+/// Bevy's default plugins, reading assets from `assets` (absolute, or relative to the
+/// workspace). Headless: no window, no winit, a run loop; rendering goes to images only.
+pub fn default_plugins(headless: bool, assets: &Path) -> PluginGroupBuilder {
+    let group = DefaultPlugins.build().set(AssetPlugin {
+        file_path: assets.to_string_lossy().into_owned(),
+        ..default()
+    });
+    if headless {
+        group
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                ..default()
+            })
+            .disable::<bevy::winit::WinitPlugin>()
+            .add(ScheduleRunnerPlugin::run_loop(Duration::ZERO))
+    } else {
+        group.set(WindowPlugin {
+            primary_window: Some(Window {
+                title: "lightbake".into(),
+                ..default()
+            }),
+            ..default()
+        })
+    }
+}
+
+/// The workspace's `assets` folder.
+pub fn workspace_assets() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+}
+
+/// Adds frame capture of `width × height` pixels; returns the render target for the camera.
+pub fn add_capture(
+    app: &mut App,
+    width: u32,
+    height: u32,
+    save_to: Option<PathBuf>,
+) -> Handle<Image> {
+    app.add_plugins(FrameCapturePlugin);
+    let world = app.world_mut();
+    let mut capture = FrameCapture::new(width, height, &mut world.resource_mut::<Assets<Image>>());
+    capture.save_to = save_to;
+    capture.exit_when_done = true;
+    let target = capture.target.clone();
+    world.insert_resource(capture);
+    target
+}
+
+/// Whether a Vulkan driver is installed (the render tests skip without one).
+pub fn vulkan_available() -> bool {
+    let icd_dirs = ["/usr/share/vulkan/icd.d", "/etc/vulkan/icd.d"];
+    let has_icd = icd_dirs.iter().any(|d| {
+        std::fs::read_dir(d).is_ok_and(|mut r| {
+            r.any(|e| e.is_ok_and(|e| e.path().extension().is_some_and(|x| x == "json")))
+        })
+    });
+    let has_loader = [
+        "/usr/lib/x86_64-linux-gnu/libvulkan.so.1",
+        "/usr/lib/aarch64-linux-gnu/libvulkan.so.1",
+        "/usr/lib/libvulkan.so.1",
+        "/usr/lib64/libvulkan.so.1",
+    ]
+    .iter()
+    .any(|p| Path::new(p).exists());
+    has_icd && has_loader
+}

@@ -1,0 +1,136 @@
+//! Shows a glTF baked by the `bake` command, with its lightmaps, and picks up re-bakes live.
+//!
+//! ```text
+//! cargo run --release -p lightbake-cli -- assets/cornell_box.gltf -o baked/cornell_box
+//! cargo run --release --example view_baked -- baked/cornell_box/cornell_box.gltf
+//! cargo run --release --example view_baked -- baked/cornell_box/cornell_box.gltf --screenshot view.png
+//! ```
+//!
+//! The baked glTF's folder is the asset root and Bevy's file watcher is on: run the `bake`
+//! command again into the same folder (other settings, same scene) and the new lightmaps
+//! appear without a restart. The camera frames the scene from its front (+Z). `Space`
+//! switches between the lightmaps and Bevy's real-time lighting of the glTF's lights.
+
+#[path = "support/mod.rs"]
+mod support;
+
+use std::path::{Path, PathBuf};
+
+use bevy::camera::primitives::Aabb;
+use bevy::camera::{Exposure, RenderTarget};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::light::GlobalAmbientLight;
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use bevy::world_serialization::WorldInstanceReady;
+use bevy_lightbake::capture::FrameCapture;
+use bevy_lightbake::prelude::*;
+
+#[derive(Resource)]
+struct Viewer {
+    gltf: String,
+    target: Option<Handle<Image>>,
+    framed: bool,
+}
+
+fn main() -> AppExit {
+    let screenshot = support::screenshot_arg();
+    let path = PathBuf::from(
+        support::positional_arg().unwrap_or_else(|| "baked/cornell_box/cornell_box.gltf".into()),
+    );
+    let path = std::path::absolute(&path).unwrap_or(path);
+    if !path.exists() {
+        eprintln!(
+            "{} does not exist; bake it first:\n  cargo run --release -p lightbake-cli -- assets/cornell_box.gltf -o baked/cornell_box",
+            path.display()
+        );
+        return AppExit::error();
+    }
+    let folder = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let file = path
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .into_owned();
+    let mut app = App::new();
+    app.add_plugins(support::default_plugins(screenshot.is_some(), &folder))
+        .add_plugins(LightbakePlugin)
+        // Everything the lightmaps show was baked; Bevy's default ambient would add to it.
+        .insert_resource(GlobalAmbientLight::NONE);
+    let target = screenshot.map(|p| support::add_capture(&mut app, 640, 480, Some(p)));
+    app.insert_resource(Viewer {
+        gltf: file,
+        target,
+        framed: false,
+    })
+    .add_systems(Startup, setup)
+    .add_systems(Update, (toggle, arm_capture));
+    app.run()
+}
+
+fn setup(mut commands: Commands, server: Res<AssetServer>, viewer: Res<Viewer>) {
+    commands
+        .spawn(WorldAssetRoot(server.load(
+            GltfAssetLabel::Scene(0).from_asset(viewer.gltf.clone()),
+        )))
+        .observe(frame_scene);
+}
+
+/// Places a camera in front of the scene once it has spawned.
+fn frame_scene(
+    ready: On<WorldInstanceReady>,
+    children: Query<&Children>,
+    boxes: Query<(&Aabb, &GlobalTransform)>,
+    mut commands: Commands,
+    mut viewer: ResMut<Viewer>,
+) {
+    if viewer.framed {
+        return;
+    }
+    viewer.framed = true;
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for e in children.iter_descendants(ready.entity) {
+        if let Ok((aabb, t)) = boxes.get(e) {
+            for corner in [aabb.min(), aabb.max()] {
+                let p = t.transform_point(Vec3::from(corner));
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+    }
+    if lo.x > hi.x {
+        (lo, hi) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+    }
+    let centre = (lo + hi) / 2.0;
+    let size = (hi - lo).max_element();
+    let mut camera = commands.spawn((
+        Camera3d::default(),
+        Transform::from_translation(centre + Vec3::new(0.0, 0.0, hi.z - centre.z + 1.3 * size))
+            .looking_at(centre, Vec3::Y),
+        Exposure { ev100: 6.0 },
+    ));
+    if let Some(image) = &viewer.target {
+        camera.insert((RenderTarget::Image(image.clone().into()), Tonemapping::None));
+    }
+}
+
+fn toggle(input: Option<Res<ButtonInput<KeyCode>>>, mut show: ResMut<ShowLightmaps>) {
+    if input.is_some_and(|i| i.just_pressed(KeyCode::Space)) {
+        show.0 = !show.0;
+    }
+}
+
+fn arm_capture(
+    capture: Option<ResMut<FrameCapture>>,
+    viewer: Res<Viewer>,
+    pending: Query<(), (With<Lightmapped>, Without<Lightmap>)>,
+    lightmapped: Query<(), With<Lightmap>>,
+) {
+    if let Some(mut capture) = capture
+        && viewer.framed
+        && pending.is_empty()
+        && !lightmapped.is_empty()
+    {
+        capture.armed = true;
+    }
+}

@@ -1,0 +1,139 @@
+//! A glTF baked by the `bake` command, loaded into a headless Bevy app (no GPU): its meshes get
+//! their lightmaps and its lights stop lighting them twice; when the command rewrites the
+//! lightmaps the running app reloads them (Bevy's file watcher), and `AssetServer::reload`
+//! does the same on demand.
+
+mod bevy_common;
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use bevy::ecs::message::MessageCursor;
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use bevy_common::{headless_app, run_until};
+use bevy_lightbake::BakedLight;
+use bevy_lightbake::images::texel;
+use serde_json::Value;
+
+const TIMEOUT: Duration = Duration::from_secs(300);
+
+fn bake(out: &Path, method: &str) {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box_point.gltf");
+    lightbake_cli::run_from([
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--quality",
+        "preview",
+        "--texel-density",
+        "48",
+        "--method",
+        method,
+        "--light-convention",
+        "bevy",
+        "--quiet",
+    ])
+    .unwrap();
+}
+
+fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
+    )
+    .unwrap();
+    img.layer_data.channel_data.pixels
+}
+
+/// Whether the image behind `handle` holds exactly the EXR's texels.
+fn image_matches(world: &World, handle: &Handle<Image>, exr: &(usize, Vec<[f32; 3]>)) -> bool {
+    let Some(image) = world.resource::<Assets<Image>>().get(handle) else {
+        return false;
+    };
+    let (w, px) = exr;
+    if image.width() as usize != *w {
+        return false;
+    }
+    px.iter().enumerate().all(|(i, c)| {
+        texel(image, (i % w) as u32, (i / w) as u32).is_some_and(|t| t.to_array() == *c)
+    })
+}
+
+fn lightmapped_count(world: &mut World) -> usize {
+    let mut q = world.query_filtered::<(), With<Lightmap>>();
+    q.iter(world).count()
+}
+
+#[test]
+fn baked_gltf_gets_lightmaps_and_hot_reloads_when_rebaked() {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = dir.path().join("assets");
+    let out = assets.join("baked");
+    bake(&out, "direct");
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let instances = manifest["instances"].as_array().unwrap().len();
+    let image_file = out.join(manifest["pages"][0]["exr"].as_str().unwrap());
+    let first = read_exr(&image_file);
+
+    let mut app = headless_app(&assets, true);
+    let server = app.world().resource::<AssetServer>().clone();
+    app.world_mut().spawn(WorldAssetRoot(
+        server.load(GltfAssetLabel::Scene(0).from_asset("baked/cornell_box_point.gltf")),
+    ));
+    run_until(&mut app, "lightmaps on every baked mesh", TIMEOUT, |w| {
+        lightmapped_count(w) == instances
+    });
+
+    // The lightmaps are the files the command wrote, and the glTF's light is marked baked.
+    let world = app.world_mut();
+    let mut q = world.query::<&Lightmap>();
+    let handle = q.iter(world).next().unwrap().image.clone();
+    assert!(image_matches(world, &handle, &first));
+    let mut lights = world.query::<(&PointLight, Option<&BakedLight>)>();
+    let (light, baked) = lights.single(world).unwrap();
+    assert!(baked.is_some() && !light.affects_lightmapped_mesh_diffuse);
+
+    // Re-bake with other settings into the same folder while the app runs: the watcher sees
+    // the renamed files and the image changes in place (same size, new pixels).
+    let mut cursor = MessageCursor::<AssetEvent<Image>>::default();
+    cursor
+        .read(world.resource::<Messages<AssetEvent<Image>>>())
+        .for_each(drop);
+    bake(&out, "radiosity");
+    let second = read_exr(&image_file);
+    assert_ne!(first.1, second.1, "radiosity adds indirect light");
+    let written = Instant::now();
+    run_until(&mut app, "the file watcher's reload", TIMEOUT, |w| {
+        // The reload replaces the asset and announces it in the same update.
+        let events = w.resource::<Messages<AssetEvent<Image>>>();
+        let modified = cursor
+            .read(events)
+            .any(|e| *e == AssetEvent::Modified { id: handle.id() });
+        modified && image_matches(w, &handle, &second)
+    });
+    println!(
+        "hot reload: new pixels and AssetEvent::Modified {:.0} ms after the files were renamed into place",
+        written.elapsed().as_secs_f64() * 1e3
+    );
+    // The command also rewrote the glTF, so the scene respawns; its meshes get lightmaps again.
+    run_until(&mut app, "lightmaps after the respawn", TIMEOUT, |w| {
+        lightmapped_count(w) == instances
+    });
+
+    // Without a watcher, `AssetServer::reload` picks up a rewrite on demand.
+    let mut quiet = headless_app(&assets, false);
+    let server = quiet.world().resource::<AssetServer>().clone();
+    let image: Handle<Image> = server.load("baked/lightmaps/lightmap_0.exr");
+    run_until(&mut quiet, "the lightmap to load", TIMEOUT, |w| {
+        image_matches(w, &image, &second)
+    });
+    bake(&out, "direct");
+    server.reload("baked/lightmaps/lightmap_0.exr");
+    run_until(&mut quiet, "the explicit reload", TIMEOUT, |w| {
+        image_matches(w, &image, &first)
+    });
+}
