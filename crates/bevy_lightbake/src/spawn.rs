@@ -86,7 +86,8 @@ fn bevy_image(t: &lightbake::scene::Texture) -> Image {
 
 /// Spawns `scene` into `world`: one entity per instance (`Mesh3d`, `MeshMaterial3d`,
 /// `Transform`, `Name`, and [`Lightbaked::default`] — or [`Lightbaked::occluder`] for an
-/// instance that is not baked), one per light (lumens = 4π × candela), and the sky as
+/// instance that is not baked), one per light (lumens = 4π × candela; shadow maps on, so that
+/// Bevy's real-time lighting of the scene casts shadows too), and the sky as
 /// `GlobalAmbientLight` (brightness = the sky's largest channel, colour = the sky over it).
 /// Returns the instance entities in scene order.
 pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
@@ -179,6 +180,7 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
                     color,
                     intensity: lumens,
                     range,
+                    shadow_maps_enabled: true,
                     ..default()
                 },
                 looking,
@@ -194,6 +196,7 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
                     range,
                     inner_angle: inner_cone_angle,
                     outer_angle: outer_cone_angle,
+                    shadow_maps_enabled: true,
                     ..default()
                 },
                 looking,
@@ -204,6 +207,7 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
                     DirectionalLight {
                         color,
                         illuminance: l.intensity,
+                        shadow_maps_enabled: true,
                         ..default()
                     },
                     looking,
