@@ -468,4 +468,18 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
         w.get::<Lightmap>(floor).is_some()
     });
     assert_eq!(count(&mut app), names.len());
+
+    // A mesh that stops receiving a lightmap loses it at the next bake (it still casts shadows).
+    app.world_mut()
+        .get_mut::<Lightbaked>(floor)
+        .unwrap()
+        .receive_lightmap = false;
+    app.world_mut().write_message(RequestBake::default());
+    run_until(&mut app, "the third bake", TIMEOUT, |w| {
+        w.resource::<BakeStatus>().completed == 3
+    });
+    app.update();
+    assert!(app.world().get::<Lightmapped>(floor).is_none());
+    assert!(app.world().get::<Lightmap>(floor).is_none());
+    assert_eq!(count(&mut app), names.len() - 1);
 }

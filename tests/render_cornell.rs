@@ -6,13 +6,12 @@
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::app::PluginsState;
 use bevy::camera::{Exposure, RenderTarget};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::render::view::Msaa;
-use bevy_lightbake::capture::{CapturedFrame, FrameCapture};
+use bevy_lightbake::capture::CapturedFrame;
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::sample::sample_lightmap;
 use bevy_lightbake::spawn::spawn_scene;
@@ -59,23 +58,11 @@ fn rendered_cornell_box_shows_the_bake() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let mut app = App::new();
-    app.add_plugins(support::default_plugins(true, dir.path()))
-        .add_plugins(LightbakePlugin);
-    {
-        let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
-        config.assets_folder = dir.path().to_path_buf();
-        config.settings.texel_density = 128.0;
-    }
-    let target = support::add_capture(&mut app, W, H, None);
+    let (mut app, target) = support::render_test_app(dir.path(), W, H);
     app.world_mut()
-        .resource_mut::<FrameCapture>()
-        .exit_when_done = false;
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+        .resource_mut::<LightbakeConfig>()
+        .settings
+        .texel_density = 128.0;
 
     let world = app.world_mut();
     let scene = cornell_box(CornellLight::Point);
@@ -95,37 +82,11 @@ fn rendered_cornell_box_shows_the_bake() {
         Exposure { ev100: EV100 },
     ));
     world.write_message(RequestBake::default());
-    let mut n = 0;
-    loop {
-        app.update();
-        n += 1;
-        let world = app.world_mut();
-        if n % 50 == 0 {
-            let st = world.resource::<BakeStatus>();
-            let c = world.resource::<FrameCapture>();
-            eprintln!(
-                "DEBUG {n} {:?} {} {:.2} armed={} rb={} comp={}",
-                st.phase, st.stage, st.fraction, c.armed, c.readbacks, c.pipelines_compiling
-            );
-        }
-        if let BakePhase::Failed(e) = &world.resource::<BakeStatus>().phase {
-            panic!("bake failed: {e}");
-        }
+    let frame = support::capture_when_ready(&mut app, |world| {
         let mut waiting = world.query_filtered::<(), (With<Lightmapped>, Without<Lightmap>)>();
-        let ready =
-            world.resource::<BakeStatus>().completed == 1 && waiting.iter(world).next().is_none();
-        let mut capture = world.resource_mut::<FrameCapture>();
-        capture.armed |= ready;
-        if capture.done() {
-            break;
-        }
-    }
+        world.resource::<BakeStatus>().completed == 1 && waiting.iter(world).next().is_none()
+    });
     let world = app.world_mut();
-    let capture = world.resource::<FrameCapture>();
-    if let Some(e) = &capture.failed {
-        panic!("capture failed: {e}");
-    }
-    let frame = capture.frame.clone().unwrap();
     frame
         .save_png(&std::env::temp_dir().join("lightbake_render_cornell.png"))
         .unwrap();

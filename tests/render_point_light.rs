@@ -7,14 +7,12 @@
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::app::PluginsState;
 use bevy::camera::{Exposure, RenderTarget, ScalingMode};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::GlobalAmbientLight;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::render::view::Msaa;
-use bevy_lightbake::capture::FrameCapture;
 use bevy_lightbake::prelude::*;
 
 const SIZE: u32 = 256;
@@ -39,26 +37,14 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let mut app = App::new();
-    app.add_plugins(support::default_plugins(true, dir.path()))
-        .add_plugins(LightbakePlugin)
-        .insert_resource(GlobalAmbientLight::NONE)
+    let (mut app, target) = support::render_test_app(dir.path(), SIZE, SIZE);
+    app.insert_resource(GlobalAmbientLight::NONE)
         .insert_resource(ClearColor(Color::BLACK));
     {
         let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
-        config.assets_folder = dir.path().to_path_buf();
         config.settings.texel_density = 64.0;
         config.settings.method = lightbake::settings::Method::Direct;
     }
-    let target = support::add_capture(&mut app, SIZE, SIZE, None);
-    app.world_mut()
-        .resource_mut::<FrameCapture>()
-        .exit_when_done = false;
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
 
     let world = app.world_mut();
     let plane = world
@@ -109,25 +95,10 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
     ));
     world.write_message(RequestBake::default());
 
-    loop {
-        app.update();
-        let world = app.world_mut();
-        if let BakePhase::Failed(e) = &world.resource::<BakeStatus>().phase {
-            panic!("bake failed: {e}");
-        }
+    let frame = support::capture_when_ready(&mut app, |world| {
         let mut lit = world.query_filtered::<(), With<Lightmap>>();
-        let ready = lit.iter(world).count() == 1;
-        let mut capture = world.resource_mut::<FrameCapture>();
-        capture.armed |= ready;
-        if capture.done() {
-            break;
-        }
-    }
-    let capture = app.world().resource::<FrameCapture>();
-    if let Some(e) = &capture.failed {
-        panic!("capture failed: {e}");
-    }
-    let frame = capture.frame.clone().unwrap();
+        lit.iter(world).count() == 1
+    });
     frame
         .save_png(&std::env::temp_dir().join("lightbake_render_point_light.png"))
         .unwrap();

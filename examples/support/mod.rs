@@ -106,3 +106,51 @@ pub fn vulkan_available() -> bool {
     .any(|p| Path::new(p).exists());
     has_icd && has_loader
 }
+
+/// A headless rendering app for the render tests: default plugins reading assets from
+/// `assets`, the lightbake plugin writing there, and a `width × height` frame capture (not
+/// exiting). Returns the app, ready to update, and the capture's render target.
+pub fn render_test_app(assets: &Path, width: u32, height: u32) -> (App, Handle<Image>) {
+    let mut app = App::new();
+    app.add_plugins(default_plugins(true, assets))
+        .add_plugins(bevy_lightbake::LightbakePlugin);
+    app.world_mut()
+        .resource_mut::<bevy_lightbake::LightbakeConfig>()
+        .assets_folder = assets.to_path_buf();
+    let target = add_capture(&mut app, width, height, None);
+    app.world_mut()
+        .resource_mut::<FrameCapture>()
+        .exit_when_done = false;
+    while app.plugins_state() == bevy::app::PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+    (app, target)
+}
+
+/// Updates `app` until its capture has a settled frame, arming it once `ready` holds (the
+/// bake is done and the lightmaps are attached). Panics if the bake or the capture fails.
+pub fn capture_when_ready(
+    app: &mut App,
+    mut ready: impl FnMut(&mut World) -> bool,
+) -> bevy_lightbake::capture::CapturedFrame {
+    loop {
+        app.update();
+        let world = app.world_mut();
+        if let bevy_lightbake::BakePhase::Failed(e) =
+            &world.resource::<bevy_lightbake::BakeStatus>().phase
+        {
+            panic!("bake failed: {e}");
+        }
+        let is_ready = ready(world);
+        let mut capture = world.resource_mut::<FrameCapture>();
+        capture.armed |= is_ready;
+        if let Some(e) = &capture.failed {
+            panic!("capture failed: {e}");
+        }
+        if let Some(frame) = &capture.frame {
+            return frame.clone();
+        }
+    }
+}

@@ -260,8 +260,8 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
         let Some(unwrap) = &layout.meshes[m] else {
             continue;
         };
-        if unwrap.origin == UvOrigin::Existing && unwrap.xref.is_none() && !source.needs_own_asset {
-            continue; // it already has these UVs
+        if unwrap.origin == UvOrigin::Existing && unwrap.xref.is_none() {
+            continue; // it already has these UVs (and so do its other users)
         }
         let mesh = match apply_unwrap(&source.original, unwrap) {
             Ok(mesh) => mesh,
@@ -313,11 +313,18 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
     // 3. Entities: a lightmap each (and their own mesh where the asset was split off).
     let mut lightmapped = 0;
     for (i, &entity) in mapping.instances.iter().enumerate() {
-        let Some(rect) = layout.instances[i] else {
-            continue;
-        };
         let Ok(mut e) = world.get_entity_mut(entity) else {
             continue; // despawned during the bake
+        };
+        let Some(rect) = layout.instances[i] else {
+            // No lightmap this time (`receive_lightmap` turned off): drop an earlier one.
+            if e.contains::<Lightmapped>() {
+                e.remove::<(Lightmapped, Lightmap)>();
+                if let Some(mut mesh) = e.get_mut::<Mesh3d>() {
+                    mesh.set_changed(); // see `sync_lightmaps`
+                }
+            }
+            continue;
         };
         let mesh_index = output.baked_scene.instances[i].mesh;
         if let Some(h) = new_handles.get(&mesh_index) {
@@ -486,5 +493,75 @@ pub(crate) fn sync_lightmaps(
         && a.affects_lightmapped_meshes
     {
         a.affects_lightmapped_meshes = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{PrimitiveTopology, VertexAttributeValues};
+    use lightbake::glam::Vec2 as CoreVec2;
+
+    use super::*;
+
+    #[test]
+    fn unwrap_split_gathers_every_attribute() {
+        // A quad whose seam splits vertex 0 into two.
+        let mesh = Mesh::new(
+            PrimitiveTopology::TriangleList,
+            RenderAssetUsages::default(),
+        )
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            vec![
+                [0.0f32, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
+        )
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_COLOR,
+            vec![
+                [0.0f32, 0.0, 0.0, 1.0],
+                [1.0, 0.0, 0.0, 1.0],
+                [0.0, 1.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0, 1.0],
+            ],
+        )
+        .with_inserted_indices(Indices::U32(vec![0, 1, 2, 0, 2, 3]));
+        let unwrap = MeshUnwrap {
+            width: 8,
+            height: 8,
+            uv1: [(0.1, 0.1), (0.9, 0.1), (0.9, 0.9), (0.1, 0.9), (0.2, 0.2)]
+                .map(|(u, v)| CoreVec2::new(u, v))
+                .to_vec(),
+            xref: Some(vec![0, 1, 2, 3, 0]),
+            indices: vec![0, 1, 2, 4, 2, 3],
+            triangle_charts: vec![0, 1],
+            chart_count: 2,
+            origin: UvOrigin::Xatlas,
+            texels_per_metre: 8.0,
+            scaled_to_fit: false,
+        };
+        let out = apply_unwrap(&mesh, &unwrap).unwrap();
+        assert_eq!(out.count_vertices(), 5);
+        let Some(VertexAttributeValues::Float32x4(colours)) = out.attribute(Mesh::ATTRIBUTE_COLOR)
+        else {
+            panic!("colours lost");
+        };
+        assert_eq!(
+            colours[4],
+            [0.0, 0.0, 0.0, 1.0],
+            "vertex 4 is a copy of vertex 0"
+        );
+        assert_eq!(colours[3], [0.0, 0.0, 1.0, 1.0]);
+        let Some(VertexAttributeValues::Float32x2(uv1)) = out.attribute(Mesh::ATTRIBUTE_UV_1)
+        else {
+            panic!("no UV_1");
+        };
+        assert_eq!(uv1[4], [0.2, 0.2]);
+        let indices: Vec<usize> = out.indices().unwrap().iter().collect();
+        assert_eq!(indices, vec![0, 1, 2, 4, 2, 3]);
     }
 }
