@@ -2,6 +2,9 @@
 //! the sunlit room, at the default (medium) settings. Per-stage times of one bake are printed
 //! from the bake report before criterion measures the whole. Results: `docs/benchmarks.md`.
 //!
+//! Also each lighting pass on a prepared Cornell box: direct light, the instant-radiosity walk
+//! and gather, and the re-gather behind the radiosity error estimate.
+//!
 //! `cargo bench --bench bake`
 
 #![allow(missing_docs)] // criterion_group! and criterion_main! generate undocumented items
@@ -9,12 +12,18 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use lightbake::bake::{BakeContext, Prepared};
 use lightbake::bvh::RayScene;
+use lightbake::direct::{Emitters, direct_light};
+use lightbake::indirect;
 use lightbake::progress::Progress;
 use lightbake::raster::Patches;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
 use lightbake::settings::BakeSettings;
+use lightbake::settings::Method;
+use lightbake::transport::{Nodes, Transport};
 use lightbake::unwrap::unwrap_scene;
+use lightbake::vpl::instant_radiosity;
 
 fn bakes(c: &mut Criterion) {
     let settings = BakeSettings::medium();
@@ -54,6 +63,63 @@ fn stages(c: &mut Criterion) {
     let rays = RayScene::build(&baked);
     g.bench_function("raster", |b| {
         b.iter(|| black_box(Patches::build(&baked, &layout, &rays)))
+    });
+    g.bench_function("validity", |b| {
+        b.iter(|| {
+            let mut p = Patches::build(&baked, &layout, &rays);
+            p.fix_validity(&baked, &layout, &rays, 0);
+            black_box(p.invalid)
+        })
+    });
+    g.finish();
+
+    // The lighting passes on a prepared scene (unwrap, raster and BVH done once).
+    let prepared = Prepared::new(&scene, &settings).expect("prepare");
+    let ctx = prepared.ctx();
+    let emitters = Emitters::collect(&prepared.scene, &prepared.rays);
+    let mut g = c.benchmark_group("passes_cornell");
+    g.sample_size(10);
+    g.bench_function("direct_16spp", |b| {
+        b.iter(|| black_box(direct_light(&ctx, &emitters, &Progress::new())))
+    });
+    let direct = prepared.direct();
+    let mut vpl_settings = settings.clone();
+    vpl_settings.method = Method::Hybrid;
+    vpl_settings.vpl_particles = 256;
+    let vpl_ctx = BakeContext {
+        settings: &vpl_settings,
+        ..ctx
+    };
+    g.bench_function("vpl_walk_and_gather_256", |b| {
+        b.iter(|| {
+            black_box(instant_radiosity(
+                &vpl_ctx,
+                &emitters,
+                false,
+                Some(&direct),
+                &Progress::new(),
+            ))
+        })
+    });
+    let nodes = Nodes::new(&ctx, settings.basis);
+    let (irr, _) = {
+        let t = Transport::build_monte_carlo(&ctx, &nodes, 32, settings.basis, &Progress::new());
+        let plan = indirect::plan_solver(&ctx, &nodes).expect("plan");
+        let source = indirect::source(&nodes, &direct);
+        let s = indirect::solve_system(&ctx, &nodes, &plan, Some(&t), &source, &Progress::new());
+        (s, t)
+    };
+    g.bench_function("error_estimate_regather", |b| {
+        b.iter(|| {
+            black_box(indirect::gather_error(
+                &ctx,
+                &nodes,
+                &irr.b,
+                &irr.indirect,
+                &direct,
+                settings.transport_rays,
+            ))
+        })
     });
     g.finish();
 }

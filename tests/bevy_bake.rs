@@ -91,6 +91,15 @@ fn in_app_bake_gives_uvs_lightmaps_shadows_and_bleeding_and_matches_the_cli() {
         .last_report
         .clone()
         .expect("a report");
+    // The progress resource lists every finished stage with its time, rays and estimate.
+    let finished = &world.resource::<BakeStatus>().finished_stages;
+    assert_eq!(finished.len(), report.stages.len());
+    let direct = finished
+        .iter()
+        .find(|s| s.name == "direct")
+        .expect("direct");
+    assert!(direct.rays > 0 && direct.error.as_ref().is_some_and(|e| e.relative_rms > 0.0));
+    assert!(report.error.is_some() && report.floor.is_some());
     for (name, &e) in &names {
         let mesh = world
             .resource::<Assets<Mesh>>()

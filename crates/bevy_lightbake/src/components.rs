@@ -148,6 +148,10 @@ pub struct BakeStatus {
     /// The running stage's own estimate of its relative error so far (the radiosity solvers
     /// publish one per sweep), when it has one.
     pub error_estimate: Option<f32>,
+    /// The stages finished so far in the running (or last) bake, in order: wall time, rays
+    /// and, for the sampling stages, their own error estimate
+    /// ([`lightbake::estimate::ErrorEstimate`], relative RMS and 95th percentile).
+    pub finished_stages: Vec<lightbake::report::StageStats>,
     /// Seconds since the bake started (wall clock).
     pub elapsed_seconds: f32,
     /// Bakes finished (with lightmaps) since the app started.

@@ -137,6 +137,7 @@ pub(crate) fn start_bake(world: &mut World) {
     status.stage_index = 0;
     status.fraction = 0.0;
     status.error_estimate = None;
+    status.finished_stages.clear();
     status.elapsed_seconds = 0.0;
 }
 
@@ -188,6 +189,7 @@ pub(crate) fn poll_bake(world: &mut World) {
         status.stage_index = snap.stage_index;
         status.fraction = snap.fraction();
         status.error_estimate = snap.error_estimate;
+        status.finished_stages = snap.finished;
         status.elapsed_seconds = job.started.elapsed().as_secs_f32();
     }
     if !job.thread.as_ref().is_some_and(|t| t.is_finished()) {

@@ -25,6 +25,8 @@ use lightbake::settings::{BakeSettings, LightConvention, Method, Quality};
 use lightbake::solve::SolverChoice;
 use lightbake::transport::Basis;
 
+mod plot;
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum QualityArg {
     Preview,
@@ -175,6 +177,10 @@ struct Args {
     /// Refuse bakes estimated to need more memory than this (MiB).
     #[arg(long)]
     memory_budget: Option<u64>,
+    /// Target relative RMS error (0.02 = 2%): sample counts become a pilot, and each sampling
+    /// stage raises them until its own error estimate reaches its share of the target.
+    #[arg(long)]
+    target_error: Option<f32>,
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
     light_convention: ConventionArg,
@@ -184,6 +190,101 @@ struct Args {
     /// No progress bars.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// `bake convergence SCENE -o DIR`: every method over a sweep of budgets, error against a
+/// reference bake versus run time; writes `convergence.csv`, `convergence.md`,
+/// `convergence.svg` and `convergence.png` to DIR.
+#[derive(Debug, Parser)]
+#[command(name = "bake convergence", version)]
+struct ConvergenceArgs {
+    /// The scene: a .gltf or .glb file.
+    scene: PathBuf,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Lightmap texels per metre (default: the scene's hint, else the medium preset's).
+    #[arg(long)]
+    texel_density: Option<f32>,
+    /// Two budgets per curve instead of the full sweeps.
+    #[arg(long)]
+    quick: bool,
+    /// Worker threads (0 = every core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// How glTF punctual lights are read.
+    #[arg(long, value_enum, default_value = "gltf")]
+    light_convention: ConventionArg,
+}
+
+mod convergence {
+    use super::*;
+    use lightbake::output::atomic::StagedFiles;
+    use lightbake::study::{StudyRow, StudySize, run_study};
+
+    pub(super) fn run(args: ConvergenceArgs) -> Result<(), String> {
+        let mut settings = BakeSettings::medium();
+        settings.threads = args.threads;
+        settings.light_convention = match args.light_convention {
+            ConventionArg::Gltf => LightConvention::GltfSpec,
+            ConventionArg::Bevy => LightConvention::BevyGltfLoader,
+        };
+        if let Some(d) = args.texel_density {
+            settings.texel_density = d;
+            settings.texel_density_from_scene = false;
+        }
+        settings.validate().map_err(|e| e.to_string())?;
+        let imported =
+            import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
+        let size = if args.quick {
+            StudySize::Quick
+        } else {
+            StudySize::Full
+        };
+        println!(
+            "convergence study of {} (reference bake first)",
+            args.scene.display()
+        );
+        println!(
+            "{:<20} {:>12} {:>9} {:>10} {:>10}",
+            "curve", "budget", "time", "measured", "estimated"
+        );
+        let study = run_study(&imported.scene, &settings, size, |r: &StudyRow| {
+            println!(
+                "{:<20} {:>12} {:>8.3}s {:>9.3}% {:>10}",
+                r.curve,
+                format!("{}={}", r.parameter, r.budget),
+                r.seconds,
+                100.0 * r.measured,
+                r.estimated
+                    .map_or("-".into(), |e| format!("{:.3}%", 100.0 * e))
+            );
+        })
+        .map_err(|e| e.to_string())?;
+        let mut csv = String::from(StudyRow::CSV_HEADER);
+        csv.push('\n');
+        for r in &study.rows {
+            csv.push_str(&r.csv());
+            csv.push('\n');
+        }
+        let (svg, png) = plot::render(&study)?;
+        let mut files = StagedFiles::new();
+        let out = &args.output;
+        let stage = |files: &mut StagedFiles, name: &str, bytes: &[u8]| {
+            files
+                .stage(&out.join(name), bytes)
+                .map_err(|e| e.to_string())
+        };
+        stage(&mut files, "convergence.csv", csv.as_bytes())?;
+        stage(&mut files, "convergence.md", study.markdown().as_bytes())?;
+        stage(&mut files, "convergence.svg", &svg)?;
+        stage(&mut files, "convergence.png", &png)?;
+        let written = files.commit().map_err(|e| e.to_string())?;
+        println!();
+        print!("{}", study.markdown());
+        println!("wrote {} files to {}", written.len(), out.display());
+        Ok(())
+    }
 }
 
 fn settings_from(args: &Args) -> BakeSettings {
@@ -211,6 +312,7 @@ fn settings_from(args: &Args) -> BakeSettings {
     if let Some(v) = args.memory_budget {
         s.memory_budget_mib = v;
     }
+    s.target_error = args.target_error;
     s.method = match args.method {
         MethodArg::Direct => Method::Direct,
         MethodArg::Radiosity => Method::Radiosity,
@@ -409,15 +511,33 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
+    let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
+    if args.get(1).is_some_and(|a| a == "convergence") {
+        let c =
+            ConvergenceArgs::try_parse_from(convergence_args(&args)).map_err(|e| e.to_string())?;
+        return convergence::run(c);
+    }
     let args = Args::try_parse_from(args).map_err(|e| e.to_string())?;
     run(args)
+}
+
+/// `bake convergence …` parsed as its own command named `bake convergence`.
+fn convergence_args(args: &[OsString]) -> Vec<OsString> {
+    std::iter::once(OsString::from("bake convergence"))
+        .chain(args.iter().skip(2).cloned())
+        .collect()
 }
 
 /// The binary's `main`: parses the process arguments (exit 2 on a bad command line), runs,
 /// and prints the error on one line (exit 1).
 pub fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(args) {
+    let argv: Vec<OsString> = std::env::args_os().collect();
+    let result = if argv.get(1).is_some_and(|a| a == "convergence") {
+        convergence::run(ConvergenceArgs::parse_from(convergence_args(&argv)))
+    } else {
+        run(Args::parse_from(argv))
+    };
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");

@@ -182,3 +182,73 @@ fn plan_only_does_not_write() {
     );
     assert!(!out_dir.exists());
 }
+
+#[test]
+fn convergence_study_writes_csv_markdown_and_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("study");
+    let out = bake(&[
+        "convergence",
+        asset("cornell_box.gltf").to_str().unwrap(),
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--quick",
+        "--texel-density",
+        "16",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(out_dir.join("convergence.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert!(
+        lines
+            .next()
+            .unwrap()
+            .starts_with("curve,parameter,budget,seconds")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for curve in [
+        "direct",
+        "jacobi",
+        "gauss-seidel",
+        "shooting",
+        "krylov",
+        "krylov-cg",
+        "stochastic-jacobi",
+        "mc-linear",
+        "mc-constant",
+        "hemicube",
+        "vpl-hybrid",
+    ] {
+        assert!(
+            rows.iter().any(|r| r[0] == curve),
+            "no {curve} row in\n{csv}"
+        );
+    }
+    for r in &rows {
+        let measured: f64 = r[5].parse().unwrap();
+        assert!(
+            measured.is_finite() && measured > 0.0 && measured < 1.0,
+            "{r:?}"
+        );
+    }
+    // More form-factor rays, less error.
+    let mc: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[0] == "mc-linear")
+        .map(|r| r[5].parse().unwrap())
+        .collect();
+    assert!(mc[mc.len() - 1] < mc[0], "{mc:?}");
+    let svg = std::fs::read_to_string(out_dir.join("convergence.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("vpl-hybrid"));
+    let png = std::fs::read(out_dir.join("convergence.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    assert!(
+        std::fs::read_to_string(out_dir.join("convergence.md"))
+            .unwrap()
+            .contains("| curve |")
+    );
+}

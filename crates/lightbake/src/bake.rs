@@ -10,21 +10,26 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::bvh::RayScene;
+use crate::bvh::workload::{RayRates, calibrate};
 use crate::direct::{Emitters, direct_light};
 use crate::error::{BakeError, Result};
+use crate::estimate::{ErrorEstimate, rms_luminance};
 use crate::indirect::{self, IndirectReport};
 use crate::lightmap::{LightmapPage, assemble};
 use crate::memory;
 use crate::plan::BakePlan;
 use crate::progress::Progress;
 use crate::raster::Patches;
-use crate::report::{BakeReport, StageStats, TexelStats};
+use crate::report::{BakeReport, Floor, RayKind, StageStats, TexelStats};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::settings::Method;
 use crate::transport::{Nodes, Transport};
 use crate::unwrap::{Layout, unwrap_scene};
 use crate::vpl::instant_radiosity;
+
+/// Rays of each kind the floor calibration traces.
+const CALIBRATION_RAYS: usize = 16_384;
 
 /// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
 /// the texel patches, the settings and the plan.
@@ -96,13 +101,64 @@ impl Stages {
             name: name.to_string(),
             seconds: start.elapsed().as_secs_f64(),
             rays,
+            ray_kind: if rays > 0 {
+                RayKind::Closest
+            } else {
+                RayKind::None
+            },
+            error: None,
             note,
         });
+        progress.record_stage(self.list.len() - 1, &self.list[self.list.len() - 1]);
         if progress.is_cancelled() {
             return Err(BakeError::Cancelled);
         }
         Ok(value)
     }
+
+    /// Sets the last stage's ray kind and error estimate (and publishes the estimate).
+    fn annotate(&mut self, kind: RayKind, error: Option<ErrorEstimate>, progress: &Progress) {
+        let index = self.list.len().saturating_sub(1);
+        if let Some(last) = self.list.last_mut() {
+            if last.rays > 0 {
+                last.ray_kind = kind;
+            }
+            if let Some(e) = &error {
+                progress.set_error_estimate(e.relative_rms);
+            }
+            last.error = error;
+            progress.record_stage(index, last);
+        }
+    }
+}
+
+/// Rounds a sampling stage may take to reach its share of `target_error`.
+const TARGET_ROUNDS: u32 = 3;
+
+/// The factor on a sample count that brings `error` down to `target` (error ∝ 1/√count),
+/// with a 20% margin; 1 when already there.
+fn count_factor(error: f64, target: f64) -> f64 {
+    if error <= target || target <= 0.0 {
+        1.0
+    } else {
+        (error / target).powi(2) * 1.2
+    }
+}
+
+/// `count` × `factor`, rounded up and capped at `max`.
+fn scaled(count: u32, factor: f64, max: u32) -> u32 {
+    ((count as f64 * factor).ceil()).min(max as f64) as u32
+}
+
+/// Values of the valid patches only.
+fn valid<T: Copy>(patches: &Patches, values: &[T]) -> Vec<T> {
+    patches
+        .patches
+        .iter()
+        .zip(values)
+        .filter(|(p, _)| p.is_valid())
+        .map(|(_, v)| *v)
+        .collect()
 }
 
 fn bake_in_pool(
@@ -148,6 +204,8 @@ fn bake_in_pool(
     let mut indirect_report = None;
     let mut vpl_report = None;
     let mut solver_reason = None;
+    let mut bake_error = None;
+    let mut rates = RayRates::default();
     let pages = if plan.nothing_to_bake {
         layout
             .pages
@@ -170,6 +228,7 @@ fn bake_in_pool(
             let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
             Ok(((), patches.rays, note))
         })?;
+        stages.annotate(RayKind::Shadow, None, progress);
         texels.patches = patches.patches.len();
         texels.moved = patches.moved;
         texels.invalid = patches.invalid;
@@ -183,46 +242,142 @@ fn bake_in_pool(
             plan: &plan,
         };
         let vpl_only = settings.method == Method::Vpl;
+        let indirect_runs = plan.runs("indirect");
+        // Each sampling stage gets an equal share of the target error (they add in
+        // quadrature).
+        let sampling_stages = u32::from(!vpl_only) + u32::from(indirect_runs);
+        let share = settings
+            .target_error
+            .map(|t| t as f64 / (sampling_stages.max(1) as f64).sqrt());
+        let mut stage_errors: Vec<ErrorEstimate> = Vec::new();
         let irradiance = if vpl_only {
             vec![Vec3::ZERO; patches.patches.len()]
         } else {
-            stages.run("direct", progress, patches.patches.len() as u64, || {
-                let r = direct_light(&ctx, &emitters, progress);
-                let note = format!(
-                    "{} spp, {} light(s), {} emitter triangle(s){}",
-                    settings.samples_per_texel,
-                    plan.lights.iter().filter(|l| l.instances > 0).count(),
-                    emitters.list.len(),
-                    if plan.sky {
-                        format!(", {} sky rays/texel", settings.sky_samples)
-                    } else {
-                        String::new()
+            let (irradiance, error, missed) =
+                stages.run("direct", progress, patches.patches.len() as u64, || {
+                    let mut s = settings.clone();
+                    if share.is_some() {
+                        // A variance needs samples to spread: the pilot takes at least 4.
+                        s.samples_per_texel = s.samples_per_texel.max(4);
                     }
-                );
-                Ok((r.irradiance, r.rays, note))
-            })?
+                    let mut rays = 0;
+                    for round in 1..=TARGET_ROUNDS {
+                        let c = BakeContext {
+                            settings: &s,
+                            ..ctx
+                        };
+                        if round > 1 {
+                            progress.begin(
+                                &format!("direct (round {round})"),
+                                patches.patches.len() as u64,
+                            );
+                        }
+                        let r = direct_light(&c, &emitters, progress);
+                        rays += r.rays;
+                        // One sample has no spread: no estimate then.
+                        let est = (s.samples_per_texel >= 2).then(|| {
+                            ErrorEstimate::from_standard_errors(
+                                &valid(&patches, &r.standard_error),
+                                rms_luminance(&valid(&patches, &r.irradiance)),
+                                format!("variance over {} footprint samples", s.samples_per_texel),
+                            )
+                        });
+                        let factor = match (share, &est) {
+                            (Some(t), Some(e)) => count_factor(e.relative_rms, t),
+                            _ => 1.0,
+                        };
+                        let next = (
+                            scaled(s.samples_per_texel, factor, 4096),
+                            scaled(s.sky_samples, factor, 65_536),
+                        );
+                        let done = factor <= 1.0 || next == (s.samples_per_texel, s.sky_samples);
+                        if done || round == TARGET_ROUNDS {
+                            let note = format!(
+                                "{} spp, {} light(s), {} emitter triangle(s){}{}",
+                                s.samples_per_texel,
+                                plan.lights.iter().filter(|l| l.instances > 0).count(),
+                                emitters.list.len(),
+                                if plan.sky {
+                                    format!(", {} sky rays/texel", s.sky_samples)
+                                } else {
+                                    String::new()
+                                },
+                                if round > 1 {
+                                    format!(", {round} rounds")
+                                } else {
+                                    String::new()
+                                }
+                            );
+                            let missed = factor > 1.0;
+                            return Ok(((r.irradiance, est, missed), rays, note));
+                        }
+                        (s.samples_per_texel, s.sky_samples) = next;
+                    }
+                    unreachable!("the last round returns")
+                })?;
+            if let Some(e) = error.as_ref().filter(|_| missed) {
+                warnings.push(format!(
+                    "direct light stopped at an estimated {:.2}% error, above its share {:.2}% of the target (sample counts capped or rounds used up)",
+                    100.0 * e.relative_rms,
+                    100.0 * share.unwrap_or(0.0)
+                ));
+            }
+            stages.annotate(RayKind::Shadow, error.clone(), progress);
+            stage_errors.extend(error);
+            irradiance
         };
         let mut irradiance = irradiance;
-        if plan.runs("indirect") && matches!(settings.method, Method::Vpl | Method::Hybrid) {
+        if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
             let (from_vpls, report) =
                 stages.run("vpl", progress, patches.patches.len() as u64, || {
                     let direct = (!vpl_only).then_some(irradiance.as_slice());
-                    let (e, report, rays) =
-                        instant_radiosity(&ctx, &emitters, vpl_only, direct, progress);
-                    let note = format!(
-                        "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}",
-                        report.particles,
-                        report.vpls,
-                        report.mean_reflectivity,
-                        100.0 * report.clamped_fraction,
-                        if report.compensated {
-                            ", compensated"
-                        } else {
-                            ""
+                    let mut s = settings.clone();
+                    let mut rays = 0;
+                    for round in 1..=TARGET_ROUNDS {
+                        let c = BakeContext {
+                            settings: &s,
+                            ..ctx
+                        };
+                        let (e, report, r) =
+                            instant_radiosity(&c, &emitters, vpl_only, direct, progress);
+                        rays += r;
+                        let factor =
+                            share.map_or(1.0, |t| count_factor(report.error.relative_rms, t));
+                        let next = scaled(report.particles, factor, 10_000_000);
+                        if factor <= 1.0 || next == report.particles || round == TARGET_ROUNDS {
+                            let note = format!(
+                                "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}{}",
+                                report.particles,
+                                report.vpls,
+                                report.mean_reflectivity,
+                                100.0 * report.clamped_fraction,
+                                if report.compensated {
+                                    ", compensated"
+                                } else {
+                                    ""
+                                },
+                                if round > 1 {
+                                    format!(", {round} rounds")
+                                } else {
+                                    String::new()
+                                }
+                            );
+                            return Ok(((e, report), rays, note));
                         }
-                    );
-                    Ok(((e, report), rays, note))
+                        s.vpl_particles = next;
+                        s.vpl_time_budget_s = None;
+                    }
+                    unreachable!("the last round returns")
                 })?;
+            if let Some(t) = share.filter(|&t| report.error.relative_rms > t) {
+                warnings.push(format!(
+                    "instant radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
+                    100.0 * report.error.relative_rms,
+                    100.0 * t
+                ));
+            }
+            stages.annotate(RayKind::Shadow, Some(report.error.clone()), progress);
+            stage_errors.push(report.error.clone());
             for (e, v) in irradiance.iter_mut().zip(&from_vpls) {
                 *e += *v;
             }
@@ -231,7 +386,7 @@ fn bake_in_pool(
                 report.particles, report.particles_reason, report.vpls, report.clamp_distance
             ));
             vpl_report = Some(report);
-        } else if plan.runs("indirect") {
+        } else if indirect_runs {
             let nodes = stages.run("nodes", progress, 1, || {
                 let nodes = Nodes::new(&ctx, settings.basis);
                 let note = format!(
@@ -241,41 +396,99 @@ fn bake_in_pool(
                 );
                 Ok((nodes, 0, note))
             })?;
-            let solver_plan = indirect::plan_solver(&ctx, &nodes)?;
-            let transport = if solver_plan.choice.needs_matrix() {
-                Some(stages.run("transport", progress, nodes.len() as u64, || {
-                    let t = indirect::build_transport(&ctx, &nodes, progress);
-                    let note = format!(
-                        "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
-                        settings.transport_rays,
-                        t.nnz(),
-                        t.bytes() as f64 / 1048576.0,
-                        solver_plan.transport_estimate_bytes as f64 / 1048576.0
-                    );
-                    let rays = t.rays;
-                    Ok((t, rays, note))
-                })?)
-            } else {
-                None
-            };
             let source = indirect::source(&nodes, &irradiance);
-            let solution = stages.run("solve", progress, 0, || {
-                let s = indirect::solve_system(
-                    &ctx,
-                    &nodes,
-                    &solver_plan,
-                    transport.as_ref(),
-                    &source,
-                    progress,
-                );
-                let note = format!("{}: {}", s.solver, s.stop_reason);
-                let rays = s.rays;
-                Ok((s, rays, note))
-            })?;
+            let mut s = settings.clone();
+            if let Some(t) = settings.target_error {
+                s.solver_tolerance = s.solver_tolerance.min(t as f64 / 4.0);
+            }
+            let mut round = 1;
+            let (solver_plan, transport, solution, error) = loop {
+                let c = BakeContext {
+                    settings: &s,
+                    ..ctx
+                };
+                let suffix = if round > 1 {
+                    format!(" #{round}")
+                } else {
+                    String::new()
+                };
+                let solver_plan = indirect::plan_solver(&c, &nodes)?;
+                let transport = if solver_plan.choice.needs_matrix() {
+                    let t = stages.run(
+                        &format!("transport{suffix}"),
+                        progress,
+                        nodes.len() as u64,
+                        || {
+                            let t = indirect::build_transport(&c, &nodes, progress);
+                            let note = format!(
+                                "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
+                                s.transport_rays,
+                                t.nnz(),
+                                t.bytes() as f64 / 1048576.0,
+                                solver_plan.transport_estimate_bytes as f64 / 1048576.0
+                            );
+                            let rays = t.rays;
+                            Ok((t, rays, note))
+                        },
+                    )?;
+                    Some(t)
+                } else {
+                    None
+                };
+                let solution = stages.run(&format!("solve{suffix}"), progress, 0, || {
+                    let sol = indirect::solve_system(
+                        &c,
+                        &nodes,
+                        &solver_plan,
+                        transport.as_ref(),
+                        &source,
+                        progress,
+                    );
+                    let note = format!("{}: {}", sol.solver, sol.stop_reason);
+                    let rays = sol.rays;
+                    Ok((sol, rays, note))
+                })?;
+                // The Monte Carlo error of the matrix rows (stochastic Jacobi has its own
+                // noise, which a re-gather does not measure: it is left to the study).
+                if transport.is_none() {
+                    break (solver_plan, transport, solution, None);
+                }
+                let error = stages.run(&format!("estimate{suffix}"), progress, 1, || {
+                    let (e, rays) = indirect::gather_error(
+                        &c,
+                        &nodes,
+                        &solution.b,
+                        &solution.indirect,
+                        &irradiance,
+                        s.transport_rays,
+                    );
+                    let note = format!("{:.2}% from {}", 100.0 * e.relative_rms, e.method);
+                    Ok((e, rays, note))
+                })?;
+                stages.annotate(RayKind::Closest, Some(error.clone()), progress);
+                let factor = share.map_or(1.0, |t| count_factor(error.relative_rms, t));
+                let next = scaled(s.transport_rays, factor, 65_536);
+                if factor <= 1.0 || next == s.transport_rays || round == TARGET_ROUNDS {
+                    if factor > 1.0 {
+                        warnings.push(format!(
+                            "radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
+                            100.0 * error.relative_rms,
+                            100.0 * share.unwrap_or(0.0)
+                        ));
+                    }
+                    break (solver_plan, transport, solution, Some(error));
+                }
+                drop(transport);
+                s.transport_rays = next;
+                round += 1;
+            };
+            if let Some(e) = error {
+                stage_errors.push(e);
+            }
             if !solution.converged {
                 warnings.push(format!(
                     "the {} solver did not reach the tolerance {:.1e}: {}",
-                    solution.solver, settings.solver_tolerance, solution.stop_reason
+                    solution.solver, s.solver_tolerance, solution.stop_reason
                 ));
             }
             let reflected = indirect::per_patch(&nodes, &solution.indirect, patches.patches.len());
@@ -299,6 +512,20 @@ fn bake_in_pool(
                 solution,
             });
         }
+        if !stage_errors.is_empty() {
+            let value = rms_luminance(&valid(&patches, &irradiance));
+            bake_error = Some(ErrorEstimate::combine(&stage_errors, value));
+        }
+        // The rates the floor is measured at: a short calibration on the same pool.
+        rates = stages.run("calibrate", progress, 1, || {
+            let r = calibrate(&rays, CALIBRATION_RAYS, settings.seed);
+            let note = format!(
+                "BVH rates for the floor: {:.2} Mrays/s closest, {:.2} shadow",
+                r.closest_per_second / 1e6,
+                r.shadow_per_second / 1e6
+            );
+            Ok((r, 0, note))
+        })?;
         if let Some(bad) = irradiance.iter().position(|e| !e.is_finite()) {
             // An internal error: report it rather than write garbage.
             return Err(BakeError::BadSetting {
@@ -331,6 +558,9 @@ fn bake_in_pool(
     if let Some(reason) = solver_reason {
         plan.set_reason("indirect", reason);
     }
+    let total_seconds = start.elapsed().as_secs_f64();
+    let floor = (stages.list.iter().any(|s| s.rays > 0) && rates.closest_per_second > 0.0)
+        .then(|| Floor::new(&stages.list, rates, total_seconds));
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
         scene: scene.name.clone(),
@@ -352,7 +582,9 @@ fn bake_in_pool(
             }
             warnings
         },
-        total_seconds: start.elapsed().as_secs_f64(),
+        error: bake_error,
+        floor,
+        total_seconds,
         outputs: Vec::new(),
     };
     Ok(BakeOutput {

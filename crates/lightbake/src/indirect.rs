@@ -16,6 +16,7 @@ use serde::Serialize;
 
 use crate::bake::BakeContext;
 use crate::error::{BakeError, Result};
+use crate::estimate::{ErrorEstimate, rms_luminance};
 use crate::progress::Progress;
 use crate::solve::stochastic_jacobi::{self, StochasticOptions};
 use crate::solve::{self, DIRECT_MAX_NODES, Solution, SolveOptions, SolverChoice, System};
@@ -165,6 +166,52 @@ pub fn solve_system(
 /// target·(1 − ρ_max), at least 10⁻¹².
 pub fn residual_tolerance(target: f64, max_albedo: f32) -> f64 {
     (target * (1.0 - max_albedo as f64)).max(1e-12)
+}
+
+/// Nodes re-gathered by [`gather_error`] at most.
+pub const ERROR_SAMPLE_NODES: usize = 2048;
+
+/// The Monte Carlo error of the reflected light: up to [`ERROR_SAMPLE_NODES`] evenly spaced
+/// nodes trace their transport rows again (the same `rays` rays) and read the solved exitance
+/// `b` at the hits; the spread of those values gives each node's standard error of (F·B)ᵢ
+/// ([`Transport::gather_standard_error`]). Relative to the direct plus reflected light of the
+/// same nodes. This is the error of the last gather only: the error the solve carries over
+/// from other nodes' rows is left out (the convergence study measures the whole). Returns the
+/// estimate and the rays traced.
+pub fn gather_error(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    b: &[Vec3],
+    indirect: &[Vec3],
+    direct: &[Vec3],
+    rays: u32,
+) -> (ErrorEstimate, u64) {
+    use rayon::prelude::*;
+    let n = nodes.len();
+    if n == 0 {
+        return (ErrorEstimate::default(), 0);
+    }
+    let mapper = HitMapper::new(*ctx, nodes, ctx.settings.basis);
+    let picked = n.min(ERROR_SAMPLE_NODES);
+    let se: Vec<f32> = (0..picked)
+        .into_par_iter()
+        .map(|k| {
+            let i = k * n / picked;
+            Transport::gather_standard_error(ctx, &mapper, nodes, i, rays, b).1 as f32
+        })
+        .collect();
+    let values: Vec<Vec3> = (0..picked)
+        .map(|k| {
+            let i = k * n / picked;
+            direct[nodes.patch[i] as usize] + indirect[i]
+        })
+        .collect();
+    let est = ErrorEstimate::from_standard_errors(
+        &se,
+        rms_luminance(&values),
+        format!("re-gather of {picked} nodes with {rays} rays each"),
+    );
+    (est, picked as u64 * rays as u64)
 }
 
 /// Per-patch irradiance from reflected light (zero for invalid patches).

@@ -8,6 +8,8 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
+use crate::report::StageStats;
+
 /// Thread-safe bake progress.
 #[derive(Debug)]
 pub struct Progress {
@@ -17,6 +19,7 @@ pub struct Progress {
     total: AtomicU64,
     /// f32 bits of the running stage's error estimate; `NO_ESTIMATE` when it has none.
     estimate: AtomicU32,
+    finished: Mutex<Vec<StageStats>>,
     cancelled: AtomicBool,
 }
 
@@ -31,6 +34,7 @@ impl Default for Progress {
             done: AtomicU64::new(0),
             total: AtomicU64::new(0),
             estimate: AtomicU32::new(NO_ESTIMATE),
+            finished: Mutex::default(),
             cancelled: AtomicBool::new(false),
         }
     }
@@ -52,6 +56,9 @@ pub struct ProgressSnapshot {
     /// ‖B − Bₖ‖∞/‖Bₖ‖∞ when the method has one, else the relative residual). `None` when the
     /// stage has no estimate.
     pub error_estimate: Option<f32>,
+    /// The stages finished so far, in order: wall time, rays and (for sampling stages) their
+    /// error estimate.
+    pub finished: Vec<StageStats>,
 }
 
 impl ProgressSnapshot {
@@ -91,6 +98,17 @@ impl Progress {
         self.estimate.store(bits, Ordering::Relaxed);
     }
 
+    /// Records the counters of finished stage number `index` (0-based; replaces what was
+    /// recorded under that index).
+    pub fn record_stage(&self, index: usize, stats: &StageStats) {
+        let mut f = self.finished.lock().unwrap_or_else(|e| e.into_inner());
+        if index < f.len() {
+            f[index] = stats.clone();
+        } else {
+            f.push(stats.clone());
+        }
+    }
+
     /// Records `n` more units done.
     pub fn advance(&self, n: u64) {
         self.done.fetch_add(n, Ordering::Relaxed);
@@ -115,6 +133,11 @@ impl Progress {
             total: self.total.load(Ordering::Relaxed),
             error_estimate: Some(f32::from_bits(self.estimate.load(Ordering::Relaxed)))
                 .filter(|e| e.is_finite()),
+            finished: self
+                .finished
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .clone(),
         }
     }
 }

@@ -4,6 +4,8 @@
 
 use serde::Serialize;
 
+use crate::bvh::workload::RayRates;
+use crate::estimate::ErrorEstimate;
 use crate::memory::MemoryEstimate;
 use crate::plan::BakePlan;
 use crate::settings::BakeSettings;
@@ -17,8 +19,70 @@ pub struct StageStats {
     pub seconds: f64,
     /// Rays traced.
     pub rays: u64,
+    /// What most of its rays are (for the ray-tracing floor).
+    pub ray_kind: RayKind,
+    /// The stage's estimate of its own error (Monte Carlo stages; see [`crate::estimate`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorEstimate>,
     /// A short note (counts, sizes).
     pub note: String,
+}
+
+/// The kind of ray a stage mostly traces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RayKind {
+    /// No rays.
+    #[default]
+    None,
+    /// Closest-hit rays (gathers, walks, validity probes).
+    Closest,
+    /// Any-hit shadow rays.
+    Shadow,
+}
+
+/// The ray-tracing floor: the shortest time the bake's rays can take at the rates the BVH
+/// measured on this scene and these threads, and how far the bake is above it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Floor {
+    /// Measured rates (all worker threads).
+    pub rates: RayRates,
+    /// Closest-hit rays the bake traced.
+    pub closest_rays: u64,
+    /// Shadow rays the bake traced.
+    pub shadow_rays: u64,
+    /// closest_rays / closest rate + shadow_rays / shadow rate, seconds.
+    pub seconds: f64,
+    /// Total bake time / floor (1 = nothing but rays at the measured rate).
+    pub ratio: f64,
+}
+
+impl Floor {
+    /// The floor of `stages` at `rates`, against a bake that took `total_seconds`.
+    pub fn new(stages: &[StageStats], rates: RayRates, total_seconds: f64) -> Self {
+        let count = |k: RayKind| -> u64 {
+            stages
+                .iter()
+                .filter(|s| s.ray_kind == k)
+                .map(|s| s.rays)
+                .sum()
+        };
+        let (closest_rays, shadow_rays) = (count(RayKind::Closest), count(RayKind::Shadow));
+        let per = |n: u64, rate: f64| if rate > 0.0 { n as f64 / rate } else { 0.0 };
+        let seconds =
+            per(closest_rays, rates.closest_per_second) + per(shadow_rays, rates.shadow_per_second);
+        Self {
+            rates,
+            closest_rays,
+            shadow_rays,
+            seconds,
+            ratio: if seconds > 0.0 {
+                total_seconds / seconds
+            } else {
+                0.0
+            },
+        }
+    }
 }
 
 impl StageStats {
@@ -78,6 +142,13 @@ pub struct BakeReport {
     pub vpl: Option<crate::vpl::VplReport>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
+    /// The bake's estimate of its own error: the stages' estimates added in quadrature,
+    /// relative to the final lightmap (none when nothing was sampled).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorEstimate>,
+    /// The ray-tracing floor (none when no rays were traced).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub floor: Option<Floor>,
     /// Repairs, compromises and clamps.
     pub warnings: Vec<String>,
     /// Wall time of the whole bake (writing excluded), seconds.
@@ -94,13 +165,18 @@ impl BakeReport {
 
     /// A fixed-width table: stage, time, rays, Mrays/s, note.
     pub fn table(&self) -> String {
+        let pct = |e: &Option<ErrorEstimate>| {
+            e.as_ref().map_or("-".to_string(), |e| {
+                format!("{:.2}%", 100.0 * e.relative_rms)
+            })
+        };
         let mut s = format!(
-            "{:<14} {:>9} {:>12} {:>8}  {}\n",
-            "stage", "time", "rays", "Mrays/s", "note"
+            "{:<14} {:>9} {:>12} {:>8} {:>8}  {}\n",
+            "stage", "time", "rays", "Mrays/s", "error", "note"
         );
         for st in &self.stages {
             s.push_str(&format!(
-                "{:<14} {:>8.3}s {:>12} {:>8}  {}\n",
+                "{:<14} {:>8.3}s {:>12} {:>8} {:>8}  {}\n",
                 st.name,
                 st.seconds,
                 if st.rays > 0 {
@@ -113,12 +189,13 @@ impl BakeReport {
                 } else {
                     "-".into()
                 },
+                pct(&st.error),
                 st.note
             ));
         }
         let rays = self.total_rays();
         s.push_str(&format!(
-            "{:<14} {:>8.3}s {:>12} {:>8}  {} threads\n",
+            "{:<14} {:>8.3}s {:>12} {:>8} {:>8}  {} threads\n",
             "total",
             self.total_seconds,
             rays,
@@ -127,8 +204,27 @@ impl BakeReport {
             } else {
                 "-".into()
             },
+            pct(&self.error),
             self.threads
         ));
+        if let Some(e) = &self.error {
+            s.push_str(&format!(
+                "estimated error: {:.2}% RMS, {:.2}% at the 95th percentile (relative to the RMS texel)\n",
+                100.0 * e.relative_rms,
+                100.0 * e.p95
+            ));
+        }
+        if let Some(f) = &self.floor {
+            s.push_str(&format!(
+                "ray floor: {:.3}s ({} closest at {:.2} Mrays/s, {} shadow at {:.2} Mrays/s); bake / floor = {:.2}\n",
+                f.seconds,
+                f.closest_rays,
+                f.rates.closest_per_second / 1e6,
+                f.shadow_rays,
+                f.rates.shadow_per_second / 1e6,
+                f.ratio
+            ));
+        }
         s
     }
 }

@@ -164,6 +164,14 @@ pub struct BakeSettings {
     pub threads: usize,
     /// Refuse a bake whose estimated memory exceeds this many MiB. Default 8192.
     pub memory_budget_mib: u64,
+    /// Target relative RMS error of the lightmap (e.g. 0.02 for 2%; see
+    /// [`crate::estimate`]). When set, the sample counts above become the pilot: each
+    /// Monte Carlo stage measures its own error, predicts the count that reaches its share of
+    /// the target (the target divided by √(number of sampling stages); error falls as
+    /// 1/√count), runs again with it, and repeats (at most 3 rounds, counts capped at their
+    /// ranges) until its estimate is at or below its share; the radiosity solver's tolerance
+    /// is tightened to a quarter of the target. Range (0, 1). Default none.
+    pub target_error: Option<f32>,
     /// Which files to write.
     pub formats: OutputFormats,
     /// How glTF punctual lights are read. Default [`LightConvention::GltfSpec`].
@@ -212,6 +220,7 @@ impl BakeSettings {
             seed: 0,
             threads: 0,
             memory_budget_mib: 8192,
+            target_error: None,
             formats: OutputFormats::default(),
             light_convention: LightConvention::GltfSpec,
         }
@@ -308,6 +317,15 @@ impl BakeSettings {
                     "vpl_time_budget_s",
                     t,
                     "must be a positive number of seconds",
+                ));
+            }
+        }
+        if let Some(t) = self.target_error {
+            if !(t.is_finite() && t > 0.0 && t < 1.0) {
+                return Err(bad(
+                    "target_error",
+                    t,
+                    "must be a relative error between 0 and 1 (0.02 = 2%)",
                 ));
             }
         }

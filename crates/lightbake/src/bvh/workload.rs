@@ -97,3 +97,49 @@ pub fn shadow_rays(
         })
         .collect()
 }
+
+/// Measured ray rates of a scene's BVH on the current rayon pool, rays per second.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RayRates {
+    /// Incoherent closest-hit gather rays per second.
+    pub closest_per_second: f64,
+    /// Any-hit shadow rays per second.
+    pub shadow_per_second: f64,
+}
+
+/// Times `count` gather rays and `count` shadow rays (to random surface points) through
+/// `rays` on the current rayon pool: the rates the bake's ray-tracing floor is computed with.
+pub fn calibrate(rays: &RayScene, count: usize, seed: u32) -> RayRates {
+    use rayon::prelude::*;
+    if rays.triangles.iter().all(|t| t.area <= 0.0) || count == 0 {
+        return RayRates::default();
+    }
+    let gather = gather_rays(rays, count, seed);
+    let shadow = shadow_rays(rays, count, seed ^ 0x5bd1_e995, |_| true);
+    let time = |f: &dyn Fn() -> usize| {
+        let start = std::time::Instant::now();
+        std::hint::black_box(f());
+        count as f64 / start.elapsed().as_secs_f64().max(1e-9)
+    };
+    let closest = time(&|| {
+        gather
+            .par_iter()
+            .with_min_len(256)
+            .filter(|r| {
+                rays.closest_hit(r.origin, r.direction, 0.0, r.tmax)
+                    .is_some()
+            })
+            .count()
+    });
+    let shadow = time(&|| {
+        shadow
+            .par_iter()
+            .with_min_len(256)
+            .filter(|r| rays.occluded(r.origin, r.direction, 0.0, r.tmax))
+            .count()
+    });
+    RayRates {
+        closest_per_second: closest,
+        shadow_per_second: shadow,
+    }
+}

@@ -30,6 +30,7 @@ use rayon::prelude::*;
 
 use crate::bake::BakeContext;
 use crate::bvh::RayScene;
+use crate::estimate::standard_error;
 use crate::plan::BakePlan;
 use crate::progress::Progress;
 use crate::raster::{Patch, Patches, Surface, SurfacePoint};
@@ -226,6 +227,9 @@ pub(crate) fn punctual(
 pub struct DirectResult {
     /// Irradiance per patch, lux, linear RGB.
     pub irradiance: Vec<Vec3>,
+    /// Standard error of each patch's irradiance from its own samples, lux (luminance; see
+    /// [`crate::estimate`]). Zero for invalid patches.
+    pub standard_error: Vec<f32>,
     /// Shadow and sky rays traced.
     pub rays: u64,
 }
@@ -262,18 +266,18 @@ pub fn direct_light(
         closed_form: emitters.list.len() <= bake.settings.max_closed_form_emitters as usize,
     };
     let ray_count = AtomicU64::new(0);
-    let irradiance: Vec<Vec3> = bake
+    let (irradiance, standard_error): (Vec<Vec3>, Vec<f32>) = bake
         .patches
         .patches
         .par_chunks(256)
         .flat_map_iter(|chunk| {
             let cancelled = progress.is_cancelled();
             let mut local_rays = 0u64;
-            let out: Vec<Vec3> = chunk
+            let out: Vec<(Vec3, f32)> = chunk
                 .iter()
                 .map(|p| {
                     if cancelled || !p.is_valid() {
-                        Vec3::ZERO
+                        (Vec3::ZERO, 0.0)
                     } else {
                         texel(&ctx, p, &mut local_rays)
                     }
@@ -283,9 +287,10 @@ pub fn direct_light(
             progress.advance(chunk.len() as u64);
             out
         })
-        .collect();
+        .unzip();
     DirectResult {
         irradiance,
+        standard_error,
         rays: ray_count.into_inner(),
     }
 }
@@ -363,8 +368,14 @@ pub fn footprint_point(
     rep
 }
 
-/// Direct irradiance of one valid patch.
-fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
+/// Direct irradiance of one valid patch and its standard error (luminance, lux).
+///
+/// The error comes from the spread of the footprint samples: the punctual, directional and
+/// sampled-emitter terms are a plain mean over `spp` samples; the closed-form emitter term is
+/// Ū·R, with Ū the mean unoccluded irradiance and R the ratio estimate of its visible
+/// fraction, whose variance is taken by the delta method (Σw²(v − R)²/(Σw)²); the sky term is
+/// a binomial proportion of escaped rays.
+fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
     let seed = ctx.settings.seed;
     let spp = ctx.settings.samples_per_texel;
     let lights = ctx.plan.lights_for(p.instance as usize);
@@ -375,7 +386,14 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
     let (mut w_visible, mut w_total) = (0.0f32, 0.0f32);
     let mut contributions: Vec<f32> = Vec::new();
     let mut samples: Vec<SurfacePoint> = Vec::with_capacity(spp as usize);
+    // Per-sample luminance sums for the error estimate: the plain terms, the unoccluded
+    // closed-form irradiance, and the ratio estimator's (weight, visible) pairs.
+    let (mut plain, mut plain_sq) = (0.0f64, 0.0f64);
+    let (mut unocc, mut unocc_sq) = (0.0f64, 0.0f64);
+    let mut ratio_samples: Vec<(f32, bool)> = Vec::new();
     for s in 0..spp {
+        let e_before = e;
+        let unoccluded_before = unoccluded_sum;
         let sp = footprint_sample(ctx, p, s, rays);
         samples.push(sp);
         let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
@@ -411,6 +429,7 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
         }
         if ctx.plan.area_lights && !ctx.emitters.is_empty() {
             if ctx.closed_form {
+                let (wv, wt) = (w_visible, w_total);
                 closed_form_emitter_sample(
                     ctx,
                     p,
@@ -423,14 +442,34 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
                     &mut w_total,
                     rays,
                 );
+                if w_total > wt {
+                    ratio_samples.push((w_total - wt, w_visible > wv));
+                }
             } else {
                 e += sampled_emitter(ctx, p, s, &sp, origin, rays);
             }
         }
+        let y = luminance(e - e_before) as f64;
+        plain += y;
+        plain_sq += y * y;
+        let u = luminance(unoccluded_sum - unoccluded_before) as f64;
+        unocc += u;
+        unocc_sq += u * u;
     }
     let mut irradiance = e / spp as f32;
+    let mut variance = (standard_error(plain, plain_sq, spp) as f64).powi(2);
     if ctx.plan.area_lights && ctx.closed_form && w_total > 0.0 {
-        irradiance += unoccluded_sum / spp as f32 * (w_visible / w_total);
+        let r = (w_visible / w_total) as f64;
+        irradiance += unoccluded_sum / spp as f32 * r as f32;
+        // Var(Ū·R) ≈ R²·Var(Ū) + Ū²·Var(R).
+        let u_mean = unocc / spp as f64;
+        let var_r = ratio_samples
+            .iter()
+            .map(|&(w, v)| (w as f64).powi(2) * (f64::from(u8::from(v)) - r).powi(2))
+            .sum::<f64>()
+            / (w_total as f64).powi(2);
+        variance +=
+            r * r * (standard_error(unocc, unocc_sq, spp) as f64).powi(2) + u_mean * u_mean * var_r;
     }
     if ctx.plan.sky {
         let n = ctx.settings.sky_samples;
@@ -448,8 +487,13 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> Vec3 {
             }
         }
         irradiance += ctx.scene.sky * (std::f32::consts::PI * escaped as f32 / n as f32);
+        if n > 1 {
+            let q = escaped as f64 / n as f64;
+            let scale = std::f64::consts::PI * luminance(ctx.scene.sky) as f64;
+            variance += scale * scale * q * (1.0 - q) / n as f64;
+        }
     }
-    irradiance
+    (irradiance, variance.sqrt() as f32)
 }
 
 /// The emitter triangle as seen from `sp`: closed-form unoccluded irradiance (lux).

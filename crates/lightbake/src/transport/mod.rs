@@ -534,8 +534,47 @@ impl Transport {
         (&self.cols[a..b], &self.vals[a..b])
     }
 
-    /// One row of Monte Carlo transport: `rays` rays from points of node `i`'s basis support,
-    /// cosine-distributed about the surface there, self-normalised by their weights.
+    /// The samples of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
+    /// basis support, cosine-distributed about the surface there. Calls `f(weight, hit)` for
+    /// every support point, with `hit` the nodes and bilinear weights the ray reached (empty
+    /// when it escaped, was absorbed or pointed below the surface); returns the escaped weight.
+    fn for_each_sample(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        i: usize,
+        p: &Patch,
+        rays: u32,
+        mut f: impl FnMut(f32, &[(u32, f32)]),
+    ) -> f32 {
+        let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
+        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let mut escaped = 0.0f32;
+        let mut out = [(0u32, 0f32); 4];
+        for k in 0..rays {
+            let Some((sp, weight)) = support_point(ctx, &surface, mapper, i, p, k, key) else {
+                continue;
+            };
+            let u = sobol_02(k, key ^ 0x6a09_e667);
+            let dir = cosine_hemisphere(sp.normal, u);
+            if dir.dot(sp.geometric_normal) <= 0.0 {
+                f(weight, &[]); // below the surface: no light arrives from there
+                continue;
+            }
+            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+            match trace_to_nodes(mapper, origin, dir, &mut out) {
+                RayFate::Escaped => {
+                    escaped += weight;
+                    f(weight, &[]);
+                }
+                RayFate::Absorbed => f(weight, &[]),
+                RayFate::Nodes(n) => f(weight, &out[..n]),
+            }
+        }
+        escaped
+    }
+
+    /// One row of Monte Carlo transport (see [`Self::for_each_sample`]), self-normalised by
+    /// the sample weights. Returns the row and its escaped fraction.
     fn mc_row(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
@@ -544,28 +583,12 @@ impl Transport {
         rays: u32,
     ) -> (Vec<(u32, f32)>, f32) {
         let p = &ctx.patches.patches[nodes.patch[i] as usize];
-        let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
-        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
         let mut row: Vec<(u32, f32)> = Vec::with_capacity(rays as usize * 2);
-        let (mut escaped, mut total) = (0.0f32, 0.0f32);
-        let mut out = [(0u32, 0f32); 4];
-        for k in 0..rays {
-            let Some((sp, weight)) = support_point(ctx, &surface, mapper, i, p, k, key) else {
-                continue;
-            };
+        let mut total = 0.0f32;
+        let escaped = Self::for_each_sample(ctx, mapper, i, p, rays, |weight, hit| {
             total += weight;
-            let u = sobol_02(k, key ^ 0x6a09_e667);
-            let dir = cosine_hemisphere(sp.normal, u);
-            if dir.dot(sp.geometric_normal) <= 0.0 {
-                continue; // below the surface: no light arrives from there
-            }
-            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-            match trace_to_nodes(mapper, origin, dir, &mut out) {
-                RayFate::Escaped => escaped += weight,
-                RayFate::Absorbed => {}
-                RayFate::Nodes(n) => row.extend(out[..n].iter().map(|&(j, wj)| (j, wj * weight))),
-            }
-        }
+            row.extend(hit.iter().map(|&(j, wj)| (j, wj * weight)));
+        });
         if total <= 0.0 {
             return (Vec::new(), 0.0);
         }
@@ -582,6 +605,41 @@ impl Transport {
         }
         merged.shrink_to_fit();
         (merged, escaped / total)
+    }
+
+    /// Standard error (luminance) of node `i`'s gathered irradiance (F·B)ᵢ when its row is
+    /// estimated with `rays` rays, from the spread of the rays' values against the exitance
+    /// `b`: the delta-method variance of the self-normalised estimator,
+    /// Σw²(v − H)²/(Σw)², with v the luminance of B at each ray's hit and H their weighted
+    /// mean. Returns (H, standard error); traces the same rays as the row itself.
+    pub fn gather_standard_error(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        nodes: &Nodes,
+        i: usize,
+        rays: u32,
+        b: &[Vec3],
+    ) -> (f64, f64) {
+        let p = &ctx.patches.patches[nodes.patch[i] as usize];
+        let mut samples: Vec<(f64, f64)> = Vec::with_capacity(rays as usize);
+        Self::for_each_sample(ctx, mapper, i, p, rays, |weight, hit| {
+            let v: f32 = hit
+                .iter()
+                .map(|&(j, wj)| wj * crate::direct::luminance(b[j as usize]))
+                .sum();
+            samples.push((weight as f64, v as f64));
+        });
+        let total: f64 = samples.iter().map(|s| s.0).sum();
+        if total <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let h = samples.iter().map(|(w, v)| w * v).sum::<f64>() / total;
+        let var = samples
+            .iter()
+            .map(|(w, v)| w * w * (v - h) * (v - h))
+            .sum::<f64>()
+            / (total * total);
+        (h, var.sqrt())
     }
 
     /// Estimated bytes of the Monte Carlo matrix: up to 512 evenly spaced rows are traced and

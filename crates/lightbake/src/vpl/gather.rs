@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use super::walk::{Vpl, VplKind};
 use crate::bake::BakeContext;
-use crate::direct::{punctual, representative};
+use crate::direct::{luminance, punctual, representative};
 use crate::progress::Progress;
 use crate::sampling::{cosine_hemisphere, sobol_02};
 use crate::transport::HitMapper;
@@ -44,25 +44,36 @@ pub struct Gathered {
     pub irradiance: Vec<Vec3>,
     /// Irradiance the clamp removed per patch, lux.
     pub clamped: Vec<Vec3>,
+    /// Standard error of each patch's irradiance over the particle paths, lux (luminance;
+    /// the VPLs of one path are one sample, punctual lights gathered exactly count for none).
+    pub standard_error: Vec<f32>,
     /// Shadow rays traced.
     pub shadow_rays: u64,
     /// VPL–texel pairs culled before tracing.
     pub culled: u64,
 }
 
-/// Gathers `vpls` at every valid patch, with G clamped at `bound`.
-pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progress) -> Gathered {
+/// Gathers `vpls` (made by `particles` particle paths) at every valid patch, with G clamped at
+/// `bound`.
+pub fn gather(
+    ctx: &BakeContext<'_>,
+    vpls: &[Vpl],
+    particles: u32,
+    bound: f32,
+    progress: &Progress,
+) -> Gathered {
     let patches = &ctx.patches.patches;
     let rays_count = AtomicU64::new(0);
     let culled_count = AtomicU64::new(0);
     let far = ctx.rays.extent * 4.0 + 1.0;
-    let tiles: Vec<(Vec<Vec3>, Vec<Vec3>)> = patches
+    let tiles: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<f32>)> = patches
         .par_chunks(TILE)
         .map(|tile| {
             let mut e = vec![Vec3::ZERO; tile.len()];
             let mut lost = vec![Vec3::ZERO; tile.len()];
             if progress.is_cancelled() {
-                return (e, lost);
+                let se = vec![0.0; tile.len()];
+                return (e, lost, se);
             }
             let points: Vec<_> = tile.iter().map(representative).collect();
             let origins: Vec<Vec3> = points
@@ -70,13 +81,26 @@ pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progre
                 .map(|sp| ctx.rays.offset(sp.position, sp.geometric_normal))
                 .collect();
             let (mut traced, mut culled) = (0u64, 0u64);
+            // Per-path luminance sums for the error estimate: the current path's contribution
+            // and the sum of squared path contributions, per texel.
+            let mut path_sum = vec![0.0f64; tile.len()];
+            let mut path_sq = vec![0.0f64; tile.len()];
+            let mut sampled = vec![0.0f64; tile.len()];
+            let mut current_path = Vpl::EXACT;
             for v in vpls {
+                if v.path != current_path {
+                    for (c, q) in path_sum.iter_mut().zip(&mut path_sq) {
+                        *q += *c * *c;
+                        *c = 0.0;
+                    }
+                    current_path = v.path;
+                }
                 for (k, p) in tile.iter().enumerate() {
                     if !p.is_valid() {
                         continue;
                     }
                     let sp = &points[k];
-                    match v.kind {
+                    let added = match v.kind {
                         VplKind::Diffuse { normal } => {
                             let d = v.position - sp.position;
                             let r2 = d.length_squared();
@@ -98,10 +122,10 @@ pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progre
                             }
                             let g = cos_x * cos_y / r2;
                             let scale = std::f32::consts::FRAC_1_PI;
-                            e[k] += v.power * (scale * g.min(bound));
                             if g > bound {
                                 lost[k] += v.power * (scale * (g - bound));
                             }
+                            v.power * (scale * g.min(bound))
                         }
                         VplKind::Punctual { light } => {
                             let light = &ctx.scene.lights[light as usize];
@@ -111,9 +135,10 @@ pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progre
                             };
                             traced += 1;
                             let tmax = d - ctx.rays.epsilon(light.position);
-                            if !ctx.rays.occluded(origins[k], l, 0.0, tmax) {
-                                e[k] += irr;
+                            if ctx.rays.occluded(origins[k], l, 0.0, tmax) {
+                                continue;
                             }
+                            irr
                         }
                         VplKind::Directional {
                             direction,
@@ -126,17 +151,32 @@ pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progre
                                 continue;
                             }
                             traced += 1;
-                            if !ctx.rays.occluded(origins[k], l, 0.0, far) {
-                                e[k] += irradiance * cos;
+                            if ctx.rays.occluded(origins[k], l, 0.0, far) {
+                                continue;
                             }
+                            irradiance * cos
                         }
+                    };
+                    e[k] += added;
+                    if v.path != Vpl::EXACT {
+                        let y = luminance(added) as f64;
+                        path_sum[k] += y;
+                        sampled[k] += y;
                     }
                 }
             }
+            // Var(E) = Σ_p g_p² − (Σ_p g_p)²/N for E = Σ_p g_p over N i.i.d. paths.
+            let n = particles.max(1) as f64;
+            let se: Vec<f32> = (0..tile.len())
+                .map(|k| {
+                    let sum_sq = path_sq[k] + path_sum[k] * path_sum[k];
+                    (sum_sq - sampled[k] * sampled[k] / n).max(0.0).sqrt() as f32
+                })
+                .collect();
             rays_count.fetch_add(traced, Ordering::Relaxed);
             culled_count.fetch_add(culled, Ordering::Relaxed);
             progress.advance(tile.len() as u64);
-            (e, lost)
+            (e, lost, se)
         })
         .collect();
     let mut out = Gathered {
@@ -144,9 +184,10 @@ pub fn gather(ctx: &BakeContext<'_>, vpls: &[Vpl], bound: f32, progress: &Progre
         culled: culled_count.into_inner(),
         ..Gathered::default()
     };
-    for (e, lost) in tiles {
+    for (e, lost, se) in tiles {
         out.irradiance.extend(e);
         out.clamped.extend(lost);
+        out.standard_error.extend(se);
     }
     out
 }

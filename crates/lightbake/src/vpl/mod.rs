@@ -22,6 +22,7 @@ use serde::Serialize;
 
 use crate::bake::BakeContext;
 use crate::direct::{Emitters, luminance};
+use crate::estimate::{ErrorEstimate, rms_luminance};
 use crate::progress::Progress;
 use crate::sampling::Sequence;
 use crate::transport::{Basis, HitMapper, Nodes};
@@ -56,6 +57,9 @@ pub struct VplReport {
     pub gather_seconds: f64,
     /// Shadow rays per second in the gather.
     pub shadow_rays_per_second: f64,
+    /// The gather's own error estimate (variance over the particle paths; see
+    /// [`crate::estimate`]), relative to the direct plus VPL light of the valid texels.
+    pub error: ErrorEstimate,
 }
 
 /// The clamp distance for a scene: the setting, or 2% of the scene's diagonal.
@@ -101,7 +105,13 @@ fn particle_count(
         ..*ctx
     };
     let start = Instant::now();
-    let g = gather::gather(&sub_ctx, &pilot.vpls, 1e30, &Progress::new());
+    let g = gather::gather(
+        &sub_ctx,
+        &pilot.vpls,
+        pilot.particles,
+        1e30,
+        &Progress::new(),
+    );
     let seconds = start.elapsed().as_secs_f64().max(1e-6);
     let pairs = (sub.patches.len() * pilot.vpls.len().max(1)) as f64;
     let seconds_per_pair = seconds / pairs;
@@ -146,7 +156,7 @@ pub fn instant_radiosity(
     let d_c = clamp_distance(ctx);
     let bound = 1.0 / (d_c * d_c);
     let start = Instant::now();
-    let gathered = gather::gather(ctx, &set.vpls, bound, progress);
+    let gathered = gather::gather(ctx, &set.vpls, set.particles, bound, progress);
     let gather_seconds = start.elapsed().as_secs_f64();
     let weigh = |v: &[Vec3]| -> f64 {
         v.iter()
@@ -210,6 +220,22 @@ pub fn instant_radiosity(
         culled: gathered.culled,
         gather_seconds,
         shadow_rays_per_second: gathered.shadow_rays as f64 / gather_seconds.max(1e-9),
+        error: {
+            let valid = |i: usize| ctx.patches.patches[i].is_valid();
+            let se: Vec<f32> = (0..irradiance.len())
+                .filter(|&i| valid(i))
+                .map(|i| gathered.standard_error[i])
+                .collect();
+            let total: Vec<Vec3> = (0..irradiance.len())
+                .filter(|&i| valid(i))
+                .map(|i| irradiance[i] + direct.map_or(Vec3::ZERO, |d| d[i]))
+                .collect();
+            ErrorEstimate::from_standard_errors(
+                &se,
+                rms_luminance(&total),
+                format!("variance over {particles} particle paths"),
+            )
+        },
     };
     (irradiance, report, rays)
 }

@@ -57,6 +57,14 @@ pub struct Vpl {
     pub kind: VplKind,
     /// Path depth: 0 on a light, j after j reflections.
     pub depth: u32,
+    /// The particle whose path made it ([`Vpl::EXACT`] for the punctual lights themselves,
+    /// which are not samples). The VPLs of one path are stored together, in path order.
+    pub path: u32,
+}
+
+impl Vpl {
+    /// [`Vpl::path`] of a VPL that is not a sample (a punctual light as the first generation).
+    pub const EXACT: u32 = u32::MAX;
 }
 
 /// The VPLs of one bake and how they came about.
@@ -219,6 +227,7 @@ pub fn walk(
                         power: Vec3::ZERO,
                         kind: VplKind::Punctual { light: li as u32 },
                         depth: 0,
+                        path: Vpl::EXACT,
                     },
                 );
             }
@@ -340,6 +349,7 @@ fn walk_one(
                                 irradiance,
                             },
                             depth: 0,
+                            path: i,
                         }),
                     )
                 }
@@ -376,6 +386,7 @@ fn walk_one(
                     power,
                     kind: VplKind::Diffuse { normal },
                     depth: 0,
+                    path: i,
                 }),
             )
         }
@@ -396,6 +407,7 @@ fn walk_one(
                         irradiance,
                     },
                     depth: 0,
+                    path: i,
                 }),
             )
         }
@@ -436,6 +448,7 @@ fn walk_one(
                 power,
                 kind: VplKind::Diffuse { normal },
                 depth: j,
+                path: i,
             },
         );
         if j == reflections {
