@@ -5,7 +5,7 @@
 //! Also each lighting pass on a prepared Cornell box: direct light, the instant-radiosity walk
 //! and gather, and the re-gather behind the radiosity error estimate.
 //!
-//! `cargo bench --bench bake`
+//! `cargo bench -p lightbake --bench bake`
 
 #![allow(missing_docs)] // criterion_group! and criterion_main! generate undocumented items
 
@@ -79,7 +79,7 @@ fn stages(c: &mut Criterion) {
     let emitters = Emitters::collect(&prepared.scene, &prepared.rays);
     let mut g = c.benchmark_group("passes_cornell");
     g.sample_size(10);
-    g.bench_function("direct_16spp", |b| {
+    g.bench_function("direct_medium_preset", |b| {
         b.iter(|| black_box(direct_light(&ctx, &emitters, &Progress::new())))
     });
     let direct = prepared.direct();

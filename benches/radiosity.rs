@@ -3,7 +3,7 @@
 //! table of time and iterations to a relative residual of 10⁻³ (what `docs/benchmarks.md`
 //! records), then criterion measures one sweep / iteration of each solver.
 //!
-//! `cargo bench --bench radiosity`
+//! `cargo bench -p lightbake --bench radiosity`
 
 #![allow(missing_docs)] // criterion_group! and criterion_main! generate undocumented items
 

@@ -2,7 +2,7 @@
 //! incoherent closest-hit gather rays and any-hit shadow rays towards the ceiling light, on
 //! one core and on every core. Results: `docs/benchmarks.md`.
 //!
-//! `cargo bench --bench trace`
+//! `cargo bench -p lightbake --bench trace`
 
 #![allow(missing_docs)] // criterion_group! and criterion_main! generate undocumented items
 

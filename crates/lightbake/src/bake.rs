@@ -29,7 +29,7 @@ use crate::unwrap::{Layout, unwrap_scene};
 use crate::vpl::instant_radiosity;
 
 /// Rays of each kind the floor calibration traces.
-const CALIBRATION_RAYS: usize = 16_384;
+const CALIBRATION_RAYS: usize = 65_536;
 
 /// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
 /// the texel patches, the settings and the plan.

@@ -144,7 +144,8 @@ pub struct BakeSettings {
     pub max_page_size: u32,
     /// Samples per texel for direct light: each is a point in the texel's footprint and one
     /// sample of every light, so shadow edges are antialiased. Range 1..=4096.
-    /// Default 16 (medium), 4 (preview), 64 (high).
+    /// Default 32 (medium), 8 (preview), 128 (high); chosen from the convergence study
+    /// (`docs/convergence.md`).
     pub samples_per_texel: u32,
     /// Cosine-distributed rays per texel towards the uniform sky (only when the sky is not
     /// black). Range 1..=65 536. Default 64 (medium), 16 (preview), 256 (high).
@@ -189,9 +190,12 @@ impl BakeSettings {
     pub fn preset(quality: Quality) -> Self {
         let (texel_density, samples_per_texel, sky_samples, transport_rays, vpl_particles) =
             match quality {
-                Quality::Preview => (12.0, 4, 16, 32, 256),
-                Quality::Medium => (32.0, 16, 64, 128, 1024),
-                Quality::High => (64.0, 64, 256, 512, 4096),
+                // Direct samples per texel from the convergence study (docs/convergence.md):
+                // direct light costs little per sample, and at 16 spp it was the larger half
+                // of the Cornell box's error at 128 form-factor rays.
+                Quality::Preview => (12.0, 8, 16, 32, 256),
+                Quality::Medium => (32.0, 32, 64, 128, 1024),
+                Quality::High => (64.0, 128, 256, 512, 4096),
             };
         Self {
             method: Method::Radiosity,

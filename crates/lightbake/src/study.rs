@@ -3,7 +3,8 @@
 //! plots in `docs/convergence.md`.
 //!
 //! * **Reference.** A radiosity bake far beyond the sweeps (direct 1024 footprint samples,
-//!   4096 form-factor rays per node, BiCGStab to 10⁻⁷) with a *different seed*, so its
+//!   4096 form-factor rays per node, BiCGStab to 10⁻⁷; its matrix may take the whole memory
+//!   budget) with a *different seed*, so its
 //!   remaining noise is independent of the runs' and small next to theirs. The direct-light
 //!   curve has its own direct-only reference (same samples, same seed change).
 //! * **Measured error.** Relative RMS of the luminance over the covered texels of every page:
@@ -159,6 +160,8 @@ pub fn run_study(
         StudySize::Full => 4096,
         StudySize::Quick => 1024,
     };
+    // The reference may use the whole memory budget for its matrix.
+    reference.transport_budget_mib = reference.transport_budget_mib.max(base.memory_budget_mib);
     reference.solver = SolverChoice::Krylov;
     reference.solver_tolerance = 1e-7;
     reference.target_error = None;

@@ -1,0 +1,116 @@
+//! Writes the ray-tracing benchmark workload (the 204 800-triangle Cornell box of
+//! `benches/trace.rs`, 100 000 incoherent gather rays and 100 000 shadow rays towards the
+//! ceiling light) as raw little-endian f32 files, and times our BVH on exactly those rays on
+//! one thread, so `benches/embree_compare.py` can trace the same triangles and rays with
+//! Embree 4 and print the ratio.
+//!
+//! ```text
+//! cargo run --release -p lightbake --example ray_workload -- /tmp/rays
+//! python3 benches/embree_compare.py /tmp/rays
+//! ```
+//!
+//! Files: `triangles.f32` (9 floats per triangle: three vertices), `gather.f32` and
+//! `shadow.f32` (7 floats per ray: origin, unit direction, tmax; ∞ for gather rays), and
+//! `lightbake.json` with our rates and hit counts.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use lightbake::bvh::RayScene;
+use lightbake::bvh::workload::{BenchRay, gather_rays, shadow_rays};
+use lightbake::scene::testscenes::{CornellLight, cornell_box_dense};
+
+const RAYS: usize = 100_000;
+const REPEATS: usize = 5;
+
+fn write_f32(path: &PathBuf, values: impl Iterator<Item = f32>) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::File::create(path)?.write_all(&bytes)
+}
+
+fn rays_f32(rays: &[BenchRay]) -> impl Iterator<Item = f32> + '_ {
+    rays.iter().flat_map(|r| {
+        [
+            r.origin.x,
+            r.origin.y,
+            r.origin.z,
+            r.direction.x,
+            r.direction.y,
+            r.direction.z,
+            r.tmax,
+        ]
+    })
+}
+
+/// Best of `REPEATS` single-thread passes: (rays per second, hits).
+fn best(f: impl Fn() -> usize) -> (f64, usize) {
+    let mut rate: f64 = 0.0;
+    let mut hits = 0;
+    for _ in 0..REPEATS {
+        let start = Instant::now();
+        hits = f();
+        rate = rate.max(RAYS as f64 / start.elapsed().as_secs_f64());
+    }
+    (rate, hits)
+}
+
+fn main() -> std::io::Result<()> {
+    let dir = PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .unwrap_or_else(|| "ray_workload".into()),
+    );
+    std::fs::create_dir_all(&dir)?;
+    let scene = cornell_box_dense(CornellLight::Area, 80);
+    let rs = RayScene::build(&scene);
+    let light = scene
+        .instances
+        .iter()
+        .position(|i| i.name == "light")
+        .expect("the Cornell box has a light");
+    let (lo, hi) = (
+        rs.instance_first_triangle[light],
+        rs.instance_first_triangle[light + 1],
+    );
+    let gather = gather_rays(&rs, RAYS, 1);
+    let shadow = shadow_rays(&rs, RAYS, 2, |g| (lo..hi).contains(&g));
+    let n = rs.triangles.len() as u32;
+    write_f32(
+        &dir.join("triangles.f32"),
+        (0..n).flat_map(|g| {
+            rs.triangle_vertices(g)
+                .into_iter()
+                .flat_map(|v| [v.x, v.y, v.z])
+        }),
+    )?;
+    write_f32(&dir.join("gather.f32"), rays_f32(&gather))?;
+    write_f32(&dir.join("shadow.f32"), rays_f32(&shadow))?;
+
+    let (closest, closest_hits) = best(|| {
+        gather
+            .iter()
+            .filter(|r| rs.closest_hit(r.origin, r.direction, 0.0, r.tmax).is_some())
+            .count()
+    });
+    let (any, occluded) = best(|| {
+        shadow
+            .iter()
+            .filter(|r| rs.occluded(r.origin, r.direction, 0.0, r.tmax))
+            .count()
+    });
+    let json = format!(
+        "{{\"triangles\": {n}, \"rays\": {RAYS}, \"closest_per_second\": {closest:.1}, \"closest_hits\": {closest_hits}, \"shadow_per_second\": {any:.1}, \"shadow_occluded\": {occluded}}}\n"
+    );
+    std::fs::write(dir.join("lightbake.json"), &json)?;
+    println!(
+        "{n} triangles; one thread, best of {REPEATS}: closest hit {:.3} Mrays/s ({closest_hits} hits), any hit {:.3} Mrays/s ({occluded} occluded)",
+        closest / 1e6,
+        any / 1e6
+    );
+    println!("wrote {}", dir.display());
+    Ok(())
+}
