@@ -181,9 +181,20 @@ fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     reverse_bits(laine_karras_permutation(reverse_bits(x), seed))
 }
 
-/// Sobol' dimension 1 as a 32-bit fraction (generator matrix: Pascal's triangle mod 2).
+/// Sobol' dimension 1 as a 32-bit fraction (generator matrix: Pascal's triangle mod 2): the
+/// XOR of the generator columns of the set bits of `index`, a byte at a time from
+/// [`SOBOL_DIM1_TABLES`] (the indices here are scrambled, so all 32 bits are in play).
 #[inline]
-fn sobol_dim1(mut index: u32) -> u32 {
+fn sobol_dim1(index: u32) -> u32 {
+    let t = &SOBOL_DIM1_TABLES;
+    t[0][(index & 0xff) as usize]
+        ^ t[1][((index >> 8) & 0xff) as usize]
+        ^ t[2][((index >> 16) & 0xff) as usize]
+        ^ t[3][(index >> 24) as usize]
+}
+
+/// Bit by bit: the definition [`sobol_dim1`]'s tables are built from (and tested against).
+const fn sobol_dim1_bitwise(mut index: u32) -> u32 {
     let mut v: u32 = 1 << 31;
     let mut result = 0u32;
     while index != 0 {
@@ -195,6 +206,21 @@ fn sobol_dim1(mut index: u32) -> u32 {
     }
     result
 }
+
+/// `SOBOL_DIM1_TABLES[k][b]` = Sobol' dimension 1 of the index `b << 8k`.
+static SOBOL_DIM1_TABLES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            t[k][b] = sobol_dim1_bitwise((b as u32) << (8 * k));
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+};
 
 /// Point `i` of an Owen-scrambled (0,2)-sequence, decorrelated by `seed`. Each prefix of 2^k
 /// points has exactly one point in every elementary interval of area 2^-k.
@@ -272,6 +298,15 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn table_sobol_matches_the_bitwise_definition() {
+        for i in (0..100_000u32).chain([u32::MAX, 1 << 31, 0xdead_beef]) {
+            let x = hash(i);
+            assert_eq!(sobol_dim1(x), sobol_dim1_bitwise(x), "index {x:#x}");
+            assert_eq!(sobol_dim1(i), sobol_dim1_bitwise(i));
+        }
+    }
 
     #[test]
     fn radical_inverse_known_values() {

@@ -237,14 +237,51 @@ fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3
 /// Turns a ray hit into the nodes (and weights) that represent radiosity there.
 pub struct HitMapper<'a> {
     ctx: BakeContext<'a>,
-    nodes: &'a Nodes,
     basis: Basis,
+    /// Per page, per texel: the node there and who owns it, so a lookup touches one small
+    /// record instead of the page index, the patch and the node table (the hit lookups are
+    /// the hottest loads of the transport build).
+    grid: Vec<Vec<TexelNode>>,
+}
+
+/// A texel's node and its owner (instance, chart); `node == u32::MAX` when it has none.
+#[derive(Clone, Copy, Debug)]
+struct TexelNode {
+    node: u32,
+    instance: u32,
+    chart: u32,
 }
 
 impl<'a> HitMapper<'a> {
     /// A mapper for `basis`.
     pub fn new(ctx: BakeContext<'a>, nodes: &'a Nodes, basis: Basis) -> Self {
-        Self { ctx, nodes, basis }
+        let none = TexelNode {
+            node: u32::MAX,
+            instance: u32::MAX,
+            chart: u32::MAX,
+        };
+        let grid = ctx
+            .patches
+            .page_index
+            .iter()
+            .map(|index| {
+                index
+                    .iter()
+                    .map(|&pi| {
+                        if pi == u32::MAX {
+                            return none;
+                        }
+                        let p = &ctx.patches.patches[pi as usize];
+                        TexelNode {
+                            node: nodes.of_patch[pi as usize],
+                            instance: p.instance,
+                            chart: p.chart,
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Self { ctx, basis, grid }
     }
 
     /// The basis.
@@ -288,22 +325,14 @@ impl<'a> HitMapper<'a> {
         };
         let chart = unwrap.triangle_charts[info.local as usize];
         let page_w = ctx.layout.pages[rect.page as usize].width;
-        let index = &ctx.patches.page_index[rect.page as usize];
+        let grid = &self.grid[rect.page as usize];
         // The node at rect-local texel (x, y), if it belongs to this instance and chart.
         let node_at = |x: i64, y: i64| -> Option<u32> {
             if x < 0 || y < 0 || x >= rect.width as i64 || y >= rect.height as i64 {
                 return None;
             }
-            let pi = index[((rect.y as i64 + y) * page_w as i64 + rect.x as i64 + x) as usize];
-            if pi == u32::MAX {
-                return None;
-            }
-            let p = &ctx.patches.patches[pi as usize];
-            if p.instance as usize != ii || p.chart != chart {
-                return None;
-            }
-            let n = self.nodes.of_patch[pi as usize];
-            (n != u32::MAX).then_some(n)
+            let t = grid[((rect.y as i64 + y) * page_w as i64 + rect.x as i64 + x) as usize];
+            (t.node != u32::MAX && t.instance as usize == ii && t.chart == chart).then_some(t.node)
         };
         if self.basis == Basis::Linear {
             let (x, y) = (q.x - 0.5, q.y - 0.5);
