@@ -120,13 +120,7 @@ pub fn radiosity_indirect(
     let transport =
         Transport::build_monte_carlo(&ctx, &nodes, rays, Basis::Linear, &Progress::new());
     let source = lightbake::indirect::source(&nodes, direct);
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let s = solve_matrix(
         SolverChoice::GaussSeidel,
         &system,

@@ -147,11 +147,8 @@ pub fn solve_system(
         }
         (choice, Some(transport)) => {
             let system = System {
-                transport,
-                albedo: &nodes.albedo,
-                source,
-                area: &nodes.area,
                 progress: Some(progress),
+                ..System::for_nodes(transport, nodes, source)
             };
             let options = SolveOptions {
                 tolerance: residual_tolerance,

@@ -308,13 +308,7 @@ fn hemicube_run(
     let progress = Progress::new();
     let transport = build_hemicube(&ctx, &nodes, resolution, &progress);
     let source = indirect::source(&nodes, &irradiance);
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let options = SolveOptions {
         tolerance: indirect::residual_tolerance(1e-4, nodes.max_albedo()),
         max_iterations: settings.max_solver_iterations,

@@ -30,7 +30,7 @@ use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::progress::Progress;
-use crate::transport::Transport;
+use crate::transport::{Nodes, Transport};
 
 /// Which solver to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -91,6 +91,20 @@ pub struct System<'a> {
     /// Where to publish the error estimate after every sweep (see
     /// [`crate::progress::ProgressSnapshot::error_estimate`]), if anywhere.
     pub progress: Option<&'a Progress>,
+}
+
+impl<'a> System<'a> {
+    /// The system of `nodes` (their albedos and areas) with matrix `transport` and source
+    /// `source`, publishing nowhere.
+    pub fn for_nodes(transport: &'a Transport, nodes: &'a Nodes, source: &'a [Vec3]) -> Self {
+        Self {
+            transport,
+            albedo: &nodes.albedo,
+            source,
+            area: &nodes.area,
+            progress: None,
+        }
+    }
 }
 
 /// Stopping rules.
