@@ -67,6 +67,10 @@ fn main() -> std::io::Result<()> {
     std::fs::create_dir_all(&dir)?;
     let scene = cornell_box_dense(CornellLight::Area, 80);
     let rs = RayScene::build(&scene);
+    println!(
+        "BVH build {:.3} s (single thread)",
+        rs.build_time.as_secs_f64()
+    );
     let light = scene
         .instances
         .iter()
