@@ -495,6 +495,9 @@ pub fn trace_to_nodes(
     }
 }
 
+/// Rows the Monte Carlo build makes before packing them into the matrix.
+const BUILD_BLOCK_ROWS: usize = 16_384;
+
 /// The sparse form-factor matrix F in compressed rows.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Transport {
@@ -523,27 +526,41 @@ pub struct TransportCheck {
 }
 
 impl Transport {
+    /// An empty matrix of `n` rows, to be filled by [`Self::push_rows`].
+    fn empty(n: usize, basis: Basis) -> Self {
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        row_ptr.push(0);
+        Transport {
+            n,
+            row_ptr,
+            cols: Vec::new(),
+            vals: Vec::new(),
+            escaped: Vec::with_capacity(n),
+            rays: 0,
+            basis,
+        }
+    }
+
+    /// Appends rows produced in order.
+    fn push_rows(&mut self, rows: Vec<(Vec<(u32, f32)>, f32)>) {
+        for (row, escaped) in rows {
+            for (c, v) in row {
+                self.cols.push(c);
+                self.vals.push(v);
+            }
+            self.row_ptr.push(self.cols.len() as u64);
+            self.escaped.push(escaped);
+        }
+    }
+
     /// Builds F from rows produced in order (used by the builders).
     fn from_rows(n: usize, rows: Vec<(Vec<(u32, f32)>, f32)>, rays: u64, basis: Basis) -> Self {
         let nnz: usize = rows.iter().map(|r| r.0.len()).sum();
-        let mut t = Transport {
-            n,
-            row_ptr: Vec::with_capacity(n + 1),
-            cols: Vec::with_capacity(nnz),
-            vals: Vec::with_capacity(nnz),
-            escaped: Vec::with_capacity(n),
-            rays,
-            basis,
-        };
-        t.row_ptr.push(0);
-        for (row, escaped) in rows {
-            for (c, v) in row {
-                t.cols.push(c);
-                t.vals.push(v);
-            }
-            t.row_ptr.push(t.cols.len() as u64);
-            t.escaped.push(escaped);
-        }
+        let mut t = Self::empty(n, basis);
+        t.cols.reserve_exact(nnz);
+        t.vals.reserve_exact(nnz);
+        t.push_rows(rows);
+        t.rays = rays;
         t
     }
 
@@ -702,20 +719,38 @@ impl Transport {
     ) -> Self {
         let mapper = HitMapper::new(*ctx, nodes, basis);
         let traced = AtomicU64::new(0);
-        let rows: Vec<(Vec<(u32, f32)>, f32)> = (0..nodes.len())
-            .into_par_iter()
-            .with_min_len(64)
-            .map(|i| {
-                if progress.is_cancelled() {
-                    return (Vec::new(), 0.0);
-                }
-                let r = Self::mc_row(ctx, &mapper, nodes, i, rays);
-                traced.fetch_add(rays as u64, Ordering::Relaxed);
-                progress.advance(1);
-                r
-            })
-            .collect();
-        Self::from_rows(nodes.len(), rows, traced.into_inner(), basis)
+        let n = nodes.len();
+        let mut t = Self::empty(n, basis);
+        // Rows are made in blocks and packed as they come, so the per-row vectors of only one
+        // block exist next to the packed matrix (all of them at once doubled the peak). The
+        // first block's mean row length sizes the packed arrays.
+        for start in (0..n).step_by(BUILD_BLOCK_ROWS) {
+            let end = (start + BUILD_BLOCK_ROWS).min(n);
+            let rows: Vec<(Vec<(u32, f32)>, f32)> = (start..end)
+                .into_par_iter()
+                .with_min_len(64)
+                .map(|i| {
+                    if progress.is_cancelled() {
+                        return (Vec::new(), 0.0);
+                    }
+                    let r = Self::mc_row(ctx, &mapper, nodes, i, rays);
+                    traced.fetch_add(rays as u64, Ordering::Relaxed);
+                    progress.advance(1);
+                    r
+                })
+                .collect();
+            if start == 0 {
+                let block: usize = rows.iter().map(|r| r.0.len()).sum();
+                let expected = (block as f64 / (end - start) as f64 * n as f64 * 1.1) as usize;
+                t.cols.reserve_exact(expected);
+                t.vals.reserve_exact(expected);
+            }
+            t.push_rows(rows);
+        }
+        t.cols.shrink_to_fit();
+        t.vals.shrink_to_fit();
+        t.rays = traced.into_inner();
+        t
     }
 
     /// y = F·x.
