@@ -10,27 +10,14 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use lightbake::bvh::RayScene;
-use lightbake::bvh::workload::{BenchRay, gather_rays, shadow_rays};
+use lightbake::bvh::workload::{BenchRay, cornell_workload};
 use lightbake::scene::testscenes::{CornellLight, cornell_box_dense};
 use rayon::prelude::*;
 
 const RAYS: usize = 100_000;
 
 fn setup() -> (RayScene, Vec<BenchRay>, Vec<BenchRay>) {
-    let scene = cornell_box_dense(CornellLight::Area, 80);
-    let rays = RayScene::build(&scene);
-    let light = scene
-        .instances
-        .iter()
-        .position(|i| i.name == "light")
-        .expect("light");
-    let (lo, hi) = (
-        rays.instance_first_triangle[light],
-        rays.instance_first_triangle[light + 1],
-    );
-    let gather = gather_rays(&rays, RAYS, 1);
-    let shadow = shadow_rays(&rays, RAYS, 2, |g| (lo..hi).contains(&g));
-    (rays, gather, shadow)
+    cornell_workload(RAYS)
 }
 
 fn closest(rs: &RayScene, r: &BenchRay) -> f32 {

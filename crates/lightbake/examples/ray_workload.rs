@@ -17,9 +17,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use lightbake::bvh::RayScene;
-use lightbake::bvh::workload::{BenchRay, gather_rays, shadow_rays};
-use lightbake::scene::testscenes::{CornellLight, cornell_box_dense};
+use lightbake::bvh::workload::{BenchRay, cornell_workload};
 
 const RAYS: usize = 100_000;
 const REPEATS: usize = 5;
@@ -65,23 +63,11 @@ fn main() -> std::io::Result<()> {
             .unwrap_or_else(|| "ray_workload".into()),
     );
     std::fs::create_dir_all(&dir)?;
-    let scene = cornell_box_dense(CornellLight::Area, 80);
-    let rs = RayScene::build(&scene);
+    let (rs, gather, shadow) = cornell_workload(RAYS);
     println!(
         "BVH build {:.3} s (single thread)",
         rs.build_time.as_secs_f64()
     );
-    let light = scene
-        .instances
-        .iter()
-        .position(|i| i.name == "light")
-        .expect("the Cornell box has a light");
-    let (lo, hi) = (
-        rs.instance_first_triangle[light],
-        rs.instance_first_triangle[light + 1],
-    );
-    let gather = gather_rays(&rs, RAYS, 1);
-    let shadow = shadow_rays(&rs, RAYS, 2, |g| (lo..hi).contains(&g));
     let n = rs.triangles.len() as u32;
     write_f32(
         &dir.join("triangles.f32"),

@@ -143,3 +143,24 @@ pub fn calibrate(rays: &RayScene, count: usize, seed: u32) -> RayRates {
         shadow_per_second: shadow,
     }
 }
+
+/// The ray benchmark's workload (`benches/trace.rs`, `examples/ray_workload.rs`): the Cornell
+/// box with every quad split 80 × 80 (204 800 triangles), `count` gather rays (seed 1) and
+/// `count` shadow rays towards the ceiling light (seed 2).
+pub fn cornell_workload(count: usize) -> (RayScene, Vec<BenchRay>, Vec<BenchRay>) {
+    use crate::scene::testscenes::{CornellLight, cornell_box_dense};
+    let scene = cornell_box_dense(CornellLight::Area, 80);
+    let rays = RayScene::build(&scene);
+    let light = scene
+        .instances
+        .iter()
+        .position(|i| i.name == "light")
+        .expect("the Cornell box has a light");
+    let (lo, hi) = (
+        rays.instance_first_triangle[light],
+        rays.instance_first_triangle[light + 1],
+    );
+    let gather = gather_rays(&rays, count, 1);
+    let shadow = shadow_rays(&rays, count, 2, |g| (lo..hi).contains(&g));
+    (rays, gather, shadow)
+}
