@@ -57,6 +57,41 @@ pub fn headless_app(assets: &Path, watch: bool) -> App {
     app
 }
 
+/// What the plugin is doing, for timeout messages: the bake's phase and stage, and the
+/// lightmapped meshes still waiting for their `Lightmap` with the load state of each image.
+pub fn describe(world: &mut World) -> String {
+    let status = world.get_resource::<BakeStatus>().map_or_else(
+        || "no BakeStatus".to_string(),
+        |s| {
+            format!(
+                "bake {:?}, stage {:?} ({:.0}%), {} completed, {:.1} s",
+                s.phase,
+                s.stage,
+                100.0 * s.fraction,
+                s.completed,
+                s.elapsed_seconds
+            )
+        },
+    );
+    let mut waiting = world.query_filtered::<&Lightmapped, Without<bevy::pbr::Lightmap>>();
+    let images: Vec<Handle<Image>> = waiting.iter(world).map(|l| l.image.clone()).collect();
+    let server = world.resource::<AssetServer>();
+    let states: Vec<String> = images
+        .iter()
+        .map(|h| {
+            format!(
+                "{:?}: {:?}",
+                h.path(),
+                server.get_load_state(h.id()).map(|s| format!("{s:?}"))
+            )
+        })
+        .collect();
+    format!(
+        "{status}; {} mesh(es) wait for a Lightmap: {states:?}",
+        images.len()
+    )
+}
+
 /// Updates the app until `done` holds, sleeping a little between updates so background tasks
 /// (the bake, asset loads, the file watcher) progress. Panics with `what` after `timeout`.
 pub fn run_until(
@@ -73,7 +108,8 @@ pub fn run_until(
         }
         assert!(
             start.elapsed() < timeout,
-            "timed out after {timeout:?} waiting for {what}"
+            "timed out after {timeout:?} waiting for {what}; {}",
+            describe(app.world_mut())
         );
         std::thread::sleep(Duration::from_millis(5));
     }
