@@ -60,3 +60,87 @@ fn one_and_two_threads_write_identical_lightmap_bytes() {
         );
     }
 }
+
+#[test]
+fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
+    use lightbake::settings::Method;
+    use lightbake::solve::SolverChoice;
+    use lightbake::transport::Basis;
+    let scene = cornell_box(CornellLight::Area);
+    let base = {
+        let mut s = BakeSettings::preview();
+        s.texel_density = 24.0;
+        s.texel_density_from_scene = false;
+        s
+    };
+    let mut cases: Vec<(String, BakeSettings)> = Vec::new();
+    for method in [Method::Direct, Method::Vpl, Method::Hybrid] {
+        cases.push((
+            format!("{method:?}"),
+            BakeSettings {
+                method,
+                ..base.clone()
+            },
+        ));
+    }
+    cases.push((
+        "hybrid, bias compensation".into(),
+        BakeSettings {
+            method: Method::Hybrid,
+            vpl_bias_compensation: true,
+            ..base.clone()
+        },
+    ));
+    for solver in [
+        SolverChoice::Jacobi,
+        SolverChoice::GaussSeidel,
+        SolverChoice::Shooting,
+        SolverChoice::StochasticJacobi,
+        SolverChoice::Krylov,
+        SolverChoice::KrylovCg,
+        SolverChoice::Direct,
+    ] {
+        cases.push((
+            format!("radiosity {}", solver.name()),
+            BakeSettings {
+                method: Method::Radiosity,
+                solver,
+                ..base.clone()
+            },
+        ));
+    }
+    cases.push((
+        "radiosity, constant basis".into(),
+        BakeSettings {
+            method: Method::Radiosity,
+            basis: Basis::Constant,
+            ..base.clone()
+        },
+    ));
+    cases.push((
+        "radiosity, target error 5%".into(),
+        BakeSettings {
+            method: Method::Radiosity,
+            target_error: Some(0.05),
+            ..base.clone()
+        },
+    ));
+    for (name, s) in cases {
+        let bits = |threads: usize| -> Vec<u32> {
+            let s = BakeSettings {
+                threads,
+                ..s.clone()
+            };
+            let out = lightbake::bake(&scene, &s, &Progress::new())
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            out.pages
+                .iter()
+                .flat_map(|p| p.texels.iter())
+                .flat_map(|t| t.to_array().map(f32::to_bits))
+                .collect()
+        };
+        let one = bits(1);
+        assert!(one.iter().any(|&b| b != 0), "{name}: black lightmap");
+        assert!(one == bits(2), "{name}: 1 and 2 threads differ");
+    }
+}
