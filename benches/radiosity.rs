@@ -64,13 +64,7 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
 }
 
 fn table(name: &str, c: &Case) {
-    let system = System {
-        transport: &c.transport,
-        albedo: &c.nodes.albedo,
-        source: &c.source,
-        area: &c.nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&c.transport, &c.nodes, &c.source);
     let options = SolveOptions {
         tolerance: 1e-3,
         max_iterations: 100_000,
@@ -157,13 +151,7 @@ fn solvers(c: &mut Criterion) {
     g.bench_function("spmv_jacobi_sweep", |b| {
         b.iter(|| cornell.transport.mul64(black_box(&x), &mut y))
     });
-    let system = System {
-        transport: &cornell.transport,
-        albedo: &cornell.nodes.albedo,
-        source: &cornell.source,
-        area: &cornell.nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&cornell.transport, &cornell.nodes, &cornell.source);
     let one = SolveOptions {
         tolerance: 1e-30,
         max_iterations: 1,

@@ -119,13 +119,7 @@ fn iterative_solvers_agree_with_the_dense_solve() {
         "{} nodes",
         nodes.len()
     );
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let options = SolveOptions {
         tolerance: 1e-7,
         max_iterations: 100_000,
@@ -172,13 +166,7 @@ fn stochastic_jacobi_converges_to_the_dense_solve() {
     // A reference with little noise of its own.
     let transport =
         Transport::build_monte_carlo(&prep.ctx(), &nodes, 4096, Basis::Linear, &Progress::new());
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let reference = solve::solve_matrix(SolverChoice::Direct, &system, &SolveOptions::default());
     let ctx = prep.ctx();
     let mapper = lightbake::transport::HitMapper::new(ctx, &nodes, Basis::Linear);
@@ -459,13 +447,7 @@ fn energy_is_conserved() {
     );
     let direct = prep.direct();
     let source = lightbake::indirect::source(&nodes, &direct);
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let s = solve::solve_matrix(
         SolverChoice::GaussSeidel,
         &system,
@@ -554,13 +536,7 @@ fn cornell_box_bleeds_colour_and_lights_the_ceiling() {
 #[test]
 fn shooting_ambient_term_improves_a_partial_solution() {
     let (_prep, nodes, transport, source) = small_cornell();
-    let system = System {
-        transport: &transport,
-        albedo: &nodes.albedo,
-        source: &source,
-        area: &nodes.area,
-        progress: None,
-    };
+    let system = System::for_nodes(&transport, &nodes, &source);
     let reference = solve::solve_matrix(SolverChoice::Direct, &system, &SolveOptions::default());
     let mut rec = solve::Recorder::new(None);
     let (state, _) = solve::shooting::shoot(
@@ -593,13 +569,7 @@ fn krylov_needs_far_fewer_iterations_than_jacobi_when_stiff() {
         let source: Vec<Vec3> = (0..nodes.len())
             .map(|i| Vec3::splat(if i % 7 == 0 { 1.0 } else { 0.0 }))
             .collect();
-        let system = System {
-            transport: &transport,
-            albedo: &nodes.albedo,
-            source: &source,
-            area: &nodes.area,
-            progress: None,
-        };
+        let system = System::for_nodes(&transport, &nodes, &source);
         let options = SolveOptions {
             tolerance: 1e-6,
             max_iterations: 50_000,

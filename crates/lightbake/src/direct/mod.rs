@@ -387,10 +387,11 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
     let mut contributions: Vec<f32> = Vec::new();
     let mut samples: Vec<SurfacePoint> = Vec::with_capacity(spp as usize);
     // Per-sample luminance sums for the error estimate: the plain terms, the unoccluded
-    // closed-form irradiance, and the ratio estimator's (weight, visible) pairs.
+    // closed-form irradiance, and the ratio estimator's Σw² over all and over visible samples
+    // (its visibility v is 0 or 1, so Σw²(v − R)² = Σ_vis w² − 2R·Σ_vis w² + R²·Σw²).
     let (mut plain, mut plain_sq) = (0.0f64, 0.0f64);
     let (mut unocc, mut unocc_sq) = (0.0f64, 0.0f64);
-    let mut ratio_samples: Vec<(f32, bool)> = Vec::new();
+    let (mut w2_all, mut w2_visible) = (0.0f64, 0.0f64);
     for s in 0..spp {
         let e_before = e;
         let unoccluded_before = unoccluded_sum;
@@ -442,8 +443,10 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
                     &mut w_total,
                     rays,
                 );
-                if w_total > wt {
-                    ratio_samples.push((w_total - wt, w_visible > wv));
+                let w2 = ((w_total - wt) as f64).powi(2);
+                w2_all += w2;
+                if w_visible > wv {
+                    w2_visible += w2;
                 }
             } else {
                 e += sampled_emitter(ctx, p, s, &sp, origin, rays);
@@ -463,11 +466,8 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
         irradiance += unoccluded_sum / spp as f32 * r as f32;
         // Var(Ū·R) ≈ R²·Var(Ū) + Ū²·Var(R).
         let u_mean = unocc / spp as f64;
-        let var_r = ratio_samples
-            .iter()
-            .map(|&(w, v)| (w as f64).powi(2) * (f64::from(u8::from(v)) - r).powi(2))
-            .sum::<f64>()
-            / (w_total as f64).powi(2);
+        let var_r =
+            (w2_visible * (1.0 - 2.0 * r) + r * r * w2_all).max(0.0) / (w_total as f64).powi(2);
         variance +=
             r * r * (standard_error(unocc, unocc_sq, spp) as f64).powi(2) + u_mean * u_mean * var_r;
     }

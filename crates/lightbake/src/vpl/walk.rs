@@ -276,6 +276,34 @@ fn push(set: &mut VplSet, v: Vpl) {
     set.vpls.push(v);
 }
 
+/// A directional particle (sun or sky) entering along `d` through the disc of `radius` around
+/// `centre` that covers the scene: its start outside the scene, its direction, and the
+/// depth-0 VPL carrying `power` spread over the disc as irradiance.
+fn disc_start(
+    d: Vec3,
+    u: Vec2,
+    centre: Vec3,
+    radius: f32,
+    power: Vec3,
+    path: u32,
+) -> (Vec3, Vec3, Option<Vpl>) {
+    let (t, b) = basis(d);
+    let disc = concentric_disc(u) * radius;
+    let o = centre + t * disc.x + b * disc.y - d * (2.0 * radius);
+    let irradiance = power / (std::f32::consts::PI * radius * radius);
+    let vpl = Vpl {
+        position: o,
+        power: Vec3::ZERO,
+        kind: VplKind::Directional {
+            direction: d,
+            irradiance,
+        },
+        depth: 0,
+        path,
+    };
+    (o, d, Some(vpl))
+}
+
 /// One particle's path: the start on its light, then `reflections` diffuse bounces.
 #[allow(clippy::too_many_arguments)]
 fn walk_one(
@@ -334,24 +362,7 @@ fn walk_one(
                     } else {
                         l.direction
                     };
-                    let (t, b) = basis(d);
-                    let disc = concentric_disc(u1) * radius;
-                    let o = centre + t * disc.x + b * disc.y - d * (2.0 * radius);
-                    let irradiance = power / (std::f32::consts::PI * radius * radius);
-                    (
-                        o,
-                        d,
-                        Some(Vpl {
-                            position: o,
-                            power: Vec3::ZERO,
-                            kind: VplKind::Directional {
-                                direction: d,
-                                irradiance,
-                            },
-                            depth: 0,
-                            path: i,
-                        }),
-                    )
+                    disc_start(d, u1, centre, radius, power, i)
                 }
             }
         }
@@ -392,24 +403,7 @@ fn walk_one(
         }
         Source::Sky => {
             let d = uniform_cone(Vec3::Z, -1.0, u2);
-            let (t, b) = basis(d);
-            let disc = concentric_disc(u1) * radius;
-            let o = centre + t * disc.x + b * disc.y - d * (2.0 * radius);
-            let irradiance = power / (std::f32::consts::PI * radius * radius);
-            (
-                o,
-                d,
-                Some(Vpl {
-                    position: o,
-                    power: Vec3::ZERO,
-                    kind: VplKind::Directional {
-                        direction: d,
-                        irradiance,
-                    },
-                    depth: 0,
-                    path: i,
-                }),
-            )
+            disc_start(d, u1, centre, radius, power, i)
         }
     };
     if settings.first_generation {
