@@ -290,10 +290,32 @@ fn silence_xatlas_output() {
 /// Owns an `xatlas::Atlas*` and destroys it on drop (also on early return).
 struct AtlasHandle(*mut ffi::Atlas);
 
+/// An atlas on its way to `xatlas::Destroy` on another thread.
+struct Doomed(*mut ffi::Atlas);
+
+// SAFETY: after `drop` hands it over, nothing else refers to the atlas; xatlas' `Destroy` may
+// run on any thread (it only stops the atlas' own worker threads and frees its memory).
+unsafe impl Send for Doomed {}
+
 impl Drop for AtlasHandle {
+    /// Destroys the atlas on a detached thread. The bundled xatlas' task scheduler has a lost
+    /// wake-up in its shutdown: a worker that checks the running flag just before `Destroy`
+    /// clears it, and only then parks, is never woken, and `Destroy` waits forever joining it.
+    /// We saw this hang a bake (the study's 80 bakes, and a plugin test under load), with every
+    /// result already copied out. Off the bake's thread, such a hang costs one parked thread
+    /// and the atlas' memory instead of the bake.
     fn drop(&mut self) {
-        // SAFETY: the pointer came from `xatlas::Create` and is destroyed exactly once here.
-        unsafe { ffi::destroy(self.0) };
+        let doomed = Doomed(self.0);
+        let destroy = move || {
+            let doomed = doomed;
+            // SAFETY: the pointer came from `xatlas::Create` and is destroyed exactly once here;
+            // the handle that owned it is being dropped.
+            unsafe { ffi::destroy(doomed.0) };
+        };
+        // No thread to spare (spawn fails): the atlas leaks rather than risk the hang.
+        let _ = std::thread::Builder::new()
+            .name("xatlas-destroy".into())
+            .spawn(destroy);
     }
 }
 
