@@ -8,7 +8,7 @@
 Reads triangles.f32, gather.f32, shadow.f32 and lightbake.json written by the example,
 traces the gather rays (closest hit, INTERSECT) and the shadow rays (any hit, OCCLUDED) with
 embreex (Embree 4, one ray at a time on one thread: the same setting as the example's
-timing), best of five passes, and prints both tracers' rates, hit counts and the ratio
+timing), best of twenty passes, and prints both tracers' rates, hit counts and the ratio
 lightbake / Embree. Results go in docs/benchmarks.md.
 """
 import json
@@ -20,7 +20,7 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-REPEATS = 5
+REPEATS = 20
 
 
 def load_rays(path):

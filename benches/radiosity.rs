@@ -17,6 +17,7 @@ use lightbake::progress::Progress;
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, furnace_box};
 use lightbake::settings::BakeSettings;
+use lightbake::solve::shooting;
 use lightbake::solve::stochastic_jacobi::{self, StochasticOptions};
 use lightbake::solve::{self, SolveOptions, SolverChoice, System};
 use lightbake::transport::{Basis, HitMapper, Nodes, Transport};
@@ -167,6 +168,40 @@ fn solvers(c: &mut Criterion) {
     });
     g.bench_function("bicgstab_iteration", |b| {
         b.iter(|| black_box(solve::solve_matrix(SolverChoice::Krylov, &system, &one)))
+    });
+    // Progressive refinement: the transpose it needs once, then 1 000 shots (one shooting
+    // step is a thousandth of this).
+    g.bench_function("shooting_transpose", |b| {
+        b.iter(|| black_box(cornell.transport.transpose()))
+    });
+    let columns = cornell.transport.transpose();
+    g.bench_function("shooting_1000_shots", |b| {
+        b.iter(|| {
+            let mut rec = solve::Recorder::new(None);
+            black_box(shooting::shoot_columns(
+                &system, &columns, &one, 1000, &mut rec,
+            ))
+        })
+    });
+    // One stochastic Jacobi iteration at the bake's first-iteration budget (64 rays per node).
+    let ctx = cornell.prep.ctx();
+    let mapper = HitMapper::new(ctx, &cornell.nodes, Basis::Linear);
+    let first = StochasticOptions {
+        first_iteration_rays: n as u64 * 64,
+        tolerance: 1e-30,
+        max_iterations: 1,
+    };
+    g.bench_function("stochastic_jacobi_iteration_64_rays_per_node", |b| {
+        b.iter(|| {
+            black_box(stochastic_jacobi::solve(
+                &ctx,
+                &cornell.nodes,
+                &mapper,
+                &cornell.source,
+                &first,
+                &Progress::new(),
+            ))
+        })
     });
     g.finish();
 

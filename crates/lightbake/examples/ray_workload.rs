@@ -20,7 +20,7 @@ use std::time::Instant;
 use lightbake::bvh::workload::{BenchRay, cornell_workload};
 
 const RAYS: usize = 100_000;
-const REPEATS: usize = 5;
+const REPEATS: usize = 20;
 
 fn write_f32(path: &PathBuf, values: impl Iterator<Item = f32>) -> std::io::Result<()> {
     let mut bytes = Vec::new();

@@ -9,7 +9,7 @@
 //! 2. [`plan`]: which stages this scene needs, and why the others are skipped.
 //! 3. [`unwrap`]: lightmap UVs with xatlas (or the mesh's own), packed into atlas pages.
 //! 4. [`raster`]: every covered texel becomes a patch; patches inside geometry are fixed.
-//! 5. [`bvh`]: closest-hit and any-hit ray queries (obvhs CWBVH).
+//! 5. [`bvh`]: closest-hit and any-hit ray queries (obvhs PLOC build, our four-wide BVH).
 //! 6. [`direct`]: point, spot, directional, sky and emissive-surface light with shadow rays.
 //! 7. [`transport`], [`solve`], [`indirect`]: radiosity over the texel nodes — form factors
 //!    (Monte Carlo, hemicube, closed form) and the solver family.

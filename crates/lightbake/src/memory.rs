@@ -17,9 +17,10 @@ pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 12 + 48;
 /// Bytes per page texel: index, RGB f32, coverage and fill state, half-float and PNG encode
 /// buffers.
 pub const BYTES_PER_PAGE_TEXEL: u64 = 4 + 12 + 2 + 8 + 8;
-/// Bytes per triangle in the ray-tracing structures (triangle data, info, BVH nodes and the
-/// builder's temporaries).
-pub const BYTES_PER_TRIANGLE: u64 = 48 + 40 + 220;
+/// Bytes per triangle in the ray-tracing structures: triangle data (48) and info (40), the
+/// four-wide BVH's nodes and leaf packets, and the binary builder's temporaries (312, from
+/// the peak RSS of a million-triangle bake in `benches/scale.rs`).
+pub const BYTES_PER_TRIANGLE: u64 = 48 + 40 + 312;
 
 /// An itemised estimate.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]

@@ -1,25 +1,25 @@
-//! Ray queries against the world-space triangles of every instance: a compressed wide BVH
-//! (CWBVH, Ylitie et al. 2017) built and traversed by `obvhs`, with our own Möller–Trumbore
-//! triangle test so hits come back with barycentrics and the side that was hit.
+//! Ray queries against the world-space triangles of every instance: obvhs builds a binary
+//! PLOC tree (Meister & Bittner 2018) and optimises it by reinsertion; [`wide`] collapses it
+//! into a four-wide BVH traversed with SSE, testing four triangles at a time, so hits come back
+//! with barycentrics and the side that was hit.
 //!
-//! Closest hit ([`RayScene::closest_hit`]) and any hit ([`RayScene::occluded`], obvhs'
-//! `ray_traverse_miss`) are single-ray calls; callers parallelise over texels with rayon.
+//! Closest hit ([`RayScene::closest_hit`]) and any hit ([`RayScene::occluded`]) are
+//! single-ray calls; callers parallelise over texels with rayon.
 //!
 //! # Scale-aware offsets
 //! Ray origins leave a surface along its geometric normal by [`RayScene::offset`], which grows
 //! with the scene extent and with the magnitude of the coordinates (the float spacing there),
 //! so a 1 mm scene and a 10 km scene both trace without self-intersection or visible gaps.
 
+pub mod wide;
 pub mod workload;
 
 use std::time::Duration;
 
-use glam::{UVec2, Vec3, Vec3A, Vec4};
-use obvhs::{
-    BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh, node::CwBvhNode},
-    ray::Ray,
-};
+use glam::{Vec3, Vec3A};
+use obvhs::{BvhBuildParams, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
+
+use wide::{Bvh4, Ray4};
 
 use crate::scene::Scene;
 
@@ -64,7 +64,7 @@ pub struct Hit {
 
 /// The ray-tracing view of a scene.
 pub struct RayScene {
-    bvh: CwBvh,
+    bvh: Bvh4,
     /// Triangles in BVH primitive order.
     accel: Vec<TriAccel>,
     /// BVH primitive order → global triangle index.
@@ -81,85 +81,6 @@ pub struct RayScene {
     pub extent: f32,
     /// Core BVH build time.
     pub build_time: Duration,
-}
-
-/// Which of a CWBVH node's eight children the ray's [tmin, tmax] interval meets, as the hit
-/// mask obvhs' traversal expects.
-///
-/// The same slab test as obvhs' `CwBvhNode::intersect_ray`, against the node's quantised
-/// (conservative) child boxes, four children at a time (glam's `Vec4` is SIMD on x86), with
-/// two differences that matter to a baker:
-///
-/// * the interval starts at `ray.tmin`, not at obvhs' fixed 10⁻⁴ (an absolute distance that
-///   drops every hit within 0.1 mm of the origin, so millimetre scenes and rays leaving a
-///   surface next to a wall would miss geometry);
-/// * the exit distance is padded by about eight float spacings of the largest term of the
-///   slab computation, which loses precision to cancellation when a box sits just in front of
-///   the origin; without it an axis-aligned wall (a box of zero thickness) can be missed.
-#[inline(always)]
-fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    let extent = node.compute_extent();
-    let dir_inv = extent * ray.inv_direction;
-    let origin = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let pad = (origin.abs() + dir_inv.abs() * 255.0).max_element() * (1.0 / (1u32 << 20) as f32);
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let quad = |v: &[u8; 8], i: usize| {
-        Vec4::new(
-            v[4 * i] as f32,
-            v[4 * i + 1] as f32,
-            v[4 * i + 2] as f32,
-            v[4 * i + 3] as f32,
-        )
-    };
-    let neg = (
-        ray.direction.x < 0.0,
-        ray.direction.y < 0.0,
-        ray.direction.z < 0.0,
-    );
-    let mut hit_mask = 0u32;
-    for i in 0..2 {
-        let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, d: f32, o: f32| {
-            let (near, far) = if negative {
-                (quad(hi, i), quad(lo, i))
-            } else {
-                (quad(lo, i), quad(hi, i))
-            };
-            (near * d + Vec4::splat(o), far * d + Vec4::splat(o))
-        };
-        let (nx, fx) = slab(
-            &node.child_min_x,
-            &node.child_max_x,
-            neg.0,
-            dir_inv.x,
-            origin.x,
-        );
-        let (ny, fy) = slab(
-            &node.child_min_y,
-            &node.child_max_y,
-            neg.1,
-            dir_inv.y,
-            origin.y,
-        );
-        let (nz, fz) = slab(
-            &node.child_min_z,
-            &node.child_max_z,
-            neg.2,
-            dir_inv.z,
-            origin.z,
-        );
-        let tmin = nx.max(ny).max(nz).max(Vec4::splat(ray.tmin));
-        let tmax = (fx.min(fy).min(fz) + Vec4::splat(pad)).min(Vec4::splat(ray.tmax));
-        let mask = tmin.cmple(tmax).bitmask();
-        for j in 0..4 {
-            if mask & (1 << j) != 0 {
-                let child = i * 4 + j;
-                let bits = obvhs::cwbvh::node::extract_byte64(child_bits8, child);
-                let index = obvhs::cwbvh::node::extract_byte64(bit_index8, child);
-                hit_mask |= bits << index;
-            }
-        }
-    }
-    hit_mask
 }
 
 /// Möller–Trumbore ray–triangle test (Möller & Trumbore 1997). Returns (t, u, v) for hits
@@ -252,26 +173,28 @@ impl RayScene {
                 }
             })
             .collect();
-        let mut build_time = Duration::ZERO;
-        let params = BvhBuildParams {
-            pre_split: false,
-            ..BvhBuildParams::very_slow_build()
-        };
-        let bvh = build_cwbvh(&obvhs_tris, params, &mut build_time);
-        let bvh_to_global: Vec<u32> = bvh
-            .primitive_indices
+        let params = BvhBuildParams::very_slow_build();
+        let start = std::time::Instant::now();
+        let mut bvh2 = PlocBuilder::with_capacity(obvhs_tris.len()).build(
+            params.ploc_search_distance,
+            &obvhs_tris,
+            (0..obvhs_tris.len() as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        drop(obvhs_tris);
+        // Primitive k of the four-wide tree is live triangle k.
+        let live_tris: Vec<[Vec3; 3]> = live.iter().map(|&g| world_tris[g as usize]).collect();
+        let bvh = Bvh4::collapse(&bvh2, &live_tris);
+        let build_time = start.elapsed();
+        let bvh_to_global = live;
+        let accel = live_tris
             .iter()
-            .map(|&k| live[k as usize])
-            .collect();
-        let accel = bvh_to_global
-            .iter()
-            .map(|&g| {
-                let p = world_tris[g as usize];
-                TriAccel {
-                    v0: p[0].into(),
-                    e1: (p[1] - p[0]).into(),
-                    e2: (p[2] - p[0]).into(),
-                }
+            .map(|p| TriAccel {
+                v0: p[0].into(),
+                e1: (p[1] - p[0]).into(),
+                e2: (p[2] - p[0]).into(),
             })
             .collect();
         let mut global_to_bvh = vec![u32::MAX; triangles.len()];
@@ -324,37 +247,12 @@ impl RayScene {
     /// The closest hit along `dir` (unit) from `origin` with t in [tmin, tmax].
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        let mut traverse_ray = ray;
-        let mut best: Option<(u32, f32, f32)> = None;
-        let mut state = self.bvh.new_traversal(ray.direction);
-        let mut node;
-        obvhs::traverse!(
-            self.bvh,
-            node,
-            state,
-            node_hits(node, &traverse_ray, state.oct_inv4),
-            {
-                let id = state.primitive_id as usize;
-                if let Some((t, u, v)) = intersect(
-                    &self.accel[id],
-                    traverse_ray.origin,
-                    traverse_ray.direction,
-                    traverse_ray.tmin,
-                    traverse_ray.tmax,
-                ) {
-                    if t < traverse_ray.tmax || best.is_none() {
-                        traverse_ray.tmax = t;
-                        best = Some((id as u32, u, v));
-                    }
-                }
-            }
-        );
-        let (k, u, v) = best?;
+        let mut ray = Ray4::new(origin, dir, tmin, tmax);
+        let (k, t, u, v) = self.bvh.closest_hit(&mut ray)?;
         let triangle = self.bvh_to_global[k as usize];
         let normal = self.triangles[triangle as usize].normal;
         Some(Hit {
-            t: traverse_ray.tmax,
+            t,
             triangle,
             u,
             v,
@@ -368,34 +266,7 @@ impl RayScene {
         if tmax <= tmin {
             return false;
         }
-        let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        let mut state = self.bvh.new_traversal(ray.direction);
-        let mut node;
-        let mut hit = false;
-        'outer: {
-            obvhs::traverse!(
-                self.bvh,
-                node,
-                state,
-                node_hits(node, &ray, state.oct_inv4),
-                {
-                    let id = state.primitive_id as usize;
-                    if intersect(
-                        &self.accel[id],
-                        ray.origin,
-                        ray.direction,
-                        ray.tmin,
-                        ray.tmax,
-                    )
-                    .is_some()
-                    {
-                        hit = true;
-                        break 'outer;
-                    }
-                }
-            );
-        }
-        hit
+        self.bvh.occluded(&mut Ray4::new(origin, dir, tmin, tmax))
     }
 
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
@@ -426,26 +297,13 @@ impl RayScene {
         best
     }
 
-    /// Checks the BVH's invariants (every primitive reachable, node bounds contain children).
+    /// Checks the BVH's invariants (every primitive in exactly one leaf, node boxes contain
+    /// their subtrees, the traversal stack bound holds) and the index maps.
     ///
     /// # Panics
-    /// When an invariant is broken (obvhs' `CwBvh::validate`).
+    /// When an invariant is broken.
     pub fn validate(&self) {
-        let tris: Vec<obvhs::triangle::Triangle> = self
-            .accel
-            .iter()
-            .map(|t| obvhs::triangle::Triangle {
-                v0: t.v0,
-                v1: t.v0 + t.e1,
-                v2: t.v0 + t.e2,
-            })
-            .collect();
-        // primitive_indices refer to the build order; rebuild that order for validation.
-        let mut by_build = tris.clone();
-        for (k, &p) in self.bvh.primitive_indices.iter().enumerate() {
-            by_build[p as usize] = tris[k];
-        }
-        self.bvh.validate(&by_build, false);
+        self.bvh.validate(self.accel.len());
         assert_eq!(self.bvh_to_global.len(), self.accel.len());
         let mut seen = vec![false; self.triangles.len()];
         for &g in &self.bvh_to_global {

@@ -15,6 +15,7 @@ use glam::{DVec3, Vec3};
 
 use super::{Recorder, Solution, SolveOptions, System, norm, to_f32, to_f64};
 use crate::direct::luminance;
+use crate::transport::Transport;
 
 /// A max-heap of node powers with one entry per node and O(log n) key updates (an indexed
 /// binary heap), so a shot's updates do not pile up stale entries.
@@ -139,8 +140,25 @@ pub fn shoot(
     max_shots: u64,
     rec: &mut Recorder,
 ) -> (ShootingState, bool) {
+    shoot_columns(
+        system,
+        &system.transport.transpose(),
+        options,
+        max_shots,
+        rec,
+    )
+}
+
+/// [`shoot`] with the transport's columns already transposed (`columns.row(j)` lists the
+/// nodes that receive from node j).
+pub fn shoot_columns(
+    system: &System<'_>,
+    columns: &Transport,
+    options: &SolveOptions,
+    max_shots: u64,
+    rec: &mut Recorder,
+) -> (ShootingState, bool) {
     let n = system.len();
-    let columns = system.transport.transpose();
     let s_norm = system.source_norm();
     let mut b = vec![DVec3::ZERO; n];
     let mut unshot = to_f64(system.source);
