@@ -233,6 +233,12 @@ fn bake_in_pool(
         texels.moved = patches.moved;
         texels.invalid = patches.invalid;
         let emitters = Emitters::collect(&baked_scene, &rays);
+        if emitters.coincident > 0 {
+            warnings.push(format!(
+                "{} emissive triangles lie exactly on another emissive triangle (a duplicated mesh or face); each pair is sampled as one light",
+                emitters.coincident
+            ));
+        }
         let ctx = BakeContext {
             scene: &baked_scene,
             layout: &layout,

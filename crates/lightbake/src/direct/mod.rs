@@ -78,6 +78,9 @@ pub struct Emitters {
     cdf: Vec<f32>,
     /// (global triangle, emitter index), sorted by triangle.
     by_triangle: Vec<(u32, u32)>,
+    /// Emissive triangles left out of sampling because an earlier one has the same three
+    /// world vertices (a duplicated mesh or face); rays that hit them still see their radiance.
+    pub coincident: usize,
 }
 
 /// Luminance weights of linear Rec.709 RGB.
@@ -123,6 +126,43 @@ impl Emitters {
                 two_sided: material.double_sided,
             });
         }
+        // Coincident duplicates: two emitters on the same triangle are one visible surface, but
+        // each adds its full closed-form irradiance and neither shadows the other, so the light
+        // would count twice. Sample the first; map hits on a twin to it.
+        let mut twins: Vec<(u32, u32)> = Vec::new();
+        {
+            let key = |e: &Emitter| {
+                let mut v = e.vertices.map(|p| p.to_array().map(f32::to_bits));
+                v.sort_unstable();
+                v
+            };
+            let mut order: Vec<usize> = (0..list.len()).collect();
+            order.sort_by_key(|&k| (key(&list[k]), k));
+            let mut drop = vec![false; list.len()];
+            for w in order.windows(2) {
+                if key(&list[w[0]]) == key(&list[w[1]])
+                    && list[w[0]].radiance == list[w[1]].radiance
+                {
+                    drop[w[1]] = true;
+                }
+            }
+            let mut kept = Vec::with_capacity(list.len());
+            let mut first_of = vec![0u32; list.len()];
+            for (k, e) in list.iter().enumerate() {
+                if !drop[k] {
+                    first_of[k] = kept.len() as u32;
+                    kept.push(*e);
+                }
+            }
+            // A dropped twin follows its first copy in `order`.
+            for w in order.windows(2) {
+                if drop[w[1]] {
+                    first_of[w[1]] = first_of[w[0]];
+                    twins.push((list[w[1]].triangle, first_of[w[1]]));
+                }
+            }
+            list = kept;
+        }
         let mut total = 0.0f64;
         let mut cdf: Vec<f32> = list
             .iter()
@@ -142,12 +182,14 @@ impl Emitters {
             .iter()
             .enumerate()
             .map(|(k, e)| (e.triangle, k as u32))
+            .chain(twins.iter().copied())
             .collect();
         by_triangle.sort_unstable();
         Self {
             list,
             cdf,
             by_triangle,
+            coincident: twins.len(),
         }
     }
 

@@ -12,6 +12,16 @@ use glam::Vec3;
 /// The unoccluded form factor from a differential patch at `p` with unit normal `n` to the
 /// convex polygon `poly` (any winding), in [0, 1].
 pub fn point_to_polygon_form_factor(p: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
+    // A polygon lying in the receiver's tangent plane (the receiver's own triangle, or a
+    // coplanar neighbour) is on the horizon and sends nothing. Without this test the clip
+    // keeps it whole and, when it contains p, Lambert's sum gives a full 2π: a double-sided
+    // emitter would light itself with its own radiance.
+    if poly
+        .iter()
+        .all(|&v| n.dot(v - p).abs() <= 1e-5 * (v - p).length())
+    {
+        return 0.0;
+    }
     // Clip to the half-space n·(x − p) ≥ 0 (Sutherland–Hodgman against one plane).
     let mut clipped: Vec<Vec3> = Vec::with_capacity(poly.len() + 2);
     for i in 0..poly.len() {
@@ -47,6 +57,24 @@ pub fn point_to_polygon_form_factor(p: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
 mod tests {
     use super::*;
     use std::f64::consts::PI;
+
+    #[test]
+    fn a_polygon_in_the_receivers_plane_sends_nothing() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Z];
+        // Inside the triangle, on its edge, outside it, either normal.
+        for p in [
+            Vec3::new(0.2, 0.0, 0.2),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 2.0),
+        ] {
+            for n in [Vec3::Y, Vec3::NEG_Y] {
+                assert_eq!(point_to_polygon_form_factor(p, n, &tri), 0.0, "{p} {n}");
+            }
+        }
+        // Lifted just off the plane, the triangle fills almost the whole hemisphere below.
+        let f = point_to_polygon_form_factor(Vec3::new(0.2, -1e-4, 0.2), Vec3::Y, &tri);
+        assert!(f > 0.99, "{f}");
+    }
 
     /// Howell's catalogue, configuration B-3: differential element parallel to a rectangle
     /// a × b at height c, the element under one corner.
