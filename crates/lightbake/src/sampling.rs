@@ -295,6 +295,54 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(s * (1.0 - u.y), s * u.y)
 }
 
+/// A direction towards a triangle, drawn uniformly in the solid angle it subtends at `o`
+/// (Arvo, "Stratified sampling of spherical triangles", SIGGRAPH 1995, fig. 2). Returns the
+/// unit direction and the solid angle Ω (sr); the density is 1/Ω. `None` when the triangle
+/// is degenerate as seen from `o` or subtends too little for the angles to be accurate
+/// (Ω < `min_solid_angle`): callers then sample by area.
+pub fn spherical_triangle(
+    o: Vec3,
+    v: [Vec3; 3],
+    u: Vec2,
+    min_solid_angle: f32,
+) -> Option<(Vec3, f32)> {
+    let [a, b, c] = v.map(|p| (p - o).as_dvec3().normalize_or_zero());
+    if a == glam::DVec3::ZERO || b == glam::DVec3::ZERO || c == glam::DVec3::ZERO {
+        return None;
+    }
+    // Solid angle (Van Oosterom & Strackee 1983): tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a).
+    let triple = a.dot(b.cross(c)).abs();
+    let omega = 2.0 * triple.atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+    if !(omega >= min_solid_angle as f64) {
+        return None;
+    }
+    // Interior angles from the normals of the great circles through each pair of vertices.
+    let angle = |p: glam::DVec3, q: glam::DVec3, r: glam::DVec3| {
+        let (n1, n2) = (
+            p.cross(q).normalize_or_zero(),
+            p.cross(r).normalize_or_zero(),
+        );
+        n1.dot(n2).clamp(-1.0, 1.0).acos()
+    };
+    let alpha = angle(a, b, c);
+    let cos_c = a.dot(b);
+    // 1. Pick the sub-triangle area Â = u₀·Ω and find its third vertex ĉ on the arc from a to c.
+    let area = u.x as f64 * omega;
+    let (s, t) = (area - alpha).sin_cos();
+    let uu = t - alpha.cos();
+    let vv = s + alpha.sin() * cos_c;
+    let q = (((vv * t - uu * s) * alpha.cos() - vv) / ((vv * s + uu * t) * alpha.sin()))
+        .clamp(-1.0, 1.0);
+    let c_perp = (c - c.dot(a) * a).normalize_or_zero();
+    let c_hat = q * a + (1.0 - q * q).max(0.0).sqrt() * c_perp;
+    // 2. Pick a point on the arc from b to ĉ with the right density.
+    let z = 1.0 - u.y as f64 * (1.0 - c_hat.dot(b));
+    let ch_perp = (c_hat - c_hat.dot(b) * b).normalize_or_zero();
+    let dir = z * b + (1.0 - z * z).max(0.0).sqrt() * ch_perp;
+    let dir = dir.normalize_or_zero().as_vec3();
+    (dir != Vec3::ZERO && dir.is_finite()).then_some((dir, omega as f32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -428,6 +476,54 @@ mod tests {
             assert!(uniform_cone(axis, 0.99, u).dot(axis) >= 0.99 - 1e-5);
             let b = uniform_triangle(u);
             assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn spherical_triangle_samples_hit_the_triangle_and_integrate_its_form_factor() {
+        // A triangle just above the point and off to one side (the near field where area
+        // sampling is noisy), and a far one.
+        for (o, tri) in [
+            (
+                Vec3::ZERO,
+                [
+                    Vec3::new(-0.5, 0.05, -0.5),
+                    Vec3::new(2.0, 0.05, 0.0),
+                    Vec3::new(0.0, 0.3, 2.0),
+                ],
+            ),
+            (
+                Vec3::new(0.1, 0.0, 0.2),
+                [
+                    Vec3::new(1.0, 3.0, 0.0),
+                    Vec3::new(0.0, 3.0, 1.0),
+                    Vec3::new(1.0, 3.5, 1.0),
+                ],
+            ),
+        ] {
+            let n = 65_536;
+            let mut sum = 0.0f64;
+            for i in 0..n {
+                let (d, omega) = spherical_triangle(o, tri, sobol_02(i, 9), 0.0).unwrap();
+                // The direction meets the triangle (Möller–Trumbore with a small tolerance).
+                let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
+                let p = d.cross(e2);
+                let det = e1.dot(p);
+                let s = o - tri[0];
+                let (bu, bv) = (s.dot(p) / det, d.dot(s.cross(e1)) / det);
+                assert!(
+                    bu > -1e-3 && bv > -1e-3 && bu + bv < 1.0 + 1e-3,
+                    "sample {i} misses: {bu} {bv}"
+                );
+                sum += (d.y.max(0.0) * omega) as f64;
+            }
+            let estimate = sum / n as f64 / std::f64::consts::PI;
+            let exact =
+                crate::direct::polygon::point_to_polygon_form_factor(o, Vec3::Y, &tri) as f64;
+            assert!(
+                (estimate - exact).abs() < 2e-3 * exact.max(1e-3),
+                "form factor {estimate} against {exact}"
+            );
         }
     }
 }

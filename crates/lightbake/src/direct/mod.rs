@@ -591,29 +591,58 @@ fn closed_form_emitter_sample(
         return;
     }
     let em = &ctx.emitters.list[i];
-    let b = uniform_triangle(sobol_02(s, p.rng(seed, stream::EMITTER)));
+    let Some((l, d, measure)) =
+        emitter_direction(em, origin, sobol_02(s, p.rng(seed, stream::EMITTER)))
+    else {
+        return;
+    };
+    let cos_r = sp.normal.dot(l);
+    if cos_r <= 0.0 {
+        return;
+    }
+    let w = luminance(em.radiance) * cos_r * measure / prob;
+    *w_total += w;
+    *rays += 1;
+    let tmax = d - 2.0 * ctx.rays.epsilon(origin + l * d);
+    if !ctx.rays.occluded(origin, l, 0.0, tmax) {
+        *w_visible += w;
+    }
+}
+
+/// Below this solid angle (sr) an emitter triangle is sampled by area, not by solid angle:
+/// the area density is then nearly uniform in solid angle anyway, and the spherical
+/// triangle's angles lose accuracy.
+const MIN_SOLID_ANGLE: f32 = 1e-2;
+
+/// A point on emitter `em` as seen from `origin`: (unit direction, distance, measure) where
+/// `L·cos_r·measure` is the one-sample estimate of the emitter's irradiance (before the pick
+/// probability). Triangles that subtend a large solid angle are sampled uniformly in it
+/// (measure Ω, Arvo 1995): near an emitter, area sampling's 1/d² weights make the estimate
+/// very noisy (two emitting plates meeting at a sharp angle). Small ones are sampled by area
+/// (measure A·cos_e/d²). `None` when the point sees the emitter's back (one-sided) or edge-on.
+fn emitter_direction(em: &Emitter, origin: Vec3, u: Vec2) -> Option<(Vec3, f32, f32)> {
+    let facing = |l: Vec3| {
+        let cos_e = -em.normal.dot(l);
+        if em.two_sided { cos_e.abs() } else { cos_e }
+    };
+    if let Some((l, omega)) =
+        crate::sampling::spherical_triangle(origin, em.vertices, u, MIN_SOLID_ANGLE)
+    {
+        let cos_e = facing(l);
+        let d = em.normal.dot(em.vertices[0] - origin) / em.normal.dot(l);
+        return (cos_e > 0.0 && d > 0.0 && d.is_finite()).then_some((l, d, omega));
+    }
+    let b = uniform_triangle(u);
     let y = em.vertices[0] * (1.0 - b.x - b.y) + em.vertices[1] * b.x + em.vertices[2] * b.y;
     let to = y - origin;
     let d2 = to.length_squared();
     if d2 <= 0.0 {
-        return;
+        return None;
     }
     let d = d2.sqrt();
     let l = to / d;
-    let cos_r = sp.normal.dot(l);
-    let cos_e = -em.normal.dot(l);
-    let cos_e = if em.two_sided { cos_e.abs() } else { cos_e };
-    if cos_r <= 0.0 || cos_e <= 0.0 {
-        return;
-    }
-    let f = luminance(em.radiance) * cos_r * cos_e / d2;
-    let w = f * em.area / prob;
-    *w_total += w;
-    *rays += 1;
-    let tmax = d - 2.0 * ctx.rays.epsilon(y);
-    if !ctx.rays.occluded(origin, l, 0.0, tmax) {
-        *w_visible += w;
-    }
+    let cos_e = facing(l);
+    (cos_e > 0.0).then_some((l, d, em.area * cos_e / d2))
 }
 
 /// One footprint sample of the plain Monte Carlo emitter estimator (many emitters).
@@ -634,27 +663,19 @@ fn sampled_emitter(
         return Vec3::ZERO;
     }
     let em = &ctx.emitters.list[i];
-    let b = uniform_triangle(sobol_02(s, p.rng(seed, stream::EMITTER)));
-    let y = em.vertices[0] * (1.0 - b.x - b.y) + em.vertices[1] * b.x + em.vertices[2] * b.y;
-    let to = y - origin;
-    let d2 = to.length_squared();
-    if d2 <= 0.0 {
+    let Some((l, d, measure)) =
+        emitter_direction(em, origin, sobol_02(s, p.rng(seed, stream::EMITTER)))
+    else {
         return Vec3::ZERO;
-    }
-    let d = d2.sqrt();
-    let l = to / d;
+    };
     let cos_r = sp.normal.dot(l);
-    let mut cos_e = -em.normal.dot(l);
-    if em.two_sided {
-        cos_e = cos_e.abs();
-    }
-    if cos_r <= 0.0 || cos_e <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
+    if cos_r <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
         return Vec3::ZERO;
     }
     *rays += 1;
-    let tmax = d - 2.0 * ctx.rays.epsilon(y);
+    let tmax = d - 2.0 * ctx.rays.epsilon(origin + l * d);
     if ctx.rays.occluded(origin, l, 0.0, tmax) {
         return Vec3::ZERO;
     }
-    em.radiance * (cos_r * cos_e / d2 * em.area / prob)
+    em.radiance * (cos_r * measure / prob)
 }
