@@ -313,7 +313,7 @@ pub fn spherical_triangle(
     // Solid angle (Van Oosterom & Strackee 1983): tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a).
     let triple = a.dot(b.cross(c)).abs();
     let omega = 2.0 * triple.atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
-    if !(omega >= min_solid_angle as f64) {
+    if omega.is_nan() || omega < min_solid_angle as f64 {
         return None;
     }
     // Interior angles from the normals of the great circles through each pair of vertices.
