@@ -15,6 +15,17 @@
 //! 4. ΔB ← ρ∘ΔH, B += ΔB, H_indirect += ΔH; N shrinks with Φ so every ray carries about the
 //!    same power.
 //!
+//! Double-sided surfaces and coincident faces follow the gathering matrix's conventions, so
+//! that both solve the same system: a texel holds the irradiance on its front side, and the
+//! back of a double-sided face shows the same radiosity. A double-sided node therefore shoots
+//! from both sides (twice the power, half its rays from the back), and a ray that reaches the
+//! back of a double-sided face deposits nothing (that face's back irradiance is not stored).
+//! Faces lying exactly on each other (the same three vertices) are one visible surface to
+//! a gathering ray, which sees whichever of them the BVH returns: so a shooting ray that
+//! reaches such a group deposits its full power in every member it reaches from the front,
+//! and a ray that leaves one of k coincident faces carries 1/k of the power (together they
+//! radiate as one surface).
+//!
 //! The unshot fraction ‖ΔB‖/‖S‖ is the residual of the deterministic iteration; the result is
 //! a Monte Carlo estimate with noise ∝ 1/√(rays). Rays are processed in fixed chunks whose
 //! contributions are merged in order, so the result does not depend on the thread count.
@@ -24,11 +35,12 @@ use rayon::prelude::*;
 
 use super::{Recorder, Solution, norm, to_f64};
 use crate::bake::BakeContext;
+use crate::bvh::{Hit, RayScene};
 use crate::direct::luminance;
 use crate::progress::Progress;
 use crate::raster::Surface;
 use crate::sampling::{cosine_hemisphere, hash_words, unit_float};
-use crate::transport::{HitMapper, Nodes, RayFate, support_point, trace_to_nodes};
+use crate::transport::{HitMapper, Nodes, support_point};
 
 /// Stopping rules and ray budget.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +75,19 @@ pub fn solve(
     let mut total_rays = 0u64;
     let mut first_power = None;
     let mut iteration = 0u32;
+    // Sides each node shoots from (2 for double-sided materials).
+    let sides: Vec<f32> = (0..n)
+        .map(|j| {
+            let patch = &ctx.patches.patches[nodes.patch[j] as usize];
+            let mesh = ctx.scene.instances[patch.instance as usize].mesh;
+            if ctx.scene.material_of(mesh).double_sided {
+                2.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let twins = Twins::new(ctx.rays);
     rec.record(0.0, 1.0, None);
     let (converged, reason) = loop {
         let residual = norm(&to_f64(&unshot), &nodes.area) / s_norm;
@@ -85,7 +110,7 @@ pub fn solve(
         let mut cdf = Vec::with_capacity(n);
         let mut total = 0.0f64;
         for j in 0..n {
-            total += (luminance(unshot[j].abs()) * nodes.area[j]) as f64;
+            total += (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64;
             cdf.push(total);
         }
         if total <= 0.0 {
@@ -104,11 +129,11 @@ pub fn solve(
                 for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
                     let xi = ((k as f64 + u0 as f64) / rays as f64) * total;
                     let j = cdf.partition_point(|&v| v <= xi).min(n - 1);
-                    let pj = (luminance(unshot[j].abs()) * nodes.area[j]) as f64 / total;
+                    let pj = (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64 / total;
                     if pj <= 0.0 {
                         continue;
                     }
-                    let power = unshot[j] * (nodes.area[j] / (rays as f64 * pj) as f32);
+                    let power = unshot[j] * (nodes.area[j] * sides[j] / (rays as f64 * pj) as f32);
                     let patch = &ctx.patches.patches[nodes.patch[j] as usize];
                     let key = hash_words(&[seed, k as u32]);
                     // Start on the source's basis support, ∝ φ_j: tent samples accepted with
@@ -137,16 +162,32 @@ pub fn solve(
                         unit_float(hash_words(&[key, 1])),
                         unit_float(hash_words(&[key, 2])),
                     );
-                    let dir = cosine_hemisphere(sp.normal, u);
-                    if dir.dot(sp.geometric_normal) <= 0.0 {
+                    // A double-sided source leaves from its back for half its rays.
+                    let back = sides[j] > 1.0 && hash_words(&[key, 9]) & 1 == 1;
+                    let (normal, geometric) = if back {
+                        (-sp.normal, -sp.geometric_normal)
+                    } else {
+                        (sp.normal, sp.geometric_normal)
+                    };
+                    let dir = cosine_hemisphere(normal, u);
+                    if dir.dot(geometric) <= 0.0 {
                         continue;
                     }
-                    let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-                    if let RayFate::Nodes(m) = trace_to_nodes(mapper, origin, dir, &mut out) {
+                    let origin = ctx.rays.offset(sp.position, geometric);
+                    let power = power / twins.count(sp.triangle) as f32;
+                    let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) else {
+                        continue;
+                    };
+                    twins.deposit(ctx.rays, origin, dir, &hit, |hit| {
+                        // The back of a double-sided face: its texels hold the front only.
+                        if !hit.front_face {
+                            return;
+                        }
+                        let m = mapper.weights(hit, &mut out);
                         for &(i, w) in &out[..m] {
                             deposits.push((i, power * (w / nodes.area[i as usize])));
                         }
-                    }
+                    });
                 }
                 deposits.sort_by_key(|d| d.0);
                 deposits
@@ -182,5 +223,94 @@ pub fn solve(
         iterations: iteration as f64,
         rays: total_rays,
         stop_reason: reason,
+    }
+}
+
+/// Groups of triangles with the same three world vertices (coincident faces).
+struct Twins {
+    /// (triangle, group), sorted by triangle; only triangles that have a twin.
+    of: Vec<(u32, u32)>,
+    /// The triangles of each group.
+    groups: Vec<Vec<u32>>,
+}
+
+impl Twins {
+    fn new(rays: &RayScene) -> Self {
+        let key = |g: u32| {
+            let mut v = rays
+                .triangle_vertices(g)
+                .map(|p| p.to_array().map(f32::to_bits));
+            v.sort_unstable();
+            v
+        };
+        let mut order: Vec<(_, u32)> = (0..rays.triangles.len() as u32)
+            .filter(|&g| rays.triangles[g as usize].area > 0.0)
+            .map(|g| (key(g), g))
+            .collect();
+        order.sort_unstable();
+        let mut of = Vec::new();
+        let mut groups = Vec::new();
+        for run in order.chunk_by(|a, b| a.0 == b.0) {
+            if run.len() > 1 {
+                let id = groups.len() as u32;
+                groups.push(run.iter().map(|e| e.1).collect::<Vec<_>>());
+                of.extend(run.iter().map(|e| (e.1, id)));
+            }
+        }
+        of.sort_unstable();
+        Self { of, groups }
+    }
+
+    /// How many faces lie exactly on triangle `g` (itself included).
+    fn count(&self, g: u32) -> usize {
+        self.of
+            .binary_search_by_key(&g, |e| e.0)
+            .map_or(1, |k| self.groups[self.of[k].1 as usize].len())
+    }
+
+    /// Calls `f(hit)` for the hit triangle or, when it has coincident twins, for each of them
+    /// reached from the front, with its own barycentrics at the hit point.
+    fn deposit(
+        &self,
+        rays: &RayScene,
+        origin: Vec3,
+        dir: Vec3,
+        hit: &Hit,
+        mut f: impl FnMut(&Hit),
+    ) {
+        let Ok(k) = self.of.binary_search_by_key(&hit.triangle, |e| e.0) else {
+            f(hit);
+            return;
+        };
+        let p = origin + dir * hit.t;
+        let members: Vec<Hit> = self.groups[self.of[k].1 as usize]
+            .iter()
+            .map(|&g| {
+                let [a, b, c] = rays.triangle_vertices(g);
+                let (e1, e2, d) = (b - a, c - a, p - a);
+                let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+                let (d1, d2) = (d.dot(e1), d.dot(e2));
+                let det = d11 * d22 - d12 * d12;
+                let (u, v) = if det > 0.0 {
+                    ((d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det)
+                } else {
+                    (hit.u, hit.v)
+                };
+                Hit {
+                    t: hit.t,
+                    triangle: g,
+                    u: u.clamp(0.0, 1.0),
+                    v: v.clamp(0.0, 1.0 - u.clamp(0.0, 1.0)),
+                    front_face: rays.triangles[g as usize].normal.dot(dir) < 0.0,
+                }
+            })
+            .collect();
+        if !members.iter().any(|h| h.front_face) {
+            f(hit);
+            return;
+        }
+        for h in members.iter().filter(|h| h.front_face) {
+            f(h);
+        }
     }
 }
