@@ -252,3 +252,122 @@ fn convergence_study_writes_csv_markdown_and_plots() {
             .contains("| curve |")
     );
 }
+
+/// Every visible file under `dir` (hidden temporaries and kept copies excluded), by relative
+/// path, with its bytes.
+fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap().flatten() {
+            let path = entry.path();
+            if entry.file_name().to_string_lossy().starts_with('.') {
+                continue;
+            }
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_bake_killed_midway_leaves_every_output_whole() {
+    use std::time::Instant;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = asset("cornell_box.gltf");
+    let scene = scene.to_str().unwrap();
+    let run = |out: &Path, seed: &str| {
+        let o = out.to_str().unwrap().to_string();
+        vec![
+            scene.to_string(),
+            "-o".into(),
+            o,
+            "--quiet".into(),
+            "--texel-density".into(),
+            "48".into(),
+            "--seed".into(),
+            seed.into(),
+        ]
+    };
+    // The previous outputs (seed 1) and what a finished second bake writes (seed 2).
+    let out = dir.path().join("out");
+    let new = dir.path().join("new");
+    let first = Command::new(env!("CARGO_BIN_EXE_bake"))
+        .args(run(&out, "1"))
+        .output()
+        .unwrap();
+    assert!(first.status.success(), "{first:?}");
+    let start = Instant::now();
+    let second = Command::new(env!("CARGO_BIN_EXE_bake"))
+        .args(run(&new, "2"))
+        .output()
+        .unwrap();
+    let duration = start.elapsed();
+    assert!(second.status.success(), "{second:?}");
+    let old_files = files(&out);
+    let new_files = files(&new);
+    assert!(old_files.len() >= 4, "{:?}", old_files.keys());
+    // The report holds timings, so it differs between runs: it must parse, whole.
+    let is_report = |p: &Path| p.file_name().is_some_and(|n| n == "report.json");
+    let mut killed = 0;
+    let mut finished = 0;
+    for fraction in [0.05, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 0.98, 1.0, 1.02] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_bake"))
+            .args(run(&out, "2"))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(duration.mul_f64(fraction));
+        match child.try_wait().unwrap() {
+            Some(status) => {
+                assert!(status.success());
+                finished += 1;
+            }
+            None => {
+                child.kill().unwrap(); // SIGKILL: no destructor runs
+                child.wait().unwrap();
+                killed += 1;
+            }
+        }
+        let now = files(&out);
+        assert_eq!(
+            now.keys().collect::<Vec<_>>(),
+            old_files.keys().collect::<Vec<_>>(),
+            "killed at {fraction} of the run: the set of outputs changed"
+        );
+        for (path, bytes) in &now {
+            if is_report(path) {
+                assert!(
+                    serde_json::from_slice::<serde_json::Value>(bytes).is_ok(),
+                    "killed at {fraction}: {} is not whole JSON",
+                    path.display()
+                );
+                continue;
+            }
+            assert!(
+                bytes == &old_files[path] || bytes == &new_files[path],
+                "killed at {fraction}: {} is neither the old nor the new file",
+                path.display()
+            );
+        }
+        // Put the previous outputs back for the next kill.
+        std::fs::remove_dir_all(&out).unwrap();
+        let again = Command::new(env!("CARGO_BIN_EXE_bake"))
+            .args(run(&out, "1"))
+            .output()
+            .unwrap();
+        assert!(again.status.success());
+        assert_eq!(files(&out).len(), old_files.len());
+    }
+    println!("{killed} bakes killed, {finished} finished ({duration:?} per bake)");
+    assert!(
+        killed >= 5,
+        "only {killed} of the bakes were still running when killed"
+    );
+}

@@ -80,10 +80,16 @@ impl StagedFiles {
         self.staged.iter().map(|(_, d)| d.as_path())
     }
 
-    /// Renames every staged file into place, all or nothing: existing destinations are first
-    /// moved aside (same directory), then the new files renamed in; if any step fails, the new
-    /// files are removed and the old ones put back. The set-aside copies are deleted at the
-    /// end.
+    /// Renames every staged file into place, all or nothing: each existing destination is
+    /// first linked (or copied) to a hidden name beside it, then the new files are renamed
+    /// over the destinations; if any step fails, the old files are renamed back. The kept
+    /// copies are deleted at the end.
+    ///
+    /// Every rename replaces its destination atomically, so at every instant, even if the
+    /// process is killed, each destination holds either its complete old file or its
+    /// complete new one. (A kill inside the rename loop can leave some files new and some
+    /// old; hidden `.NAME.lightbake-old-*` copies left by a killed commit are removed by the
+    /// next commit to the same directory.)
     ///
     /// # Errors
     /// [`BakeError::Write`] naming the destination that could not be replaced (the directory
@@ -103,15 +109,18 @@ impl StagedFiles {
                 return Err(write_err(dest)(e));
             }
         }
-        // 2. Move existing files aside.
+        // 2. Keep a copy of each existing file (a hard link: the destination stays in place).
         let mut aside: Vec<(PathBuf, PathBuf)> = Vec::new();
         for (_, dest) in &staged {
+            remove_stale_copies(dest);
             if dest.exists() {
                 let name = dest
                     .file_name()
                     .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
                 let old = dest.with_file_name(format!(".{name}.lightbake-old-{}", unique_suffix()));
-                if let Err(e) = std::fs::rename(dest, &old) {
+                let kept = std::fs::hard_link(dest, &old)
+                    .or_else(|_| std::fs::copy(dest, &old).map(|_| ()));
+                if let Err(e) = kept {
                     restore(&aside, &[]);
                     for (t, _) in &staged {
                         let _ = std::fs::remove_file(t);
@@ -141,13 +150,41 @@ impl StagedFiles {
     }
 }
 
-/// Undoes a partial commit: removes the files placed so far and puts the old ones back.
+/// Undoes a partial commit: puts the old files back over the new ones (atomically) and
+/// removes new files that had no old version.
 fn restore(aside: &[(PathBuf, PathBuf)], placed: &[PathBuf]) {
     for p in placed {
-        let _ = std::fs::remove_file(p);
+        if !aside.iter().any(|(dest, _)| dest == p) {
+            let _ = std::fs::remove_file(p);
+        }
     }
     for (dest, old) in aside {
         let _ = std::fs::rename(old, dest);
+        // A rename between two links of one file does nothing (POSIX): the destination was
+        // never replaced, and the copy is dropped here.
+        let _ = std::fs::remove_file(old);
+    }
+}
+
+/// Removes hidden copies of `dest` kept by an earlier commit that was killed before it could
+/// delete them (`.NAME.lightbake-old-*` beside it).
+fn remove_stale_copies(dest: &Path) {
+    let (Some(dir), Some(name)) = (dest.parent(), dest.file_name()) else {
+        return;
+    };
+    let prefix = format!(".{}.lightbake-old-", name.to_string_lossy());
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        if entry.file_name().to_string_lossy().starts_with(&prefix) {
+            let _ = std::fs::remove_file(entry.path());
+        }
     }
 }
 
