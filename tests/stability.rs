@@ -358,3 +358,79 @@ fn stochastic_jacobi_in_a_furnace_with_double_sided_and_coincident_faces() {
     );
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+#[test]
+fn ten_million_vpls_sum_exactly_into_each_texel() {
+    // A 0.5 m plane under 10⁷ identical VPLs 1 m above it: each texel's irradiance is a sum
+    // of 10⁷ equal f32 terms, so its exact value is 10⁷ × one term. An f32 running sum
+    // drifts (shown below); the gather's f64 sums must not.
+    use lightbake::bake::Prepared;
+    use lightbake::vpl::gather::gather;
+    use lightbake::vpl::walk::{Vpl, VplKind};
+    let mut scene = Scene::default();
+    // Lightmaps are at least 8² texels: map the plane onto a 2² corner of its rectangle.
+    let mut plane = common::uv_plane("plane", 0.5);
+    for uv in plane.uv1.as_mut().unwrap() {
+        *uv *= 0.25;
+    }
+    common::add(
+        &mut scene,
+        plane,
+        Vec3::splat(0.5),
+        Affine3A::IDENTITY,
+        true,
+    );
+    let mut s = settings(Method::Vpl, 4.0);
+    s.padding = 1;
+    let prep = Prepared::new(&scene, &s).unwrap();
+    let ctx = prep.ctx();
+    let n = 10_000_000u32;
+    let vpl = |i: u32| Vpl {
+        position: Vec3::new(0.0, 1.0, 0.0),
+        power: Vec3::new(1.0, 0.5, 0.25),
+        kind: VplKind::Diffuse {
+            normal: Vec3::NEG_Y,
+        },
+        depth: 1,
+        path: i,
+    };
+    let vpls: Vec<Vpl> = (0..n).map(vpl).collect();
+    let start = std::time::Instant::now();
+    let out = gather(
+        &ctx,
+        &vpls,
+        n,
+        f32::INFINITY,
+        &lightbake::progress::Progress::new(),
+    );
+    let seconds = start.elapsed().as_secs_f64();
+    let mut checked = 0;
+    let mut worst = 0.0f64;
+    let mut naive_worst = 0.0f64;
+    for (k, patch) in ctx.patches.patches.iter().enumerate() {
+        if !patch.is_valid() {
+            continue;
+        }
+        // One term, computed as the gather computes it.
+        let sp = lightbake::direct::representative(patch);
+        let d = vpl(0).position - sp.position;
+        let r2 = d.length_squared();
+        let l = d / r2.sqrt();
+        let g = sp.normal.dot(l) * Vec3::Y.dot(l) / r2;
+        let term = vpl(0).power * (std::f32::consts::FRAC_1_PI * g);
+        let exact = term.x as f64 * n as f64;
+        worst = worst.max((out.irradiance[k].x as f64 - exact).abs() / exact);
+        let naive = (0..n).fold(0.0f32, |acc, _| acc + term.x);
+        naive_worst = naive_worst.max((naive as f64 - exact).abs() / exact);
+        checked += 1;
+    }
+    println!(
+        "{checked} texels × 10⁷ VPLs in {seconds:.1} s: worst relative error {worst:.1e} (an f32 running sum: {naive_worst:.1e})"
+    );
+    assert!(checked > 0);
+    assert!(worst < 1e-6, "worst relative error {worst:e}");
+    assert!(
+        naive_worst > 1e-3,
+        "the f32 sum was expected to drift ({naive_worst:e})"
+    );
+}

@@ -195,15 +195,17 @@ pub fn solve(
             .collect();
         total_rays += rays;
         // 4. Merge in chunk order and update.
-        let mut received = vec![Vec3::ZERO; n];
+        // A node can receive millions of deposits in one iteration: sum them in f64.
+        let mut received = vec![glam::DVec3::ZERO; n];
         for chunk in chunks {
             for (i, h) in chunk {
-                received[i as usize] += h;
+                received[i as usize] += h.as_dvec3();
             }
         }
         for i in 0..n {
-            indirect[i] += received[i];
-            unshot[i] = nodes.albedo[i] * received[i];
+            let received = received[i].as_vec3();
+            indirect[i] += received;
+            unshot[i] = nodes.albedo[i] * received;
             b[i] += unshot[i];
         }
         iteration += 1;
