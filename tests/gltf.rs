@@ -378,6 +378,17 @@ fn bad_inputs_give_named_errors() {
         "{msg}"
     );
 
+    let far = corrupt(
+        d,
+        |j| j["nodes"][2]["translation"] = serde_json::json!([0.0, 3e9, 0.0]),
+        |_, _| {},
+    );
+    let msg = error_of(&far);
+    assert!(
+        msg.contains("back_wall") && msg.contains("beyond 1e9 m"),
+        "{msg}"
+    );
+
     let only_light = corrupt(
         d,
         |j| {

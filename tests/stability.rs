@@ -434,3 +434,37 @@ fn ten_million_vpls_sum_exactly_into_each_texel() {
         "the f32 sum was expected to drift ({naive_worst:e})"
     );
 }
+
+#[test]
+fn a_sliver_longer_than_a_page_is_refused_by_name_before_xatlas() {
+    // 10⁸ m long and 10⁻⁹ m wide: 0.05 m² passes the memory plan, but no chart of it fits a
+    // page; xatlas crashed (SIGSEGV) on such a mesh found by tests/fuzz_import.rs.
+    let mut scene = cornell_box(CornellLight::Area);
+    let sliver = triangles(
+        "sliver",
+        &[[
+            Vec3::ZERO,
+            Vec3::new(1e8, 0.0, 0.0),
+            Vec3::new(1e8, 1e-9, 0.0),
+        ]],
+    );
+    common::add(
+        &mut scene,
+        sliver,
+        Vec3::splat(0.5),
+        Affine3A::IDENTITY,
+        true,
+    );
+    let err = lightbake::bake(
+        &scene,
+        &settings(Method::Direct, 16.0),
+        &lightbake::progress::Progress::new(),
+    )
+    .err()
+    .expect("the sliver was baked")
+    .to_string();
+    assert!(
+        err.contains("sliver") && err.contains("triangle 0") && err.contains("page"),
+        "{err}"
+    );
+}

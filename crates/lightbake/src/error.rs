@@ -64,6 +64,24 @@ pub enum BakeError {
         /// The offending value, printed.
         value: String,
     },
+    /// A vertex lies so far from the origin that f32 positions there are meaningless.
+    #[error(
+        "instance '{instance}' (mesh '{mesh}'): vertex {vertex} lies at {position}, beyond {limit:e} m from the origin, where f32 positions are {spacing:e} m apart; move the scene near the origin or check its units and transforms"
+    )]
+    FarVertex {
+        /// Instance name.
+        instance: String,
+        /// Mesh name.
+        mesh: String,
+        /// Vertex index in the mesh.
+        vertex: usize,
+        /// Its world position, printed.
+        position: String,
+        /// The limit, m ([`crate::scene::MAX_COORDINATE`]).
+        limit: f32,
+        /// Float spacing at the limit, m.
+        spacing: f32,
+    },
     /// A triangle refers to a vertex that does not exist.
     #[error(
         "mesh '{mesh}': triangle {triangle} uses vertex index {index}, but the mesh has {vertex_count} vertices"

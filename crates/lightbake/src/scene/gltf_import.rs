@@ -77,14 +77,21 @@ pub fn import_gltf_slice(
         path: path.to_path_buf(),
         message,
     };
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?;
     let is_glb = bytes.starts_with(b"glTF");
     let json: serde_json::Value = if is_glb {
         let glb = gltf::Glb::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?;
         serde_json::from_slice(&glb.json).map_err(|e| bad_gltf(e.to_string()))?
     } else {
-        serde_json::from_slice(bytes).map_err(|e| bad_gltf(e.to_string()))?
+        serde_json::from_slice(bytes)
+            .map_err(|e| bad_gltf(format!("not a valid glTF (JSON: {e})")))?
     };
+    // The gltf crate's validator indexes `accessors` with a primitive's POSITION before
+    // checking it (gltf-json 1.4.1, mesh.rs:151) and panics on a bad index: check first.
+    check_primitive_accessors(&json).map_err(bad_gltf)?;
+    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes)).map_err(|_| {
+        bad_gltf("not a valid glTF (the gltf crate's validator failed on it)".into())
+    })?;
+    let gltf = parsed.map_err(|e| bad_gltf(e.to_string()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let document = gltf.document;
     let mut blob = gltf.blob;
@@ -612,4 +619,34 @@ fn to_rgba8(data: &gltf::image::Data) -> Option<Vec<[u8; 4]>> {
         _ => return None,
     };
     (out.len() == px).then_some(out)
+}
+
+/// Every accessor a mesh primitive names (attributes, indices) exists.
+fn check_primitive_accessors(json: &serde_json::Value) -> std::result::Result<(), String> {
+    let accessors = json["accessors"].as_array().map_or(0, |a| a.len());
+    let Some(meshes) = json["meshes"].as_array() else {
+        return Ok(());
+    };
+    for (m, mesh) in meshes.iter().enumerate() {
+        let Some(primitives) = mesh["primitives"].as_array() else {
+            continue;
+        };
+        for (p, prim) in primitives.iter().enumerate() {
+            let mut refs: Vec<(String, &serde_json::Value)> = Vec::new();
+            if let Some(attributes) = prim["attributes"].as_object() {
+                refs.extend(attributes.iter().map(|(k, v)| (k.clone(), v)));
+            }
+            if !prim["indices"].is_null() {
+                refs.push(("indices".into(), &prim["indices"]));
+            }
+            for (what, v) in refs {
+                if v.as_u64().is_none_or(|i| (i as usize) >= accessors) {
+                    return Err(format!(
+                        "mesh {m} primitive {p}: {what} refers to accessor {v}, but the file has {accessors} accessors"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }

@@ -19,6 +19,11 @@ use serde::Serialize;
 
 use crate::error::{BakeError, Result};
 
+/// Largest world coordinate a vertex may have, m (default and only value: 10⁹ m). Beyond it
+/// f32 positions are more than 100 m apart, so nothing can be baked there; xatlas crashed on
+/// a fuzzed scene with a vertex at 1.4·10²² m (`tests/fuzz_import.rs`).
+pub const MAX_COORDINATE: f32 = 1e9;
+
 pub mod gltf_accessor;
 pub mod gltf_import;
 pub mod gltf_write;
@@ -592,7 +597,8 @@ impl Scene {
             .sum()
     }
 
-    /// Checks every mesh, instance, material and light; names the first problem.
+    /// Checks every mesh, instance (including that its world vertices lie within
+    /// [`MAX_COORDINATE`] of the origin), material and light; names the first problem.
     ///
     /// # Errors
     /// The first [`BakeError`] found, or [`BakeError::NoTriangles`].
@@ -620,6 +626,23 @@ impl Scene {
                 });
             }
             inst.validate()?;
+            let mesh = &self.meshes[inst.mesh];
+            if let Some((vertex, p)) = mesh
+                .positions
+                .iter()
+                .map(|&p| inst.transform.transform_point3(p))
+                .enumerate()
+                .find(|(_, p)| p.is_nan() || p.abs().max_element() > MAX_COORDINATE)
+            {
+                return Err(BakeError::FarVertex {
+                    instance: inst.name.clone(),
+                    mesh: mesh.name.clone(),
+                    vertex,
+                    position: format!("{p}"),
+                    limit: MAX_COORDINATE,
+                    spacing: MAX_COORDINATE * f32::EPSILON,
+                });
+            }
             if !(inst.texel_density_scale.is_finite() && inst.texel_density_scale > 0.0) {
                 return Err(BakeError::BadSetting {
                     name: "texel_density_scale",

@@ -292,11 +292,33 @@ fn xatlas_unwrap(
     settings: &BakeSettings,
     warnings: &mut Vec<String>,
 ) -> Result<MeshUnwrap> {
+    // A triangle longer than a page can hold at this density cannot be charted (xatlas
+    // crashed on a fuzzed mesh with a 1.5·10⁸ m sliver next to 0.3 m faces): refuse it here.
+    let max_chart = settings
+        .max_page_size
+        .saturating_sub(2 * settings.padding + 2)
+        .max(1) as f32;
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i]);
+        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+        let texels = longest * request.texels_per_unit;
+        if texels.is_nan() || texels > max_chart {
+            return Err(BakeError::Unwrap {
+                mesh: mesh.name.clone(),
+                message: format!(
+                    "triangle {t} is {longest:e} units long, {texels:e} texels at {:e} texels per unit: more than a {}-texel page can hold; split it or lower the texel density",
+                    request.texels_per_unit, settings.max_page_size
+                ),
+            });
+        }
+    }
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
+    // TEXCOORD_0 only guides xatlas' chart seams; absurd values are left out, not passed on.
     let uvs: Option<Vec<[f32; 2]>> = mesh
         .uv0
         .as_ref()
+        .filter(|u| u.iter().all(|p| p.abs().max_element() <= 1e6))
         .map(|u| u.iter().map(|p| p.to_array()).collect());
     let input = xatlas::Input {
         positions: &positions,
