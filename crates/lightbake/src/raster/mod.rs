@@ -456,29 +456,39 @@ impl Patches {
                         }
                     }
                 }
+                // How many of a cosine-distributed fan of rays from `at` see back faces.
+                let key = p.rng(seed, 0x5a11d);
+                let mut back_faces = |at: Vec3, near: &mut bool| {
+                    let origin = rays.offset(at, g);
+                    let mut back = 0;
+                    for s in 0..HEMISPHERE_RAYS {
+                        let dir = cosine_hemisphere(g, sobol_02(s, key));
+                        rays_used += 1;
+                        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
+                            if h.t < reach {
+                                *near = true;
+                            }
+                            let info = rays.triangles[h.triangle as usize];
+                            if !h.front_face && !info.double_sided {
+                                back += 1;
+                            }
+                        }
+                    }
+                    back
+                };
                 let mut position = p.position;
                 let mut flags = p.flags;
-                if let Some((dist, dir)) = exit {
+                let mut back = back_faces(position, &mut near);
+                // Push the point out through the back face only when it is inside a solid (it
+                // sees mostly back faces): a texel behind a thin single-sided wall sees the
+                // wall's back over part of its view only, and pushing it through would carry
+                // the other side's light into a room that gets none.
+                if let Some((dist, dir)) = exit.filter(|_| 2 * back > HEMISPHERE_RAYS) {
                     position =
                         p.position + dir * (dist + 0.05 * p.texel_size + rays.epsilon(p.position));
                     flags |= Patch::MOVED;
-                }
-                // Does the (moved) point still see mostly back faces?
-                let origin = rays.offset(position, g);
-                let mut back = 0;
-                let key = p.rng(seed, 0x5a11d);
-                for s in 0..HEMISPHERE_RAYS {
-                    let dir = cosine_hemisphere(g, sobol_02(s, key));
-                    rays_used += 1;
-                    if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
-                        if h.t < reach {
-                            near = true;
-                        }
-                        let info = rays.triangles[h.triangle as usize];
-                        if !h.front_face && !info.double_sided {
-                            back += 1;
-                        }
-                    }
+                    // Does the moved point still see mostly back faces?
+                    back = back_faces(position, &mut near);
                 }
                 if 2 * back > HEMISPHERE_RAYS {
                     flags &= !Patch::VALID;

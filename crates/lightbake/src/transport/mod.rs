@@ -146,7 +146,8 @@ fn basis_areas(
                 let footprint = ctx.patches.footprint_of(p);
                 // Full-texel world area per sample; a valid texel's samples share its
                 // (already visibility-reduced) area instead.
-                let mut points: Vec<(u32, Vec2, usize)> = Vec::with_capacity(AREA_SAMPLES as usize);
+                let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> =
+                    Vec::with_capacity(AREA_SAMPLES as usize);
                 let mut on_surface = 0;
                 for s in 0..AREA_SAMPLES {
                     let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
@@ -154,19 +155,24 @@ fn basis_areas(
                         continue;
                     };
                     on_surface += 1;
-                    let n = mapper.weights_at(sp.triangle, q, &mut w);
+                    let from = (sp.position, sp.geometric_normal);
+                    let n = mapper.weights_at(sp.triangle, q, from, &mut w);
                     let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
                     else {
                         continue;
                     };
                     let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
                     if ctx.patches.open_point(p, &sp, anchor_patch, ctx.rays) {
-                        points.push((sp.triangle, q, n));
+                        points.push((sp.triangle, q, from));
                     }
                 }
                 if p.is_valid() && points.is_empty() {
                     // A sliver: its representative point stands for it.
-                    points.push((p.triangle, texel + Vec2::splat(0.5), 0));
+                    points.push((
+                        p.triangle,
+                        texel + Vec2::splat(0.5),
+                        (p.position, p.geometric_normal),
+                    ));
                 }
                 if points.is_empty() {
                     continue;
@@ -176,8 +182,8 @@ fn basis_areas(
                 } else {
                     p.area / on_surface.max(1) as f32
                 };
-                for (t, q, _) in points {
-                    let n = mapper.weights_at(t, q, &mut w);
+                for (t, q, from) in points {
+                    let n = mapper.weights_at(t, q, from, &mut w);
                     out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
                 }
             }
@@ -242,15 +248,22 @@ pub struct HitMapper<'a> {
     /// record instead of the page index, the patch and the node table (the hit lookups are
     /// the hottest loads of the transport build).
     grid: Vec<Vec<TexelNode>>,
+    /// Per node: its patch (for the anchor point of the visibility test).
+    node_patch: &'a [u32],
 }
 
 /// A texel's node and its owner (instance, chart); `node == u32::MAX` when it has none.
+/// [`SPLIT`] in `instance` marks a node that cannot see the anchor of a neighbour in its
+/// chart: geometry (a wall standing on a floor) cuts its basis support.
 #[derive(Clone, Copy, Debug)]
 struct TexelNode {
     node: u32,
     instance: u32,
     chart: u32,
 }
+
+/// Flag bit in [`TexelNode::instance`].
+const SPLIT: u32 = 1 << 31;
 
 impl<'a> HitMapper<'a> {
     /// A mapper for `basis`.
@@ -281,7 +294,81 @@ impl<'a> HitMapper<'a> {
                     .collect()
             })
             .collect();
-        Self { ctx, basis, grid }
+        let mut mapper = Self {
+            ctx,
+            basis,
+            grid,
+            node_patch: &nodes.patch,
+        };
+        mapper.mark_split_nodes();
+        mapper
+    }
+
+    /// Flags nodes whose anchor cannot see the anchor of a neighbouring node of the same
+    /// chart (4 of the 8 neighbours per texel, so each pair is tested once). Lookups near
+    /// such nodes then drop corners hidden from the looked-up point, so a floor texel
+    /// straddling a thin wall does not carry light from one side to the other.
+    fn mark_split_nodes(&mut self) {
+        let ctx = self.ctx;
+        let patches = &ctx.patches.patches;
+        let anchor = |node: u32| {
+            let p = &patches[self.node_patch[node as usize] as usize];
+            ctx.rays.offset(p.position, p.geometric_normal)
+        };
+        for (page, grid) in self.grid.iter_mut().enumerate() {
+            let w = ctx.layout.pages[page].width as usize;
+            let h = grid.len() / w.max(1);
+            let split: Vec<usize> = (0..grid.len())
+                .into_par_iter()
+                .filter(|&k| {
+                    let t = grid[k];
+                    if t.node == u32::MAX {
+                        return false;
+                    }
+                    let (x, y) = ((k % w) as i64, (k / w) as i64);
+                    [
+                        (1, 0),
+                        (-1, 1),
+                        (0, 1),
+                        (1, 1),
+                        (-1, 0),
+                        (1, -1),
+                        (0, -1),
+                        (-1, -1),
+                    ]
+                    .iter()
+                    .any(|&(dx, dy)| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                            return false;
+                        }
+                        let o = grid[ny as usize * w + nx as usize];
+                        if o.node == u32::MAX || o.instance != t.instance || o.chart != t.chart {
+                            return false;
+                        }
+                        let (a, b) = (anchor(t.node), anchor(o.node));
+                        let d = b - a;
+                        let len = d.length();
+                        len > 0.0 && ctx.rays.occluded(a, d / len, 0.0, len)
+                    })
+                })
+                .collect();
+            for k in split {
+                grid[k].instance |= SPLIT;
+            }
+        }
+    }
+
+    /// Whether node `node`'s anchor is visible from `from` (a point and the normal of the side
+    /// it is seen from).
+    fn sees(&self, from: (Vec3, Vec3), node: u32) -> bool {
+        let ctx = &self.ctx;
+        let p = &ctx.patches.patches[self.node_patch[node as usize] as usize];
+        let a = ctx.rays.offset(from.0, from.1);
+        let b = ctx.rays.offset(p.position, p.geometric_normal);
+        let d = b - a;
+        let len = d.length();
+        len <= 0.0 || !ctx.rays.occluded(a, d / len, 0.0, len)
     }
 
     /// The basis.
@@ -307,12 +394,27 @@ impl<'a> HitMapper<'a> {
         let [a, b, c] = mesh.triangle(info.local as usize);
         let uv = uv1[a] * (1.0 - hit.u - hit.v) + uv1[b] * hit.u + uv1[c] * hit.v;
         let q = uv * Vec2::new(rect.width as f32, rect.height as f32);
-        self.weights_at(hit.triangle, q, out)
+        let [v0, v1, v2] = ctx.rays.triangle_vertices(hit.triangle);
+        let point = v0 * (1.0 - hit.u - hit.v) + v1 * hit.u + v2 * hit.v;
+        let side = if hit.front_face {
+            info.normal
+        } else {
+            -info.normal
+        };
+        self.weights_at(hit.triangle, q, (point, side), out)
     }
 
     /// Node weights at texel-space point `q` (in the instance's rectangle) on global triangle
-    /// `triangle`.
-    pub fn weights_at(&self, triangle: u32, q: Vec2, out: &mut [(u32, f32); 4]) -> usize {
+    /// `triangle`, seen at world point `from.0` from the side of normal `from.1`: corners
+    /// flagged as split whose anchor that point cannot see are left out (the rest are
+    /// renormalised).
+    pub fn weights_at(
+        &self,
+        triangle: u32,
+        q: Vec2,
+        from: (Vec3, Vec3),
+        out: &mut [(u32, f32); 4],
+    ) -> usize {
         let ctx = &self.ctx;
         let info = ctx.rays.triangles[triangle as usize];
         let ii = info.instance as usize;
@@ -326,13 +428,15 @@ impl<'a> HitMapper<'a> {
         let chart = unwrap.triangle_charts[info.local as usize];
         let page_w = ctx.layout.pages[rect.page as usize].width;
         let grid = &self.grid[rect.page as usize];
-        // The node at rect-local texel (x, y), if it belongs to this instance and chart.
-        let node_at = |x: i64, y: i64| -> Option<u32> {
+        // The node at rect-local texel (x, y), if it belongs to this instance and chart, and
+        // whether it is split.
+        let node_at = |x: i64, y: i64| -> Option<(u32, bool)> {
             if x < 0 || y < 0 || x >= rect.width as i64 || y >= rect.height as i64 {
                 return None;
             }
             let t = grid[((rect.y as i64 + y) * page_w as i64 + rect.x as i64 + x) as usize];
-            (t.node != u32::MAX && t.instance as usize == ii && t.chart == chart).then_some(t.node)
+            (t.node != u32::MAX && (t.instance & !SPLIT) as usize == ii && t.chart == chart)
+                .then_some((t.node, t.instance & SPLIT != 0))
         };
         if self.basis == Basis::Linear {
             let (x, y) = (q.x - 0.5, q.y - 0.5);
@@ -345,17 +449,20 @@ impl<'a> HitMapper<'a> {
                 (x0, y0 + 1, (1.0 - fx) * fy),
                 (x0 + 1, y0 + 1, fx * fy),
             ];
+            let found = corners.map(|(cx, cy, w)| (w > 0.0).then(|| node_at(cx, cy)).flatten());
+            let split = found.iter().flatten().any(|&(_, s)| s);
             let mut n = 0;
             let mut sum = 0.0;
-            for (cx, cy, w) in corners {
-                if w <= 0.0 {
+            for (&(_, _, w), f) in corners.iter().zip(found) {
+                let Some((node, node_split)) = f else {
+                    continue;
+                };
+                if split && node_split && !self.sees(from, node) {
                     continue;
                 }
-                if let Some(node) = node_at(cx, cy) {
-                    out[n] = (node, w);
-                    sum += w;
-                    n += 1;
-                }
+                out[n] = (node, w);
+                sum += w;
+                n += 1;
             }
             if n > 0 && sum > 0.0 {
                 for e in &mut out[..n] {
@@ -367,14 +474,18 @@ impl<'a> HitMapper<'a> {
         // Constant basis, and the linear basis' fallback: the texel under the point, else the
         // nearest valid texel of the chart around it.
         let (tx, ty) = (q.x.floor() as i64, q.y.floor() as i64);
-        if let Some(node) = node_at(tx, ty) {
+        let usable = |f: Option<(u32, bool)>| {
+            f.filter(|&(node, split)| !split || self.sees(from, node))
+                .map(|(node, _)| node)
+        };
+        if let Some(node) = usable(node_at(tx, ty)) {
             out[0] = (node, 1.0);
             return 1;
         }
         let mut best: Option<(f32, u32)> = None;
         for dy in -1..=1 {
             for dx in -1..=1 {
-                if let Some(node) = node_at(tx + dx, ty + dy) {
+                if let Some(node) = usable(node_at(tx + dx, ty + dy)) {
                     let centre = Vec2::new((tx + dx) as f32 + 0.5, (ty + dy) as f32 + 0.5);
                     let d = centre.distance_squared(q);
                     if best.is_none_or(|b| d < b.0) {
@@ -456,7 +567,7 @@ pub fn support_point(
         return None;
     }
     let mut w = [(0u32, 0f32); 4];
-    let n = mapper.weights_at(sp.triangle, q, &mut w);
+    let n = mapper.weights_at(sp.triangle, q, (sp.position, sp.geometric_normal), &mut w);
     let phi = w[..n]
         .iter()
         .find(|e| e.0 as usize == node)

@@ -292,25 +292,32 @@ fn xatlas_unwrap(
     settings: &BakeSettings,
     warnings: &mut Vec<String>,
 ) -> Result<MeshUnwrap> {
-    // A triangle longer than a page can hold at this density cannot be charted (xatlas
-    // crashed on a fuzzed mesh with a 1.5·10⁸ m sliver next to 0.3 m faces): refuse it here.
+    // The longest triangle must fit a page: lower the density up front when it does not (as
+    // the loop below does for whole atlases), but refuse a mesh that would need less than
+    // 1/1000 of the requested density: xatlas crashed (SIGSEGV) on a fuzzed mesh with a
+    // 1.5·10⁸ m sliver next to 0.3 m faces.
     let max_chart = settings
         .max_page_size
         .saturating_sub(2 * settings.padding + 2)
         .max(1) as f32;
+    let (mut longest, mut longest_t) = (0.0f32, 0);
     for t in 0..mesh.triangle_count() {
         let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i]);
-        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
-        let texels = longest * request.texels_per_unit;
-        if texels.is_nan() || texels > max_chart {
-            return Err(BakeError::Unwrap {
-                mesh: mesh.name.clone(),
-                message: format!(
-                    "triangle {t} is {longest:e} units long, {texels:e} texels at {:e} texels per unit: more than a {}-texel page can hold; split it or lower the texel density",
-                    request.texels_per_unit, settings.max_page_size
-                ),
-            });
+        let edge = (b - a).length().max((c - b).length()).max((a - c).length());
+        if edge.is_nan() || edge > longest {
+            (longest, longest_t) = (edge, t);
         }
+    }
+    let texels = longest * request.texels_per_unit;
+    let fit = max_chart / texels;
+    if fit.is_nan() || fit < 1e-3 {
+        return Err(BakeError::Unwrap {
+            mesh: mesh.name.clone(),
+            message: format!(
+                "triangle {longest_t} is {longest:e} units long, {texels:e} texels at {:e} texels per unit: a {}-texel page holds it only below 1/1000 of the requested density; split it or check the mesh",
+                request.texels_per_unit, settings.max_page_size
+            ),
+        });
     }
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
@@ -335,6 +342,10 @@ fn xatlas_unwrap(
         ..xatlas::PackOptions::default()
     };
     let mut scaled = false;
+    if fit < 1.0 {
+        pack.texels_per_unit *= 0.97 * fit;
+        scaled = true;
+    }
     for _attempt in 0..8 {
         let out =
             xatlas::generate(&input, &xatlas::ChartOptions::default(), &pack).map_err(|e| {
