@@ -375,6 +375,18 @@ fn bake_in_pool(
                     }
                     unreachable!("the last round returns")
                 })?;
+            // Keller's walk follows at most `vpl_max_depth` reflections: in a closed scene the
+            // light beyond them is ρ̄^(d+1) of the total, and it is not baked.
+            let depth = settings.vpl_max_depth.min(crate::vpl::walk::MAX_DEPTH);
+            let lost = (report.mean_reflectivity as f64).powi(depth as i32 + 1);
+            if lost > 0.01 {
+                warnings.push(format!(
+                    "instant radiosity follows at most {depth} reflections; with mean reflectivity {:.3} the light beyond them, up to {:.1}% of the total in a closed scene, is not baked (raise vpl_max_depth, at most {}, or use the radiosity method)",
+                    report.mean_reflectivity,
+                    100.0 * lost,
+                    crate::vpl::walk::MAX_DEPTH
+                ));
+            }
             if let Some(t) = share.filter(|&t| report.error.relative_rms > t) {
                 warnings.push(format!(
                     "instant radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
