@@ -654,3 +654,44 @@ fn vpls_in_a_sharp_wedge() {
     let wedge: Vec<_> = failures.iter().filter(|f| f.contains("wedge")).collect();
     assert!(wedge.is_empty(), "{wedge:#?}");
 }
+
+#[test]
+fn a_solver_that_cannot_converge_at_albedo_0_999_says_so() {
+    // ρ = 0.999 needs thousands of Jacobi sweeps; with a budget of 300 every slow solver must
+    // either still land within 1% of E/(1 − ρ) or warn that it stopped short. Never a silent
+    // wrong answer.
+    let (rho, e) = (0.999f32, 1.0f32);
+    let scene = furnace_box(1.0, rho, e);
+    let expected = e / (1.0 - rho);
+    for solver in [
+        SolverChoice::Jacobi,
+        SolverChoice::GaussSeidel,
+        SolverChoice::Shooting,
+        SolverChoice::StochasticJacobi,
+    ] {
+        let mut s = settings(Method::Radiosity, 8.0);
+        s.solver = solver;
+        s.max_solver_iterations = 300;
+        s.solver_tolerance = 2e-3;
+        s.stochastic_rays_per_node = 64;
+        let out = bake(&scene, &s);
+        assert!(all_finite(&out), "{solver:?}: non-finite texels");
+        let values: Vec<f32> = common::texels(&out, 0).iter().map(|t| t.value.x).collect();
+        let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64;
+        let warned = out
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("did not reach the tolerance"));
+        println!("{solver:?}: mean {mean:.1} against {expected:.1}, warned {warned}");
+        assert!(
+            warned || common::rel(mean as f32, expected) < 0.01,
+            "{solver:?}: mean {mean} against {expected} and no warning: {:?}",
+            out.report.warnings
+        );
+        assert!(
+            warned,
+            "{solver:?}: converged at ρ = 0.999 within 300 iterations?"
+        );
+    }
+}
