@@ -305,7 +305,7 @@ impl<'a> HitMapper<'a> {
     }
 
     /// Flags nodes whose anchor cannot see the anchor of a neighbouring node of the same
-    /// chart (4 of the 8 neighbours per texel, so each pair is tested once). Lookups near
+    /// chart (8-neighbourhood). Lookups near
     /// such nodes then drop corners hidden from the looked-up point, so a floor texel
     /// straddling a thin wall does not carry light from one side to the other.
     fn mark_split_nodes(&mut self) {
@@ -318,43 +318,35 @@ impl<'a> HitMapper<'a> {
         for (page, grid) in self.grid.iter_mut().enumerate() {
             let w = ctx.layout.pages[page].width as usize;
             let h = grid.len() / w.max(1);
-            let split: Vec<usize> = (0..grid.len())
+            // Each neighbouring pair is tested once (the four forward neighbours); both ends of
+            // a hidden pair are flagged.
+            let cells: &[TexelNode] = grid;
+            let split: Vec<(usize, usize)> = (0..cells.len())
                 .into_par_iter()
-                .filter(|&k| {
-                    let t = grid[k];
-                    if t.node == u32::MAX {
-                        return false;
-                    }
+                .flat_map_iter(|k| {
+                    let t = cells[k];
                     let (x, y) = ((k % w) as i64, (k / w) as i64);
-                    [
-                        (1, 0),
-                        (-1, 1),
-                        (0, 1),
-                        (1, 1),
-                        (-1, 0),
-                        (1, -1),
-                        (0, -1),
-                        (-1, -1),
-                    ]
-                    .iter()
-                    .any(|&(dx, dy)| {
+                    let neighbours = [(1, 0), (-1, 1), (0, 1), (1, 1)];
+                    neighbours.into_iter().filter_map(move |(dx, dy)| {
                         let (nx, ny) = (x + dx, y + dy);
-                        if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                            return false;
+                        if t.node == u32::MAX || nx < 0 || nx >= w as i64 || ny >= h as i64 {
+                            return None;
                         }
-                        let o = grid[ny as usize * w + nx as usize];
+                        let j = ny as usize * w + nx as usize;
+                        let o = cells[j];
                         if o.node == u32::MAX || o.instance != t.instance || o.chart != t.chart {
-                            return false;
+                            return None;
                         }
                         let (a, b) = (anchor(t.node), anchor(o.node));
                         let d = b - a;
                         let len = d.length();
-                        len > 0.0 && ctx.rays.occluded(a, d / len, 0.0, len)
+                        (len > 0.0 && ctx.rays.occluded(a, d / len, 0.0, len)).then_some((k, j))
                     })
                 })
                 .collect();
-            for k in split {
+            for (k, j) in split {
                 grid[k].instance |= SPLIT;
+                grid[j].instance |= SPLIT;
             }
         }
     }
