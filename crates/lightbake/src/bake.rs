@@ -215,7 +215,12 @@ fn bake_in_pool(
     } else {
         let rays = stages.run("bvh", progress, 1, || {
             let rays = RayScene::build(&baked_scene);
-            let note = format!("{} triangles", rays.bvh_triangle_count());
+            let (nodes, packets, bytes) = rays.bvh_size();
+            let note = format!(
+                "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB",
+                rays.bvh_triangle_count(),
+                bytes as f64 / 1048576.0
+            );
             Ok((rays, 0, note))
         })?;
         let mut patches = stages.run("raster", progress, 1, || {

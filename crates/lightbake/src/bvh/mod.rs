@@ -226,6 +226,12 @@ impl RayScene {
         }
     }
 
+    /// Four-wide nodes, leaf packets and bytes of the BVH.
+    pub fn bvh_size(&self) -> (usize, usize, usize) {
+        let (nodes, packets) = self.bvh.sizes();
+        (nodes, packets, self.bvh.bytes())
+    }
+
     /// Number of triangles in the BVH (zero-area ones excluded).
     pub fn bvh_triangle_count(&self) -> usize {
         self.accel.len()

@@ -210,8 +210,8 @@ impl Bvh4 {
         self.nodes.len() * size_of::<Node4>() + self.tris.len() * size_of::<Tri4>()
     }
 
-    /// Calls `visit` on every primitive whose leaf the ray enters (closest hit when `visit`
-    /// shrinks `ray.tmax`; any hit when it returns `true` to stop). Children are visited
+    /// Calls `leaf` on every triangle packet of the leaves the ray enters (closest hit when
+    /// `leaf` shrinks `ray.tmax`; any hit when it returns `true` to stop). Children are visited
     /// nearest first when `ordered`.
     #[inline(always)]
     fn traverse(
