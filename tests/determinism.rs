@@ -64,7 +64,6 @@ fn one_and_two_threads_write_identical_lightmap_bytes() {
 #[test]
 fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
     use lightbake::settings::Method;
-    use lightbake::solve::SolverChoice;
     use lightbake::transport::Basis;
     let scene = cornell_box(CornellLight::Area);
     let base = {
@@ -91,15 +90,7 @@ fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
             ..base.clone()
         },
     ));
-    for solver in [
-        SolverChoice::Jacobi,
-        SolverChoice::GaussSeidel,
-        SolverChoice::Shooting,
-        SolverChoice::StochasticJacobi,
-        SolverChoice::Krylov,
-        SolverChoice::KrylovCg,
-        SolverChoice::Direct,
-    ] {
+    for solver in common::ALL_SOLVERS {
         cases.push((
             format!("radiosity {}", solver.name()),
             BakeSettings {

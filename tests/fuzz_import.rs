@@ -64,54 +64,43 @@ fn visit(v: &mut Value, f: &mut dyn FnMut(&mut Value)) {
     }
 }
 
+/// Calls `f` once, on the `k`-th value (in document order, modulo their count) that `pred`
+/// accepts.
+fn edit_nth(json: &mut Value, k: usize, pred: impl Fn(&Value) -> bool, f: impl FnOnce(&mut Value)) {
+    let mut n = 0;
+    visit(json, &mut |v| n += pred(v) as usize);
+    let (mut i, target, mut f) = (0, k % n.max(1), Some(f));
+    visit(json, &mut |v| {
+        if pred(v) {
+            if i == target {
+                if let Some(f) = f.take() {
+                    f(v);
+                }
+            }
+            i += 1;
+        }
+    });
+}
+
 fn apply(json: &mut Value, e: &Edit) {
-    let count = |json: &mut Value, pred: &dyn Fn(&Value) -> bool| {
-        let mut n = 0;
-        visit(json, &mut |v| n += pred(v) as usize);
-        n
-    };
     match e {
-        Edit::Number(k, x) => {
-            let n = count(json, &|v| v.is_number());
-            let (mut i, target) = (0, k % n.max(1));
-            visit(json, &mut |v| {
-                if v.is_number() {
-                    if i == target {
-                        *v = serde_json::Number::from_f64(*x).map_or(Value::Null, Value::Number);
-                    }
-                    i += 1;
-                }
-            });
-        }
-        Edit::Remove(k) => {
-            let n = count(json, &|v| v.as_object().is_some_and(|o| !o.is_empty()));
-            let (mut i, target) = (0, k % n.max(1));
-            let mut done = false;
-            visit(json, &mut |v| {
+        Edit::Number(k, x) => edit_nth(json, *k, Value::is_number, |v| {
+            *v = serde_json::Number::from_f64(*x).map_or(Value::Null, Value::Number);
+        }),
+        Edit::Remove(k) => edit_nth(
+            json,
+            *k,
+            |v| v.as_object().is_some_and(|o| !o.is_empty()),
+            |v| {
                 if let Value::Object(o) = v {
-                    if !o.is_empty() && !done {
-                        if i == target {
-                            let key = o.keys().nth(k % o.len()).cloned().unwrap();
-                            o.remove(&key);
-                            done = true;
-                        }
-                        i += 1;
-                    }
+                    let key = o.keys().nth(k % o.len()).cloned().unwrap();
+                    o.remove(&key);
                 }
-            });
-        }
-        Edit::Text(k, s) => {
-            let n = count(json, &|v| v.is_string());
-            let (mut i, target) = (0, k % n.max(1));
-            visit(json, &mut |v| {
-                if v.is_string() {
-                    if i == target {
-                        *v = Value::String(s.clone());
-                    }
-                    i += 1;
-                }
-            });
-        }
+            },
+        ),
+        Edit::Text(k, s) => edit_nth(json, *k, Value::is_string, |v| {
+            *v = Value::String(s.clone());
+        }),
     }
 }
 

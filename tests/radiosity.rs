@@ -23,22 +23,12 @@ fn radiosity_settings(density: f32, solver: SolverChoice) -> BakeSettings {
     s
 }
 
-const ALL: [SolverChoice; 7] = [
-    SolverChoice::Jacobi,
-    SolverChoice::GaussSeidel,
-    SolverChoice::Shooting,
-    SolverChoice::StochasticJacobi,
-    SolverChoice::Krylov,
-    SolverChoice::KrylovCg,
-    SolverChoice::Direct,
-];
-
 #[test]
 fn furnace_gives_e_over_one_minus_rho_for_every_solver() {
     let luminance = 100.0f32;
     for rho in [0.3f32, 0.9, 0.99, 0.999] {
         let scene = furnace_box(1.0, rho, luminance);
-        for solver in ALL {
+        for solver in common::ALL_SOLVERS {
             let stiff_capable = matches!(
                 solver,
                 SolverChoice::Krylov | SolverChoice::KrylovCg | SolverChoice::Direct

@@ -8,6 +8,20 @@ use lightbake::scene::testscenes::plane;
 use lightbake::scene::{Instance, Material, Mesh, Scene};
 use lightbake::settings::BakeSettings;
 
+/// Every radiosity solver (not `Auto`).
+pub const ALL_SOLVERS: [lightbake::solve::SolverChoice; 7] = {
+    use lightbake::solve::SolverChoice::*;
+    [
+        Jacobi,
+        GaussSeidel,
+        Shooting,
+        StochasticJacobi,
+        Krylov,
+        KrylovCg,
+        Direct,
+    ]
+};
+
 /// Bakes in memory and panics with the error on failure.
 pub fn bake(scene: &Scene, settings: &BakeSettings) -> BakeOutput {
     lightbake::bake(scene, settings, &Progress::new())

@@ -39,6 +39,26 @@ pub struct TriangleInfo {
     pub double_sided: bool,
 }
 
+/// Groups of triangles lying exactly on each other (the same three vertices, in any order),
+/// from `(id, vertices)` pairs: each group lists its ids in increasing order; triangles
+/// without a twin are left out.
+pub fn coincident_groups(tris: impl IntoIterator<Item = (u32, [Vec3; 3])>) -> Vec<Vec<u32>> {
+    let mut keyed: Vec<([[u32; 3]; 3], u32)> = tris
+        .into_iter()
+        .map(|(id, v)| {
+            let mut key = v.map(|p| p.to_array().map(f32::to_bits));
+            key.sort_unstable();
+            (key, id)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed
+        .chunk_by(|a, b| a.0 == b.0)
+        .filter(|run| run.len() > 1)
+        .map(|run| run.iter().map(|e| e.1).collect())
+        .collect()
+}
+
 /// Precomputed triangle for the intersection test (BVH order).
 #[derive(Clone, Copy, Debug)]
 struct TriAccel {
@@ -162,15 +182,15 @@ impl RayScene {
         let live: Vec<u32> = (0..triangles.len() as u32)
             .filter(|&i| triangles[i as usize].area > 0.0)
             .collect();
-        let obvhs_tris: Vec<obvhs::triangle::Triangle> = live
+        // Primitive k of the four-wide tree is live triangle k.
+        let live_tris: Vec<[Vec3; 3]> = live.iter().map(|&g| world_tris[g as usize]).collect();
+        drop(world_tris);
+        let obvhs_tris: Vec<obvhs::triangle::Triangle> = live_tris
             .iter()
-            .map(|&i| {
-                let p = world_tris[i as usize];
-                obvhs::triangle::Triangle {
-                    v0: p[0].into(),
-                    v1: p[1].into(),
-                    v2: p[2].into(),
-                }
+            .map(|p| obvhs::triangle::Triangle {
+                v0: p[0].into(),
+                v1: p[1].into(),
+                v2: p[2].into(),
             })
             .collect();
         let params = BvhBuildParams::very_slow_build();
@@ -184,8 +204,6 @@ impl RayScene {
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         drop(obvhs_tris);
-        // Primitive k of the four-wide tree is live triangle k.
-        let live_tris: Vec<[Vec3; 3]> = live.iter().map(|&g| world_tris[g as usize]).collect();
         let bvh = Bvh4::collapse(&bvh2, &live_tris);
         let build_time = start.elapsed();
         let bvh_to_global = live;

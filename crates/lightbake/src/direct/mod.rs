@@ -29,7 +29,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::bake::BakeContext;
-use crate::bvh::RayScene;
+use crate::bvh::{RayScene, coincident_groups};
 use crate::estimate::standard_error;
 use crate::plan::BakePlan;
 use crate::progress::Progress;
@@ -129,40 +129,34 @@ impl Emitters {
         // Coincident duplicates: two emitters on the same triangle are one visible surface, but
         // each adds its full closed-form irradiance and neither shadows the other, so the light
         // would count twice. Sample the first; map hits on a twin to it.
-        let mut twins: Vec<(u32, u32)> = Vec::new();
+        // `sampled_as[k]`: the emitter that stands for emitter k (itself unless an earlier
+        // coincident one with the same radiance does).
+        let mut sampled_as: Vec<usize> = (0..list.len()).collect();
+        for group in coincident_groups(list.iter().enumerate().map(|(k, e)| (k as u32, e.vertices)))
         {
-            let key = |e: &Emitter| {
-                let mut v = e.vertices.map(|p| p.to_array().map(f32::to_bits));
-                v.sort_unstable();
-                v
-            };
-            let mut order: Vec<usize> = (0..list.len()).collect();
-            order.sort_by_key(|&k| (key(&list[k]), k));
-            let mut drop = vec![false; list.len()];
-            for w in order.windows(2) {
-                if key(&list[w[0]]) == key(&list[w[1]])
-                    && list[w[0]].radiance == list[w[1]].radiance
-                {
-                    drop[w[1]] = true;
+            for (i, &k) in group.iter().enumerate() {
+                let k = k as usize;
+                if let Some(&f) = group[..i].iter().find(|&&f| {
+                    sampled_as[f as usize] == f as usize
+                        && list[f as usize].radiance == list[k].radiance
+                }) {
+                    sampled_as[k] = f as usize;
                 }
             }
-            let mut kept = Vec::with_capacity(list.len());
-            let mut first_of = vec![0u32; list.len()];
-            for (k, e) in list.iter().enumerate() {
-                if !drop[k] {
-                    first_of[k] = kept.len() as u32;
-                    kept.push(*e);
-                }
-            }
-            // A dropped twin follows its first copy in `order`.
-            for w in order.windows(2) {
-                if drop[w[1]] {
-                    first_of[w[1]] = first_of[w[0]];
-                    twins.push((list[w[1]].triangle, first_of[w[1]]));
-                }
-            }
-            list = kept;
         }
+        let mut new_index = vec![0u32; list.len()];
+        let mut kept = Vec::with_capacity(list.len());
+        for (k, e) in list.iter().enumerate() {
+            if sampled_as[k] == k {
+                new_index[k] = kept.len() as u32;
+                kept.push(*e);
+            }
+        }
+        let twins: Vec<(u32, u32)> = (0..list.len())
+            .filter(|&k| sampled_as[k] != k)
+            .map(|k| (list[k].triangle, new_index[sampled_as[k]]))
+            .collect();
+        list = kept;
         let mut total = 0.0f64;
         let mut cdf: Vec<f32> = list
             .iter()

@@ -35,7 +35,7 @@ use rayon::prelude::*;
 
 use super::{Recorder, Solution, norm, to_f64};
 use crate::bake::BakeContext;
-use crate::bvh::{Hit, RayScene};
+use crate::bvh::{Hit, RayScene, coincident_groups};
 use crate::direct::luminance;
 use crate::progress::Progress;
 use crate::raster::Surface;
@@ -238,27 +238,16 @@ struct Twins {
 
 impl Twins {
     fn new(rays: &RayScene) -> Self {
-        let key = |g: u32| {
-            let mut v = rays
-                .triangle_vertices(g)
-                .map(|p| p.to_array().map(f32::to_bits));
-            v.sort_unstable();
-            v
-        };
-        let mut order: Vec<(_, u32)> = (0..rays.triangles.len() as u32)
-            .filter(|&g| rays.triangles[g as usize].area > 0.0)
-            .map(|g| (key(g), g))
+        let groups = coincident_groups(
+            (0..rays.triangles.len() as u32)
+                .filter(|&g| rays.triangles[g as usize].area > 0.0)
+                .map(|g| (g, rays.triangle_vertices(g))),
+        );
+        let mut of: Vec<(u32, u32)> = groups
+            .iter()
+            .enumerate()
+            .flat_map(|(id, group)| group.iter().map(move |&g| (g, id as u32)))
             .collect();
-        order.sort_unstable();
-        let mut of = Vec::new();
-        let mut groups = Vec::new();
-        for run in order.chunk_by(|a, b| a.0 == b.0) {
-            if run.len() > 1 {
-                let id = groups.len() as u32;
-                groups.push(run.iter().map(|e| e.1).collect::<Vec<_>>());
-                of.extend(run.iter().map(|e| (e.1, id)));
-            }
-        }
         of.sort_unstable();
         Self { of, groups }
     }
