@@ -629,3 +629,97 @@ fn transport_over_budget_falls_back_or_is_refused() {
         ),
     }
 }
+
+/// The fast support sampler of interior nodes ([`SupportFrame`]) against the slow general one
+/// ([`support_point`]): the same start points, normals and weights, on the Cornell box and on
+/// a curved-normal grid under a rotated, non-uniformly scaled instance transform.
+#[test]
+fn fast_support_frames_match_the_slow_sampler() {
+    use lightbake::transport::{HitMapper, SupportFrame, support_point};
+    let cornell = cornell_box(CornellLight::Area);
+    let mut bent = Scene::default();
+    let mat = bent.add_material(Material::diffuse("grey", Vec3::splat(0.5)));
+    let mut g = lightbake::scene::testscenes::grid("bent", 2.0, 6);
+    // Shading normals that vary across every triangle.
+    for (n, p) in g.normals.iter_mut().zip(&g.positions) {
+        *n = (Vec3::Y + Vec3::new(0.4 * p.x, 0.0, -0.3 * p.z * p.x)).normalize();
+    }
+    let id = bent.add_mesh(Mesh {
+        material: Some(mat),
+        ..g
+    });
+    bent.instances.push(lightbake::scene::Instance::new(
+        "bent",
+        id,
+        Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.5, 1.0, 0.7),
+            glam::Quat::from_rotation_z(0.6) * glam::Quat::from_rotation_x(0.3),
+            Vec3::new(0.2, 0.1, -0.4),
+        ),
+    ));
+    bent.lights.push(Light {
+        name: "l".into(),
+        kind: LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 1.0,
+        range: None,
+        position: Vec3::new(0.0, 2.0, 0.0),
+        direction: Vec3::NEG_Y,
+    });
+    for (name, scene, density) in [("cornell", cornell, 64.0), ("bent grid", bent, 48.0)] {
+        let prep =
+            Prepared::new(&scene, &radiosity_settings(density, SolverChoice::Direct)).unwrap();
+        let ctx = prep.ctx();
+        let nodes = Nodes::new(&ctx, Basis::Linear);
+        let mapper = HitMapper::new(ctx, &nodes, Basis::Linear);
+        let (mut fast_nodes, mut samples, mut worst) = (0, 0, (0.0f32, 0.0f32, 0.0f32));
+        let mut weight_diff_sum = 0.0f64;
+        for i in 0..nodes.len() {
+            let p = &ctx.patches.patches[nodes.patch[i] as usize];
+            let Some(frame) = SupportFrame::new(&ctx, &mapper, i, p) else {
+                continue;
+            };
+            fast_nodes += 1;
+            let key = 0x9e37_79b9 ^ i as u32;
+            for k in 0..32 {
+                let fast = frame.point(k, key);
+                let slow = support_point(&ctx, mapper.surface(), &mapper, i, p, k, key);
+                let (Some((f, fw)), Some((s, sw))) = (fast, slow) else {
+                    assert_eq!(
+                        fast.is_some(),
+                        slow.is_some(),
+                        "{name}: node {i} sample {k}"
+                    );
+                    continue;
+                };
+                samples += 1;
+                assert_eq!(f.triangle, s.triangle, "{name}: node {i} sample {k}");
+                worst.0 = worst.0.max(f.position.distance(s.position) / p.texel_size);
+                worst.1 = worst.1.max(f.normal.distance(s.normal));
+                worst.2 = worst.2.max((fw / sw - 1.0).abs());
+                weight_diff_sum += (fw / sw - 1.0).abs() as f64;
+            }
+        }
+        println!(
+            "{name}: {fast_nodes} of {} nodes fast, {samples} samples; worst position {:.1e} texels, normal {:.1e}, weight {:.1e} (mean {:.1e})",
+            nodes.len(),
+            worst.0,
+            worst.1,
+            worst.2,
+            weight_diff_sum / samples as f64
+        );
+        // Most nodes are interior, and not all (chart borders take the slow path).
+        assert!(
+            fast_nodes * 3 > nodes.len() && fast_nodes < nodes.len(),
+            "{name}"
+        );
+        assert!(samples > 1000, "{name}");
+        // The weights differ by the slow path's rounding of its bilinear weights, relative to
+        // weights that go to zero at the support's edge: small on average, larger at the edge.
+        assert!(
+            worst.0 < 1e-3 && worst.1 < 1e-4 && worst.2 < 1e-2,
+            "{name}: {worst:?}"
+        );
+        assert!(weight_diff_sum / (samples as f64) < 1e-5, "{name}");
+    }
+}

@@ -16,7 +16,7 @@
 //!    see the representative point (so a texel straddling a thin wall does not mix in light
 //!    from the far side).
 
-use glam::{Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::bvh::RayScene;
@@ -265,6 +265,9 @@ pub struct Surface<'a> {
     scene: &'a Scene,
     layout: &'a Layout,
     rays: &'a RayScene,
+    /// Per instance: the matrix that carries mesh normals to world space (computed once; the
+    /// lookups are among the hottest code of the transport build).
+    normal_matrices: Vec<Mat3>,
 }
 
 impl<'a> Surface<'a> {
@@ -274,6 +277,7 @@ impl<'a> Surface<'a> {
             scene,
             layout,
             rays,
+            normal_matrices: scene.instances.iter().map(|i| i.normal_matrix()).collect(),
         }
     }
 
@@ -301,19 +305,107 @@ impl<'a> Surface<'a> {
         let n_local = mesh.normals[a] * w + mesh.normals[b] * u + mesh.normals[c] * v;
         let position = inst.transform.transform_point3(local);
         let g = info.normal;
-        let mut n = (inst.normal_matrix() * n_local).normalize_or(g);
-        let d = n.dot(g);
-        if d < 0.0 {
-            // Reflect about the tangent plane: onto the front side.
-            n = (n - 2.0 * d * g).normalize_or(g);
-        }
         Some(SurfacePoint {
             position,
-            normal: n,
+            normal: front_normal(self.normal_matrices[info.instance as usize] * n_local, g),
             geometric_normal: g,
             triangle,
             bary: Vec2::new(u, v),
         })
+    }
+
+    /// The affine map of the surface of global triangle `triangle` around texel-space point `q`
+    /// (as in [`Self::point`]): lightmap UVs, barycentrics and positions are all linear over a
+    /// triangle, so points near `q` need no barycentric solve. `None` for a degenerate triangle
+    /// or one without lightmap UVs.
+    pub fn frame(&self, triangle: u32, q: Vec2) -> Option<SurfaceFrame> {
+        let info = self.rays.triangles[triangle as usize];
+        let inst = &self.scene.instances[info.instance as usize];
+        let mesh = &self.scene.meshes[inst.mesh];
+        let unwrap = self.layout.meshes[inst.mesh].as_ref()?;
+        let uv1 = mesh.uv1.as_ref()?;
+        let scale = Vec2::new(unwrap.width as f32, unwrap.height as f32);
+        let [a, b, c] = mesh.triangle(info.local as usize);
+        let t = [uv1[a] * scale, uv1[b] * scale, uv1[c] * scale];
+        let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], q - t[0]);
+        let det = e1.perp_dot(e2);
+        if det.abs() < 1e-20 {
+            return None;
+        }
+        // Barycentrics (u, v) of q and their gradients in q (the solve of `barycentric_2d`).
+        let bary = Vec2::new(d.perp_dot(e2), e1.perp_dot(d)) / det;
+        let du = Vec2::new(e2.y, -e2.x) / det;
+        let dv = Vec2::new(-e1.y, e1.x) / det;
+        let along = |f: [Vec3; 3]| {
+            let (f1, f2) = (f[1] - f[0], f[2] - f[0]);
+            [
+                f[0] + f1 * bary.x + f2 * bary.y,
+                f1 * du.x + f2 * dv.x,
+                f1 * du.y + f2 * dv.y,
+            ]
+        };
+        let nm = self.normal_matrices[info.instance as usize];
+        Some(SurfaceFrame {
+            triangle,
+            geometric_normal: info.normal,
+            position: along([a, b, c].map(|k| inst.transform.transform_point3(mesh.positions[k]))),
+            normal: along([a, b, c].map(|k| nm * mesh.normals[k])),
+            bary: [bary, Vec2::new(du.x, dv.x), Vec2::new(du.y, dv.y)],
+        })
+    }
+}
+
+/// A shading normal turned to the front of geometric normal `g`: normalised, and reflected
+/// about the tangent plane when it points behind it.
+fn front_normal(n: Vec3, g: Vec3) -> Vec3 {
+    let n = n.normalize_or(g);
+    let d = n.dot(g);
+    if d < 0.0 {
+        (n - 2.0 * d * g).normalize_or(g)
+    } else {
+        n
+    }
+}
+
+/// The surface of one triangle around a texel-space point q₀ as an affine map of the offset
+/// (see [`Surface::frame`]): each quantity is stored as its value at q₀ and its derivatives
+/// along the texel x and y axes.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceFrame {
+    triangle: u32,
+    geometric_normal: Vec3,
+    /// World position, m (value, ∂/∂x, ∂/∂y per texel).
+    position: [Vec3; 3],
+    /// Interpolated world shading normal before normalisation.
+    normal: [Vec3; 3],
+    /// Barycentrics of the triangle's second and third vertices.
+    bary: [Vec2; 3],
+}
+
+impl SurfaceFrame {
+    /// Barycentrics at q₀ + `d` (not clamped: outside the triangle they leave [0, 1]).
+    pub fn bary_at(&self, d: Vec2) -> Vec2 {
+        self.bary[0] + self.bary[1] * d.x + self.bary[2] * d.y
+    }
+
+    /// Whether q₀ + `d` lies inside the triangle by at least `margin` in every barycentric.
+    pub fn contains(&self, d: Vec2, margin: f32) -> bool {
+        let b = self.bary_at(d);
+        b.x >= margin && b.y >= margin && 1.0 - b.x - b.y >= margin
+    }
+
+    /// The surface point at q₀ + `d` (texels), as [`Surface::point`] gives it for a point
+    /// inside the triangle.
+    pub fn point(&self, d: Vec2) -> SurfacePoint {
+        let g = self.geometric_normal;
+        let n = self.normal[0] + self.normal[1] * d.x + self.normal[2] * d.y;
+        SurfacePoint {
+            position: self.position[0] + self.position[1] * d.x + self.position[2] * d.y,
+            normal: front_normal(n, g),
+            geometric_normal: g,
+            triangle: self.triangle,
+            bary: self.bary_at(d),
+        }
     }
 }
 

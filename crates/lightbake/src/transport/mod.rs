@@ -72,6 +72,10 @@ pub struct Nodes {
     /// Diffuse albedo of each node: base colour × (1 − metallic) × the base-colour texture
     /// averaged over the texel's footprint.
     pub albedo: Vec<Vec3>,
+    /// Per node: whether geometry cuts its basis support (its anchor cannot see the anchor of
+    /// a neighbouring node of its chart; see [`HitMapper`]). Traced once here, for every
+    /// mapper made for these nodes.
+    pub split: Vec<bool>,
 }
 
 impl Nodes {
@@ -96,8 +100,14 @@ impl Nodes {
             of_patch,
             area: Vec::new(),
             albedo,
+            split: Vec::new(),
         };
-        nodes.area = basis_areas(ctx, &surface, &nodes, basis);
+        let mapper = HitMapper::new(*ctx, &nodes, basis);
+        let split = mapper.split_flags();
+        let area = basis_areas(ctx, &surface, &nodes, &mapper);
+        drop(mapper);
+        nodes.area = area;
+        nodes.split = split;
         nodes
     }
 
@@ -129,9 +139,8 @@ fn basis_areas(
     ctx: &BakeContext<'_>,
     surface: &Surface<'_>,
     nodes: &Nodes,
-    basis: Basis,
+    mapper: &HitMapper<'_>,
 ) -> Vec<f32> {
-    let mapper = HitMapper::new(*ctx, nodes, basis);
     let patches = &ctx.patches.patches;
     let chunks: Vec<Vec<(u32, f32)>> = patches
         .par_chunks(512)
@@ -250,6 +259,19 @@ pub struct HitMapper<'a> {
     grid: Vec<Vec<TexelNode>>,
     /// Per node: its patch (for the anchor point of the visibility test).
     node_patch: &'a [u32],
+    /// Surface lookups (texel point → world point) for the rays' start points.
+    surface: Surface<'a>,
+    /// Per global triangle: its lightmap UVs and owner, so a hit finds its texels in one load.
+    triangles: Vec<TriangleTexels>,
+}
+
+/// What a hit on one triangle needs to find its texels: the triangle's lightmap UVs (`TEXCOORD_1`,
+/// unscaled) and its owner; `instance == u32::MAX` when the triangle is not baked.
+#[derive(Clone, Copy, Debug)]
+struct TriangleTexels {
+    uv: [Vec2; 3],
+    instance: u32,
+    chart: u32,
 }
 
 /// A texel's node and its owner (instance, chart); `node == u32::MAX` when it has none.
@@ -266,7 +288,7 @@ struct TexelNode {
 const SPLIT: u32 = 1 << 31;
 
 impl<'a> HitMapper<'a> {
-    /// A mapper for `basis`.
+    /// A mapper for `basis`. The split flags come from `nodes` (traced when they are missing).
     pub fn new(ctx: BakeContext<'a>, nodes: &'a Nodes, basis: Basis) -> Self {
         let none = TexelNode {
             node: u32::MAX,
@@ -299,9 +321,57 @@ impl<'a> HitMapper<'a> {
             basis,
             grid,
             node_patch: &nodes.patch,
+            surface: Surface::new(ctx.scene, ctx.layout, ctx.rays),
+            triangles: ctx
+                .rays
+                .triangles
+                .iter()
+                .map(|info| {
+                    let ii = info.instance as usize;
+                    let inst = &ctx.scene.instances[ii];
+                    let mesh = &ctx.scene.meshes[inst.mesh];
+                    match (ctx.layout.instances[ii], &ctx.layout.meshes[inst.mesh]) {
+                        (Some(_), Some(unwrap)) => {
+                            let uv1 = mesh.uv1.as_ref().expect("unwrapped meshes carry uv1");
+                            let [a, b, c] = mesh.triangle(info.local as usize);
+                            TriangleTexels {
+                                uv: [uv1[a], uv1[b], uv1[c]],
+                                instance: info.instance,
+                                chart: unwrap.triangle_charts[info.local as usize],
+                            }
+                        }
+                        _ => TriangleTexels {
+                            uv: [Vec2::ZERO; 3],
+                            instance: u32::MAX,
+                            chart: u32::MAX,
+                        },
+                    }
+                })
+                .collect(),
         };
-        mapper.mark_split_nodes();
+        if nodes.split.len() == nodes.len() {
+            for grid in &mut mapper.grid {
+                for t in grid.iter_mut() {
+                    if t.node != u32::MAX && nodes.split[t.node as usize] {
+                        t.instance |= SPLIT;
+                    }
+                }
+            }
+        } else {
+            mapper.mark_split_nodes();
+        }
         mapper
+    }
+
+    /// Per node: whether it is flagged split.
+    fn split_flags(&self) -> Vec<bool> {
+        let mut split = vec![false; self.node_patch.len()];
+        for t in self.grid.iter().flatten() {
+            if t.node != u32::MAX && t.instance & SPLIT != 0 {
+                split[t.node as usize] = true;
+            }
+        }
+        split
     }
 
     /// Flags nodes whose anchor cannot see the anchor of a neighbouring node of the same
@@ -363,6 +433,11 @@ impl<'a> HitMapper<'a> {
         len <= 0.0 || !ctx.rays.occluded(a, d / len, 0.0, len)
     }
 
+    /// Surface lookups for the mapper's scene.
+    pub fn surface(&self) -> &Surface<'a> {
+        &self.surface
+    }
+
     /// The basis.
     pub fn basis(&self) -> Basis {
         self.basis
@@ -376,15 +451,14 @@ impl<'a> HitMapper<'a> {
         if !hit.front_face && !info.double_sided {
             return 0;
         }
-        let ii = info.instance as usize;
-        let Some(rect) = ctx.layout.instances[ii] else {
+        let tri = self.triangles[hit.triangle as usize];
+        if tri.instance == u32::MAX {
+            return 0;
+        }
+        let Some(rect) = ctx.layout.instances[tri.instance as usize] else {
             return 0;
         };
-        let inst = &ctx.scene.instances[ii];
-        let mesh = &ctx.scene.meshes[inst.mesh];
-        let uv1 = mesh.uv1.as_ref().expect("unwrapped meshes carry uv1");
-        let [a, b, c] = mesh.triangle(info.local as usize);
-        let uv = uv1[a] * (1.0 - hit.u - hit.v) + uv1[b] * hit.u + uv1[c] * hit.v;
+        let uv = tri.uv[0] * (1.0 - hit.u - hit.v) + tri.uv[1] * hit.u + tri.uv[2] * hit.v;
         let q = uv * Vec2::new(rect.width as f32, rect.height as f32);
         let [v0, v1, v2] = ctx.rays.triangle_vertices(hit.triangle);
         let point = v0 * (1.0 - hit.u - hit.v) + v1 * hit.u + v2 * hit.v;
@@ -393,7 +467,8 @@ impl<'a> HitMapper<'a> {
         } else {
             -info.normal
         };
-        self.weights_at(hit.triangle, q, (point, side), out)
+        let grid = self.grid_lookup(rect, tri.instance, tri.chart);
+        self.weights_with(grid, q, (point, side), out)
     }
 
     /// Node weights at texel-space point `q` (in the instance's rectangle) on global triangle
@@ -407,29 +482,46 @@ impl<'a> HitMapper<'a> {
         from: (Vec3, Vec3),
         out: &mut [(u32, f32); 4],
     ) -> usize {
-        let ctx = &self.ctx;
-        let info = ctx.rays.triangles[triangle as usize];
-        let ii = info.instance as usize;
-        let Some(rect) = ctx.layout.instances[ii] else {
+        let tri = self.triangles[triangle as usize];
+        if tri.instance == u32::MAX {
+            return 0;
+        }
+        let Some(rect) = self.ctx.layout.instances[tri.instance as usize] else {
             return 0;
         };
-        let inst = &ctx.scene.instances[ii];
-        let Some(unwrap) = ctx.layout.meshes[inst.mesh].as_ref() else {
-            return 0;
-        };
-        let chart = unwrap.triangle_charts[info.local as usize];
-        let page_w = ctx.layout.pages[rect.page as usize].width;
+        let grid = self.grid_lookup(rect, tri.instance, tri.chart);
+        self.weights_with(grid, q, from, out)
+    }
+
+    /// The lookup of rect-local texel (x, y) of instance `instance`'s rectangle `rect`: its
+    /// node, if it belongs to that instance and chart `chart`, and whether it is split.
+    fn grid_lookup(
+        &self,
+        rect: crate::unwrap::InstanceRect,
+        instance: u32,
+        chart: u32,
+    ) -> impl Fn(i64, i64) -> Option<(u32, bool)> + '_ {
+        let page_w = self.ctx.layout.pages[rect.page as usize].width as i64;
         let grid = &self.grid[rect.page as usize];
-        // The node at rect-local texel (x, y), if it belongs to this instance and chart, and
-        // whether it is split.
-        let node_at = |x: i64, y: i64| -> Option<(u32, bool)> {
+        move |x: i64, y: i64| {
             if x < 0 || y < 0 || x >= rect.width as i64 || y >= rect.height as i64 {
                 return None;
             }
-            let t = grid[((rect.y as i64 + y) * page_w as i64 + rect.x as i64 + x) as usize];
-            (t.node != u32::MAX && (t.instance & !SPLIT) as usize == ii && t.chart == chart)
+            let t = grid[((rect.y as i64 + y) * page_w + rect.x as i64 + x) as usize];
+            (t.node != u32::MAX && t.instance & !SPLIT == instance && t.chart == chart)
                 .then_some((t.node, t.instance & SPLIT != 0))
-        };
+        }
+    }
+
+    /// [`Self::weights_at`] with the texel lookup `node_at` (rect-local texel → node and
+    /// split flag, see [`Self::grid_lookup`]).
+    fn weights_with(
+        &self,
+        node_at: impl Fn(i64, i64) -> Option<(u32, bool)>,
+        q: Vec2,
+        from: (Vec3, Vec3),
+        out: &mut [(u32, f32); 4],
+    ) -> usize {
         if self.basis == Basis::Linear {
             let (x, y) = (q.x - 0.5, q.y - 0.5);
             let (x0, y0) = (x.floor(), y.floor());
@@ -441,14 +533,22 @@ impl<'a> HitMapper<'a> {
                 (x0, y0 + 1, (1.0 - fx) * fy),
                 (x0 + 1, y0 + 1, fx * fy),
             ];
-            let found = corners.map(|(cx, cy, w)| (w > 0.0).then(|| node_at(cx, cy)).flatten());
-            let split = found.iter().flatten().any(|&(_, s)| s);
+            // Plain loops over a fixed array: this runs for every ray end and start point.
+            let mut found = [(0u32, 0f32, false); 4];
+            let mut m = 0;
+            let mut split = false;
+            for (cx, cy, w) in corners {
+                if w > 0.0
+                    && let Some((node, node_split)) = node_at(cx, cy)
+                {
+                    found[m] = (node, w, node_split);
+                    split |= node_split;
+                    m += 1;
+                }
+            }
             let mut n = 0;
             let mut sum = 0.0;
-            for (&(_, _, w), f) in corners.iter().zip(found) {
-                let Some((node, node_split)) = f else {
-                    continue;
-                };
+            for &(node, w, node_split) in &found[..m] {
                 if split && node_split && !self.sees(from, node) {
                     continue;
                 }
@@ -517,17 +617,7 @@ pub fn support_point(
     let centre = Vec2::new((p.x - rect.x) as f32 + 0.5, (p.y - rect.y) as f32 + 0.5);
     let u = sobol_02(k, key);
     let (offset, density) = match mapper.basis {
-        Basis::Linear => {
-            let tent = |u: f32| {
-                if u < 0.5 {
-                    (2.0 * u).sqrt() - 1.0
-                } else {
-                    1.0 - (2.0 - 2.0 * u).sqrt()
-                }
-            };
-            let d = Vec2::new(tent(u.x), tent(u.y));
-            (d, (1.0 - d.x.abs()) * (1.0 - d.y.abs()))
-        }
+        Basis::Linear => tent_offset(u),
         Basis::Constant => (u - Vec2::splat(0.5), 1.0),
     };
     if density <= 0.0 {
@@ -568,6 +658,102 @@ pub fn support_point(
         return None;
     }
     Some((sp, phi * texel.texel_size * texel.texel_size / density))
+}
+
+/// The tent offset of one linear-basis support sample: uniform `u` ∈ [0, 1)² mapped to
+/// d ∈ (−1, 1)² with density (1 − |dx|)(1 − |dy|).
+fn tent_offset(u: Vec2) -> (Vec2, f32) {
+    let tent = |u: f32| {
+        if u < 0.5 {
+            (2.0 * u).sqrt() - 1.0
+        } else {
+            1.0 - (2.0 - 2.0 * u).sqrt()
+        }
+    };
+    let d = Vec2::new(tent(u.x), tent(u.y));
+    (d, (1.0 - d.x.abs()) * (1.0 - d.y.abs()))
+}
+
+/// The fast form of [`support_point`] for an interior node of the piecewise-linear basis:
+/// the node's whole support (±1 texel about its centre) lies inside its owner triangle, and
+/// the 3 × 3 texels around it are valid, of its chart, away from other geometry and not
+/// split. There the surface is one affine map, all four bilinear corners exist, and the
+/// sample weight φᵢ·a/density is the texel area; the slow path's lookups, visibility checks
+/// and barycentric solves all give the same answer, so they are skipped. Tested against
+/// [`support_point`] in this module's tests.
+#[derive(Clone, Copy, Debug)]
+pub struct SupportFrame {
+    frame: crate::raster::SurfaceFrame,
+    /// World area of one texel, m².
+    texel_area: f32,
+}
+
+/// Barycentric margin the support square must keep inside its triangle for [`SupportFrame`]
+/// (so rounding cannot put a sample outside where the slow path would pick another triangle).
+const SUPPORT_MARGIN: f32 = 1e-4;
+
+impl SupportFrame {
+    /// The frame of node `node` (patch `p`), when it is an interior node (see the type docs).
+    pub fn new(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        node: usize,
+        p: &Patch,
+    ) -> Option<Self> {
+        if mapper.basis != Basis::Linear {
+            return None;
+        }
+        let rect = ctx.layout.instances[p.instance as usize]?;
+        let (x, y) = ((p.x - rect.x) as i64, (p.y - rect.y) as i64);
+        let page_w = ctx.layout.pages[rect.page as usize].width as i64;
+        let index = &ctx.patches.page_index[rect.page as usize];
+        let grid = mapper.grid_lookup(rect, p.instance, p.chart);
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (tx, ty) = (x + dx, y + dy);
+                if tx < 0 || ty < 0 || tx >= rect.width as i64 || ty >= rect.height as i64 {
+                    return None;
+                }
+                let pi = index[((rect.y as i64 + ty) * page_w + rect.x as i64 + tx) as usize];
+                if pi == u32::MAX {
+                    return None;
+                }
+                let t = &ctx.patches.patches[pi as usize];
+                let interior = t.is_valid()
+                    && t.flags & Patch::NEAR_GEOMETRY == 0
+                    && t.instance == p.instance
+                    && t.chart == p.chart
+                    && t.texel_size == p.texel_size;
+                if !interior || !matches!(grid(tx, ty), Some((_, false))) {
+                    return None;
+                }
+            }
+        }
+        // The node itself must be the texel's node (it is, for a valid patch).
+        if grid(x, y).map(|g| g.0 as usize) != Some(node) {
+            return None;
+        }
+        let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        let frame = mapper.surface.frame(p.triangle, centre)?;
+        let corners = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
+        if !corners
+            .iter()
+            .all(|&(cx, cy)| frame.contains(Vec2::new(cx, cy), SUPPORT_MARGIN))
+        {
+            return None;
+        }
+        Some(Self {
+            frame,
+            texel_area: p.texel_size * p.texel_size,
+        })
+    }
+
+    /// Support sample `k` (scramble `key`), as [`support_point`] draws it.
+    #[inline]
+    pub fn point(&self, k: u32, key: u32) -> Option<(crate::raster::SurfacePoint, f32)> {
+        let (d, density) = tent_offset(sobol_02(k, key));
+        (density > 0.0).then(|| (self.frame.point(d), self.texel_area))
+    }
 }
 
 /// Outcome of tracing one ray for transport.
@@ -696,11 +882,16 @@ impl Transport {
         mut f: impl FnMut(f32, &[(u32, f32)]),
     ) -> f32 {
         let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
-        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let surface = mapper.surface();
         let mut escaped = 0.0f32;
         let mut out = [(0u32, 0f32); 4];
+        let fast = SupportFrame::new(ctx, mapper, i, p);
         for k in 0..rays {
-            let Some((sp, weight)) = support_point(ctx, &surface, mapper, i, p, k, key) else {
+            let start = match &fast {
+                Some(frame) => frame.point(k, key),
+                None => support_point(ctx, surface, mapper, i, p, k, key),
+            };
+            let Some((sp, weight)) = start else {
                 continue;
             };
             let u = sobol_02(k, key ^ 0x6a09_e667);
