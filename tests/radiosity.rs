@@ -682,7 +682,7 @@ fn fast_support_frames_match_the_slow_sampler() {
             fast_nodes += 1;
             let key = 0x9e37_79b9 ^ i as u32;
             for k in 0..32 {
-                let fast = frame.point(k, key);
+                let fast = frame.point(lightbake::sampling::sobol_02(k, key));
                 let slow = support_point(&ctx, mapper.surface(), &mapper, i, p, k, key);
                 let (Some((f, fw)), Some((s, sw))) = (fast, slow) else {
                     assert_eq!(

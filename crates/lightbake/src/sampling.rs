@@ -226,13 +226,40 @@ static SOBOL_DIM1_TABLES: [[u32; 256]; 4] = {
 /// points has exactly one point in every elementary interval of area 2^-k.
 #[inline]
 pub fn sobol_02(i: u32, seed: u32) -> Vec2 {
-    // Shuffle the order (Owen-scramble the index) so different seeds give different subsets.
-    let index = nested_uniform_scramble(i, hash(seed ^ 0xa511_e9b3));
-    let x = index.reverse_bits(); // van der Corput = Sobol' dimension 0
-    let y = sobol_dim1(index);
-    let sx = nested_uniform_scramble(x, hash(seed ^ 0x63d8_3595));
-    let sy = nested_uniform_scramble(y, hash(seed ^ 0x2c1b_3c6d));
-    Vec2::new(unit_float(sx), unit_float(sy))
+    Sobol02::new(seed).point(i)
+}
+
+/// The sequence of [`sobol_02`] for one seed, with the seed's hashes done once (for loops over
+/// many points of one seed).
+#[derive(Clone, Copy, Debug)]
+pub struct Sobol02 {
+    shuffle: u32,
+    x: u32,
+    y: u32,
+}
+
+impl Sobol02 {
+    /// The sequence decorrelated by `seed`.
+    #[inline]
+    pub fn new(seed: u32) -> Self {
+        Self {
+            shuffle: hash(seed ^ 0xa511_e9b3),
+            x: hash(seed ^ 0x63d8_3595),
+            y: hash(seed ^ 0x2c1b_3c6d),
+        }
+    }
+
+    /// Point `i` (equal to `sobol_02(i, seed)`).
+    #[inline]
+    pub fn point(&self, i: u32) -> Vec2 {
+        // Shuffle the order (Owen-scramble the index) so different seeds give different subsets.
+        let index = nested_uniform_scramble(i, self.shuffle);
+        let x = index.reverse_bits(); // van der Corput = Sobol' dimension 0
+        let y = sobol_dim1(index);
+        let sx = nested_uniform_scramble(x, self.x);
+        let sy = nested_uniform_scramble(y, self.y);
+        Vec2::new(unit_float(sx), unit_float(sy))
+    }
 }
 
 /// Builds a right-handed orthonormal basis (t, b, n) around unit `n` (Duff et al. 2017,

@@ -39,7 +39,7 @@ use crate::bvh::Hit;
 use crate::direct::footprint_point;
 use crate::progress::Progress;
 use crate::raster::{Patch, Surface};
-use crate::sampling::{cosine_hemisphere, sobol_02};
+use crate::sampling::{Sobol02, cosine_hemisphere, sobol_02};
 
 /// How radiosity is reconstructed between texel centres.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -287,6 +287,31 @@ struct TexelNode {
 /// Flag bit in [`TexelNode::instance`].
 const SPLIT: u32 = 1 << 31;
 
+/// One instance rectangle of a mapper's texel grid, seen from one chart.
+#[derive(Clone, Copy)]
+struct GridView<'g> {
+    grid: &'g [TexelNode],
+    page_w: i64,
+    rect: crate::unwrap::InstanceRect,
+    instance: u32,
+    chart: u32,
+}
+
+impl GridView<'_> {
+    /// The node at rect-local texel (x, y), if it belongs to the view's instance and chart, and
+    /// whether it is split.
+    #[inline]
+    fn at(&self, x: i64, y: i64) -> Option<(u32, bool)> {
+        let r = self.rect;
+        if x < 0 || y < 0 || x >= r.width as i64 || y >= r.height as i64 {
+            return None;
+        }
+        let t = self.grid[((r.y as i64 + y) * self.page_w + r.x as i64 + x) as usize];
+        (t.node != u32::MAX && t.instance & !SPLIT == self.instance && t.chart == self.chart)
+            .then_some((t.node, t.instance & SPLIT != 0))
+    }
+}
+
 impl<'a> HitMapper<'a> {
     /// A mapper for `basis`. The split flags come from `nodes` (traced when they are missing).
     pub fn new(ctx: BakeContext<'a>, nodes: &'a Nodes, basis: Basis) -> Self {
@@ -493,31 +518,26 @@ impl<'a> HitMapper<'a> {
         self.weights_with(grid, q, from, out)
     }
 
-    /// The lookup of rect-local texel (x, y) of instance `instance`'s rectangle `rect`: its
-    /// node, if it belongs to that instance and chart `chart`, and whether it is split.
+    /// The lookup of rect-local texels of instance `instance`'s rectangle `rect`, chart `chart`.
     fn grid_lookup(
         &self,
         rect: crate::unwrap::InstanceRect,
         instance: u32,
         chart: u32,
-    ) -> impl Fn(i64, i64) -> Option<(u32, bool)> + '_ {
-        let page_w = self.ctx.layout.pages[rect.page as usize].width as i64;
-        let grid = &self.grid[rect.page as usize];
-        move |x: i64, y: i64| {
-            if x < 0 || y < 0 || x >= rect.width as i64 || y >= rect.height as i64 {
-                return None;
-            }
-            let t = grid[((rect.y as i64 + y) * page_w + rect.x as i64 + x) as usize];
-            (t.node != u32::MAX && t.instance & !SPLIT == instance && t.chart == chart)
-                .then_some((t.node, t.instance & SPLIT != 0))
+    ) -> GridView<'_> {
+        GridView {
+            grid: &self.grid[rect.page as usize],
+            page_w: self.ctx.layout.pages[rect.page as usize].width as i64,
+            rect,
+            instance,
+            chart,
         }
     }
 
-    /// [`Self::weights_at`] with the texel lookup `node_at` (rect-local texel → node and
-    /// split flag, see [`Self::grid_lookup`]).
+    /// [`Self::weights_at`] with the texel lookup `grid` (see [`GridView::at`]).
     fn weights_with(
         &self,
-        node_at: impl Fn(i64, i64) -> Option<(u32, bool)>,
+        grid: GridView<'_>,
         q: Vec2,
         from: (Vec3, Vec3),
         out: &mut [(u32, f32); 4],
@@ -539,7 +559,7 @@ impl<'a> HitMapper<'a> {
             let mut split = false;
             for (cx, cy, w) in corners {
                 if w > 0.0
-                    && let Some((node, node_split)) = node_at(cx, cy)
+                    && let Some((node, node_split)) = grid.at(cx, cy)
                 {
                     found[m] = (node, w, node_split);
                     split |= node_split;
@@ -570,14 +590,14 @@ impl<'a> HitMapper<'a> {
             f.filter(|&(node, split)| !split || self.sees(from, node))
                 .map(|(node, _)| node)
         };
-        if let Some(node) = usable(node_at(tx, ty)) {
+        if let Some(node) = usable(grid.at(tx, ty)) {
             out[0] = (node, 1.0);
             return 1;
         }
         let mut best: Option<(f32, u32)> = None;
         for dy in -1..=1 {
             for dx in -1..=1 {
-                if let Some(node) = usable(node_at(tx + dx, ty + dy)) {
+                if let Some(node) = usable(grid.at(tx + dx, ty + dy)) {
                     let centre = Vec2::new((tx + dx) as f32 + 0.5, (ty + dy) as f32 + 0.5);
                     let d = centre.distance_squared(q);
                     if best.is_none_or(|b| d < b.0) {
@@ -724,13 +744,13 @@ impl SupportFrame {
                     && t.instance == p.instance
                     && t.chart == p.chart
                     && t.texel_size == p.texel_size;
-                if !interior || !matches!(grid(tx, ty), Some((_, false))) {
+                if !interior || !matches!(grid.at(tx, ty), Some((_, false))) {
                     return None;
                 }
             }
         }
         // The node itself must be the texel's node (it is, for a valid patch).
-        if grid(x, y).map(|g| g.0 as usize) != Some(node) {
+        if grid.at(x, y).map(|g| g.0 as usize) != Some(node) {
             return None;
         }
         let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
@@ -748,10 +768,11 @@ impl SupportFrame {
         })
     }
 
-    /// Support sample `k` (scramble `key`), as [`support_point`] draws it.
+    /// The support sample for uniform point `u` ∈ [0, 1)² (for sample `k` with scramble
+    /// `key`, [`support_point`] uses `u = sobol_02(k, key)`).
     #[inline]
-    pub fn point(&self, k: u32, key: u32) -> Option<(crate::raster::SurfacePoint, f32)> {
-        let (d, density) = tent_offset(sobol_02(k, key));
+    pub fn point(&self, u: Vec2) -> Option<(crate::raster::SurfacePoint, f32)> {
+        let (d, density) = tent_offset(u);
         (density > 0.0).then(|| (self.frame.point(d), self.texel_area))
     }
 }
@@ -886,15 +907,16 @@ impl Transport {
         let mut escaped = 0.0f32;
         let mut out = [(0u32, 0f32); 4];
         let fast = SupportFrame::new(ctx, mapper, i, p);
+        let (starts, directions) = (Sobol02::new(key), Sobol02::new(key ^ 0x6a09_e667));
         for k in 0..rays {
             let start = match &fast {
-                Some(frame) => frame.point(k, key),
+                Some(frame) => frame.point(starts.point(k)),
                 None => support_point(ctx, surface, mapper, i, p, k, key),
             };
             let Some((sp, weight)) = start else {
                 continue;
             };
-            let u = sobol_02(k, key ^ 0x6a09_e667);
+            let u = directions.point(k);
             let dir = cosine_hemisphere(sp.normal, u);
             if dir.dot(sp.geometric_normal) <= 0.0 {
                 f(weight, &[]); // below the surface: no light arrives from there
