@@ -597,44 +597,63 @@ fn instant_radiosity_in_the_hard_furnace_loses_only_the_paths_it_says_it_cuts() 
     // Keller's walk stops after `vpl_max_depth` reflections: in this closed furnace
     // (ρ̄ = 0.9) the bake must say so, and the result must match the truncated series
     // E·(1 − ρ^(d+1))/(1 − ρ) (d = 16: 83.3; d = 29: 95.8) within the VPL noise.
+    //
+    // The plate 0.2 m under the ceiling (the one carrying the slivers) shows its top in the
+    // lightmap, and that side sees only the paths that enter the gap: its mean is one noisy
+    // number, not an average over independent texels. Over seeds 1–6 at depth 16 its mean
+    // spread 78.1–88.2 around 83.3 (scrambled Halton; random numbers 78.0–88.3), and seed 0
+    // gave 89.9. So it is checked as the mean of eight seeds.
     let (rho, e) = (0.9f32, 10.0f32);
+    const PLATE_SEEDS: u32 = 8;
     for depth in [16u32, 29] {
         let mut s = settings(Method::Hybrid, 24.0);
         s.vpl_bias_compensation = true;
         s.vpl_max_depth = depth;
         let scene = hard_furnace(rho, e, &["tiny_cube", "slivers", "coincident"]);
-        let out = bake(&scene, &s);
-        assert!(all_finite(&out));
         let lost = (rho as f64).powi(depth as i32 + 1);
         let expected = (e as f64 * (1.0 - lost) / (1.0 - rho as f64)) as f32;
-        assert!(
-            out.report
-                .warnings
-                .iter()
-                .any(|w| w.contains(&format!("up to {:.1}% of the total", 100.0 * lost))),
-            "depth {depth}: no truncation warning in {:?}",
-            out.report.warnings
-        );
-        for (i, inst) in scene.instances.iter().enumerate() {
-            let values: Vec<f32> = common::texels(&out, i).iter().map(|t| t.value.x).collect();
-            let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64;
-            println!(
-                "depth {depth} {}: mean {mean:.2} (expected {expected:.2})",
-                inst.name
-            );
-            // Known failure: this double-sided emitting plate, 0.2 m under the ceiling, comes
-            // out 6–9% above the series (90.4 at depth 16, 101.4 at depth 29). Not the slivers
-            // (the same plate without them gives the same 89.9), and not the compensation
-            // (the same without it); centred in the box the excess is 2%. Not yet explained.
-            if inst.name == "slivers" {
-                continue;
-            }
+        let mut plate = Vec::new();
+        for seed in 0..PLATE_SEEDS {
+            s.seed = seed;
+            let out = bake(&scene, &s);
+            assert!(all_finite(&out));
             assert!(
-                common::rel(mean as f32, expected) < 0.05,
-                "depth {depth} {}: mean {mean} against {expected}",
-                inst.name
+                out.report
+                    .warnings
+                    .iter()
+                    .any(|w| w.contains(&format!("up to {:.1}% of the total", 100.0 * lost))),
+                "depth {depth}: no truncation warning in {:?}",
+                out.report.warnings
             );
+            for (i, inst) in scene.instances.iter().enumerate() {
+                let values: Vec<f32> = common::texels(&out, i).iter().map(|t| t.value.x).collect();
+                let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64;
+                if inst.name == "slivers" {
+                    plate.push(mean);
+                    continue;
+                }
+                if seed > 0 {
+                    continue;
+                }
+                println!(
+                    "depth {depth} {}: mean {mean:.2} (expected {expected:.2})",
+                    inst.name
+                );
+                assert!(
+                    common::rel(mean as f32, expected) < 0.05,
+                    "depth {depth} {}: mean {mean} against {expected}",
+                    inst.name
+                );
+            }
         }
+        let mean = plate.iter().sum::<f64>() / plate.len() as f64;
+        println!(
+            "depth {depth} plate under the ceiling: seeds {plate:.1?}, mean {mean:.2} (expected {expected:.2})"
+        );
+        assert!(
+            common::rel(mean as f32, expected) < 0.04,
+            "depth {depth} plate: mean of {PLATE_SEEDS} seeds {mean} against {expected}"
+        );
     }
 }
 
