@@ -190,7 +190,12 @@ fn crease() -> Scene {
 
 #[test]
 fn clamping_keeps_corners_finite_and_compensation_restores_them() {
-    const PARTICLES: u32 = 16384;
+    // At 16 384 particles the VPL noise next to the crease hid the difference between the
+    // one-bounce compensation and its fixed point (relative errors 0.55 and 0.80 on these 10
+    // texels, seed 0; 1.30 with seed 1). With more particles the fixed point converges to the
+    // path tracer (0.32 at 65 536, 0.07 at 262 144), while the clamp alone keeps only about a
+    // quarter of the light near the crease.
+    const PARTICLES: u32 = 65536;
     let prep = prepared(&crease(), 48.0);
     let direct = prep.direct();
     let run = |clamp: Option<f32>, compensate: bool| {
@@ -231,6 +236,11 @@ fn clamping_keeps_corners_finite_and_compensation_restores_them() {
         }
         (num / den).sqrt()
     };
+    // Sum over the near texels against the reference's (1 = no bias).
+    let ratio = |e: &[Vec3]| {
+        let sum = |v: &mut dyn Iterator<Item = Vec3>| v.map(|x| x.x as f64).sum::<f64>();
+        sum(&mut near.iter().map(|&i| e[i])) / sum(&mut reference.iter().copied())
+    };
     let worst = |e: &[Vec3]| {
         near.iter()
             .enumerate()
@@ -239,21 +249,30 @@ fn clamping_keeps_corners_finite_and_compensation_restores_them() {
     };
     let (eu, ec, ek) = (error(&unclamped), error(&clamped), error(&compensated));
     eprintln!(
-        "near the crease ({} texels): relative error unclamped {eu:.4}, clamped {ec:.4}, compensated {ek:.4}; worst ratio unclamped {:.2} clamped {:.2} compensated {:.2}",
+        "near the crease ({} texels): relative error unclamped {eu:.4}, clamped {ec:.4}, compensated {ek:.4}; worst ratio unclamped {:.2} clamped {:.2} compensated {:.2}; sum ratio clamped {:.3} compensated {:.3}",
         near.len(),
         worst(&unclamped),
         worst(&clamped),
-        worst(&compensated)
+        worst(&compensated),
+        ratio(&clamped),
+        ratio(&compensated)
     );
-    // Unclamped, VPLs next to the crease make spikes; the clamp removes them (and some light);
-    // compensation brings the light back towards the reference.
+    // Unclamped, the light next to the crease comes from a few VPLs millimetres away: a spike
+    // where one lands, little where none does (error 0.85–1.8 from 16 384 to 262 144
+    // particles). The clamp keeps the texels bounded but removes most of the light there;
+    // compensation brings it back to the reference.
+    assert!(eu > 2.0 * ek, "unclamped {eu} vs compensated {ek}");
     assert!(
-        worst(&unclamped) > 1.8 && worst(&unclamped) > 1.25 * worst(&clamped),
-        "unclamped {} clamped {}",
-        worst(&unclamped),
-        worst(&clamped)
+        ratio(&clamped) < 0.5,
+        "clamped sum ratio {}",
+        ratio(&clamped)
     );
-    assert!(ek < 0.8 * ec, "compensated {ek} vs clamped {ec}");
+    assert!(
+        (ratio(&compensated) - 1.0).abs() < 0.15,
+        "compensated sum ratio {}",
+        ratio(&compensated)
+    );
+    assert!(ek < 0.5 * ec, "compensated {ek} vs clamped {ec}");
 }
 
 #[test]

@@ -363,9 +363,12 @@ fn bake_in_pool(
                                 report.mean_reflectivity,
                                 100.0 * report.clamped_fraction,
                                 if report.compensated {
-                                    ", compensated"
+                                    format!(
+                                        ", compensated ({} iterations)",
+                                        report.compensation_iterations
+                                    )
                                 } else {
-                                    ""
+                                    String::new()
                                 },
                                 if round > 1 {
                                     format!(", {round} rounds")

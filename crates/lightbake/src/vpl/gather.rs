@@ -12,10 +12,14 @@
 //!
 //! Bias compensation adds, at every texel, the light the clamp removed from nearby surfaces:
 //! cosine-distributed rays from x find y′, and E_comp = (1/K)·Σ B(y′)·(1 − b/G(x, y′))⁺, with
-//! B(y′) the exitance there read from the clamped result through the radiosity basis
-//! ([`crate::transport::HitMapper`]). This is the one-bounce form of Kollig & Keller's
-//! recursive correction: exact where B(y′) is, and B(y′) only lacks the clamped part near
-//! its own corners.
+//! B(y′) the exitance there read through the radiosity basis
+//! ([`crate::transport::HitMapper`]). Kollig & Keller evaluate B(y′) recursively, because the
+//! clamp also removed light near y′. Here the near-field rays are traced once into a sparse
+//! operator ([`NearField`]), and the compensation is solved as its fixed point,
+//! E_comp = C·(ρ·(E_clamped + E_direct + E_comp) + emission); see
+//! [`super::instant_radiosity`]. The one-bounce form (B read from the clamped result alone)
+//! leaves most of the light missing inside sharp wedges, where nearly everything a texel sees
+//! is within the clamp distance.
 //!
 //! Shadow rays are batched per tile of texels: each tile of 64 neighbouring texels (page
 //! order) visits every VPL in turn, so consecutive rays leave nearby points towards the same
@@ -195,58 +199,109 @@ pub fn gather(
     out
 }
 
-/// Kollig–Keller compensation (see the module docs): the irradiance the clamp at `bound`
-/// removed, re-estimated with `rays` cosine rays per texel from the exitance `exitance` at the
-/// nodes. Returns (irradiance per patch, rays traced).
-pub fn compensate(
-    ctx: &BakeContext<'_>,
-    mapper: &HitMapper<'_>,
-    exitance: &[Vec3],
-    bound: f32,
-    rays: u32,
-    progress: &Progress,
-) -> (Vec<Vec3>, u64) {
-    let traced = AtomicU64::new(0);
-    let out = ctx
-        .patches
-        .patches
-        .par_iter()
-        .map(|p| {
-            if !p.is_valid() {
-                return Vec3::ZERO;
-            }
-            let sp = representative(p);
-            let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-            let key = p.rng(ctx.settings.seed, 0xc0a9);
-            let mut sum = Vec3::ZERO;
-            let mut w = [(0u32, 0f32); 4];
-            // Only points closer than where G can exceed the bound matter: r² < 1/bound.
-            let reach = (1.0 / bound).sqrt();
-            for k in 0..rays {
-                let dir = cosine_hemisphere(sp.normal, sobol_02(k, key));
-                if dir.dot(sp.geometric_normal) <= 0.0 {
-                    continue;
+/// The near field of every texel for Kollig–Keller compensation (see the module docs): per
+/// patch, the nodes its compensation rays reached closer than where G exceeds the clamp
+/// bound, with weights (1/K)·(1 − b/G)·w_j summed per node. [`NearField::apply`] turns node
+/// exitance into the irradiance the clamp removed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NearField {
+    /// Per patch: its first entry (`row_ptr[i]..row_ptr[i + 1]`).
+    row_ptr: Vec<u64>,
+    entries: Vec<(u32, f32)>,
+}
+
+impl NearField {
+    /// Traces `rays` cosine rays per valid texel and keeps the hits where G > `bound`.
+    /// Returns the operator and the rays traced.
+    pub fn trace(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        bound: f32,
+        rays: u32,
+        progress: &Progress,
+    ) -> (Self, u64) {
+        let traced = AtomicU64::new(0);
+        let rows: Vec<Vec<(u32, f32)>> = ctx
+            .patches
+            .patches
+            .par_iter()
+            .map(|p| {
+                let mut row: Vec<(u32, f32)> = Vec::new();
+                if !p.is_valid() {
+                    return row;
                 }
-                traced.fetch_add(1, Ordering::Relaxed);
-                let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, reach) else {
-                    continue;
-                };
-                let info = ctx.rays.triangles[hit.triangle as usize];
-                let cos_x = sp.normal.dot(dir);
-                let cos_y = (-info.normal.dot(dir)).abs();
-                let g = cos_x * cos_y / (hit.t * hit.t);
-                if g <= bound {
-                    continue;
+                let sp = representative(p);
+                let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+                let key = p.rng(ctx.settings.seed, 0xc0a9);
+                let mut w = [(0u32, 0f32); 4];
+                // Only points closer than where G can exceed the bound matter: r² < 1/bound.
+                let reach = (1.0 / bound).sqrt();
+                let scale = 1.0 / rays.max(1) as f32;
+                for k in 0..rays {
+                    let dir = cosine_hemisphere(sp.normal, sobol_02(k, key));
+                    if dir.dot(sp.geometric_normal) <= 0.0 {
+                        continue;
+                    }
+                    traced.fetch_add(1, Ordering::Relaxed);
+                    let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, reach) else {
+                        continue;
+                    };
+                    let info = ctx.rays.triangles[hit.triangle as usize];
+                    let cos_x = sp.normal.dot(dir);
+                    let cos_y = (-info.normal.dot(dir)).abs();
+                    let g = cos_x * cos_y / (hit.t * hit.t);
+                    if g <= bound {
+                        continue;
+                    }
+                    let n = mapper.weights(&hit, &mut w);
+                    let f = (1.0 - bound / g) * scale;
+                    row.extend(w[..n].iter().map(|&(j, wj)| (j, wj * f)));
                 }
-                let n = mapper.weights(&hit, &mut w);
-                let b = w[..n]
+                row.sort_unstable_by_key(|e| e.0);
+                row.dedup_by(|b, a| {
+                    let same = a.0 == b.0;
+                    if same {
+                        a.1 += b.1;
+                    }
+                    same
+                });
+                progress.advance(1);
+                row
+            })
+            .collect();
+        let mut near = NearField {
+            row_ptr: Vec::with_capacity(rows.len() + 1),
+            entries: Vec::with_capacity(rows.iter().map(Vec::len).sum()),
+        };
+        near.row_ptr.push(0);
+        for row in rows {
+            near.entries.extend(row);
+            near.row_ptr.push(near.entries.len() as u64);
+        }
+        (near, traced.into_inner())
+    }
+
+    /// Stored (patch, node) entries.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Whether no texel has a near field.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// The irradiance the clamp removed at every patch, lux, for node exitance `exitance`.
+    pub fn apply(&self, exitance: &[Vec3]) -> Vec<Vec3> {
+        (0..self.row_ptr.len().saturating_sub(1))
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let (a, b) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
+                self.entries[a..b]
                     .iter()
-                    .fold(Vec3::ZERO, |s, &(j, wj)| s + exitance[j as usize] * wj);
-                sum += b * (1.0 - bound / g);
-            }
-            progress.advance(1);
-            sum / rays.max(1) as f32
-        })
-        .collect();
-    (out, traced.into_inner())
+                    .fold(Vec3::ZERO, |s, &(j, w)| s + exitance[j as usize] * w)
+            })
+            .collect()
+    }
 }

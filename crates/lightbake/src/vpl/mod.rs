@@ -49,6 +49,9 @@ pub struct VplReport {
     pub clamped_fraction: f64,
     /// Whether bias compensation ran.
     pub compensated: bool,
+    /// Fixed-point iterations of the compensation (0 when it did not run; see
+    /// [`gather::NearField`]).
+    pub compensation_iterations: u32,
     /// Shadow rays of the gather.
     pub shadow_rays: u64,
     /// VPL–texel pairs culled before tracing.
@@ -128,6 +131,13 @@ fn particle_count(
     )
 }
 
+/// Most fixed-point iterations of the bias compensation.
+const COMPENSATION_MAX_ITERATIONS: u32 = 100;
+
+/// The compensation stops when an iteration changes it by less than this share (luminance,
+/// summed over texels).
+const COMPENSATION_TOLERANCE: f64 = 1e-4;
+
 /// Runs the walk, the gather and (optionally) the compensation. `first_generation`: method
 /// `vpl` (true) or `hybrid` (false). `direct`: per-patch direct irradiance already computed
 /// (hybrid), used as the exitance source of the compensation. Returns per-patch irradiance
@@ -168,11 +178,13 @@ pub fn instant_radiosity(
     let mut irradiance = gathered.irradiance;
     let mut rays = set.rays + gathered.shadow_rays;
     let compensated = s.vpl_bias_compensation;
+    let mut compensation_iterations = 0u32;
     if compensated {
         // Exitance at the nodes: reflection of what has been gathered (plus direct light in
         // hybrid), and emission (its near field was clamped too in method vpl).
         let nodes = Nodes::new(ctx, Basis::Linear);
-        let exitance: Vec<Vec3> = nodes
+        // Per node: what it emits and what it reflects of the light gathered so far.
+        let base: Vec<(Vec3, Vec3, usize)> = nodes
             .patch
             .iter()
             .zip(&nodes.albedo)
@@ -185,19 +197,36 @@ pub fn instant_radiosity(
                     Vec3::ZERO
                 };
                 let i = pi as usize;
-                *rho * (irradiance[i] + direct.map_or(Vec3::ZERO, |d| d[i])) + emitted
+                let gathered = irradiance[i] + direct.map_or(Vec3::ZERO, |d| d[i]);
+                (*rho * gathered + emitted, *rho, i)
             })
             .collect();
         let mapper = HitMapper::new(*ctx, &nodes, Basis::Linear);
-        let (extra, traced) = gather::compensate(
-            ctx,
-            &mapper,
-            &exitance,
-            bound,
-            s.vpl_compensation_rays,
-            progress,
-        );
+        let (near, traced) =
+            gather::NearField::trace(ctx, &mapper, bound, s.vpl_compensation_rays, progress);
         rays += traced;
+        // The fixed point E_comp = C·(B₀ + ρ·E_comp): the near field's exitance lacks what
+        // the clamp removed near it too. C's rows sum to at most 1, so this contracts by ρ̄
+        // or faster.
+        let mut extra = vec![Vec3::ZERO; irradiance.len()];
+        let norm = |v: &[Vec3]| v.iter().map(|e| luminance(*e) as f64).sum::<f64>();
+        for _ in 0..COMPENSATION_MAX_ITERATIONS {
+            let exitance: Vec<Vec3> = base
+                .iter()
+                .map(|&(b0, rho, i)| b0 + rho * extra[i])
+                .collect();
+            let next = near.apply(&exitance);
+            let change: f64 = next
+                .iter()
+                .zip(&extra)
+                .map(|(a, b)| luminance((*a - *b).abs()) as f64)
+                .sum();
+            extra = next;
+            compensation_iterations += 1;
+            if change <= COMPENSATION_TOLERANCE * norm(&extra) {
+                break;
+            }
+        }
         for (e, x) in irradiance.iter_mut().zip(extra) {
             *e += x;
         }
@@ -216,6 +245,7 @@ pub fn instant_radiosity(
             0.0
         },
         compensated,
+        compensation_iterations,
         shadow_rays: gathered.shadow_rays,
         culled: gathered.culled,
         gather_seconds,
