@@ -89,7 +89,8 @@ impl StagedFiles {
     /// process is killed, each destination holds either its complete old file or its
     /// complete new one. (A kill inside the rename loop can leave some files new and some
     /// old; hidden `.NAME.lightbake-old-*` copies left by a killed commit are removed by the
-    /// next commit to the same directory.)
+    /// next commit to the same directory, and so are the temporaries of killed bakes, there
+    /// and in the system temp directory, once their process is gone.)
     ///
     /// # Errors
     /// [`BakeError::Write`] naming the destination that could not be replaced (the directory
@@ -142,11 +143,79 @@ impl StagedFiles {
             }
             placed.push(dest.clone());
         }
-        // 4. Drop the old copies.
+        // 4. Drop the old copies, and temporaries that killed bakes left behind.
         for (_, old) in aside {
             let _ = std::fs::remove_file(old);
         }
+        let mut dirs: Vec<PathBuf> = vec![std::env::temp_dir()];
+        for dest in &placed {
+            let dir = dest.parent().unwrap_or(Path::new("."));
+            if !dirs.iter().any(|d| d == dir) {
+                dirs.push(dir.to_path_buf());
+            }
+        }
+        for dir in dirs {
+            sweep_orphans(&dir);
+        }
         Ok(placed)
+    }
+}
+
+/// The process that made temporary `name` (`.lightbake-PID-N-NAME` in the system temp
+/// directory, `.NAME.lightbake-PID-N.tmp` or `.lightbake-PID-N.tmp` beside an output), if it
+/// is one of ours.
+fn temp_owner(name: &str) -> Option<u32> {
+    let rest = if let Some(rest) = name.strip_prefix(".lightbake-") {
+        rest
+    } else if name.starts_with('.') && name.ends_with(".tmp") {
+        &name[name.rfind(".lightbake-")? + ".lightbake-".len()..]
+    } else {
+        return None;
+    };
+    let (pid, rest) = rest.split_once('-')?;
+    // The counter follows: digits, then `-NAME` or `.tmp`.
+    let counter_end = rest.find(|c: char| !c.is_ascii_digit())?;
+    (counter_end > 0).then_some(())?;
+    pid.parse().ok()
+}
+
+/// Whether the temporary owned by process `pid` and last modified `age` ago may belong to a
+/// bake still running. It is taken as dead only when it is over ten minutes old and its
+/// process is gone (where `/proc` tells; a bake on another machine writing to a shared folder
+/// is protected by the age), or, without `/proc`, when it is over a day old.
+fn maybe_running(pid: u32, age: std::time::Duration) -> bool {
+    if pid == std::process::id() || age < std::time::Duration::from_secs(600) {
+        return true;
+    }
+    let proc = Path::new("/proc");
+    if proc.join("self").exists() {
+        return proc.join(pid.to_string()).exists();
+    }
+    age < std::time::Duration::from_secs(24 * 3600)
+}
+
+/// Removes the temporaries in `dir` whose bake was killed before it could delete them (see
+/// [`temp_owner`] and [`maybe_running`]).
+fn sweep_orphans(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = temp_owner(&name.to_string_lossy()) else {
+            continue;
+        };
+        let Ok(meta) = entry.metadata() else {
+            continue;
+        };
+        let age = meta
+            .modified()
+            .ok()
+            .and_then(|m| m.elapsed().ok())
+            .unwrap_or_default();
+        if meta.is_file() && !maybe_running(pid, age) {
+            let _ = std::fs::remove_file(entry.path());
+        }
     }
 }
 
@@ -230,6 +299,50 @@ fn same_file_system(_a: &Path, _b: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn temporaries_of_dead_bakes_are_swept_and_live_ones_kept() {
+        assert_eq!(temp_owner(".lightbake-123-4-lightmap_0.exr"), Some(123));
+        assert_eq!(temp_owner(".scene.gltf.lightbake-77-0.tmp"), Some(77));
+        assert_eq!(temp_owner(".lightbake-9-12.tmp"), Some(9));
+        assert_eq!(temp_owner(".scene.gltf.lightbake-old-77-0"), None);
+        assert_eq!(temp_owner("lightbake-1-2-x"), None);
+        assert_eq!(temp_owner("notes.tmp"), None);
+        let dir = std::env::temp_dir().join(format!("lightbake-sweep-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // No process has this id (Linux's pid_max is at most 2²²).
+        let dead = u32::MAX - 1;
+        let me = std::process::id();
+        let files = [
+            (format!(".out.exr.lightbake-{dead}-0.tmp"), false),
+            (format!(".lightbake-{dead}-3-out.exr"), false),
+            (format!(".out.exr.lightbake-{me}-0.tmp"), true),
+            ("keep.tmp".to_string(), true),
+        ];
+        let two_hours_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
+        for (name, _) in &files {
+            std::fs::write(dir.join(name), b"x").unwrap();
+            let f = std::fs::File::options()
+                .write(true)
+                .open(dir.join(name))
+                .unwrap();
+            f.set_modified(two_hours_ago).unwrap();
+        }
+        // A fresh temporary of a dead process may be a bake on another machine: kept.
+        let fresh = format!(".lightbake-{}-5-out.exr", u32::MAX - 1);
+        std::fs::write(dir.join(&fresh), b"x").unwrap();
+        let mut staged = StagedFiles::new();
+        staged.stage(&dir.join("out.exr"), b"new").unwrap();
+        staged.commit().unwrap();
+        for (name, kept) in &files {
+            // Without /proc only day-old files count as dead.
+            let expect = *kept || !Path::new("/proc/self").exists();
+            assert_eq!(dir.join(name).exists(), expect, "{name}");
+        }
+        assert!(dir.join(&fresh).exists());
+        assert_eq!(std::fs::read(dir.join("out.exr")).unwrap(), b"new");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn nothing_changes_until_commit_and_drop_cleans_up() {
