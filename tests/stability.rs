@@ -768,3 +768,79 @@ fn a_solver_that_cannot_converge_at_albedo_0_999_says_so() {
         );
     }
 }
+
+#[test]
+fn overlapping_emitters_are_named_and_meshes_are_not() {
+    // Two emissive squares in one plane, the second shifted by half its side: their light
+    // adds up in the overlap, so the bake names them. Coplanar neighbours (a mesh's own
+    // triangles, a subdivided panel), exact duplicates (sampled once), parallel planes and
+    // opposite faces do not overlap.
+    let mut scene = furnace_box(1.0, 0.5, 0.0);
+    let lamp = scene.add_material(Material {
+        emissive: Vec3::splat(5.0),
+        ..Material::diffuse("lamp", Vec3::splat(0.5))
+    });
+    let square = |name: &str, x0: f32, y: f32, facing: Vec3| {
+        let c = [
+            Vec3::new(x0, y, -0.2),
+            Vec3::new(x0 + 0.4, y, -0.2),
+            Vec3::new(x0 + 0.4, y, 0.2),
+            Vec3::new(x0, y, 0.2),
+        ];
+        lightbake::scene::testscenes::quad(name, c, facing)
+    };
+    let put = |scene: &mut Scene, mesh: Mesh| {
+        let name = mesh.name.clone();
+        let m = scene.add_mesh(Mesh {
+            material: Some(lamp),
+            ..mesh
+        });
+        scene.instances.push(Instance::new(name, m, Affine3A::IDENTITY));
+    };
+    put(&mut scene, square("lamp_a", -0.4, 0.45, Vec3::NEG_Y));
+    put(&mut scene, square("lamp_b", -0.2, 0.45, Vec3::NEG_Y));
+    // Not overlaps: an exact twin of lamp_a, a parallel lamp 1 cm lower, the same square
+    // facing up, and a subdivided panel elsewhere on the ceiling.
+    put(&mut scene, square("lamp_a_twin", -0.4, 0.45, Vec3::NEG_Y));
+    put(&mut scene, square("lamp_low", -0.4, 0.44, Vec3::NEG_Y));
+    put(&mut scene, square("lamp_up", 0.1, 0.3, Vec3::Y));
+    let panel = lightbake::scene::testscenes::grid("panel", 0.3, 12);
+    let m = scene.add_mesh(Mesh {
+        material: Some(lamp),
+        ..panel
+    });
+    scene.instances.push(Instance::new(
+        "panel",
+        m,
+        Affine3A::from_translation(Vec3::new(0.2, -0.49, 0.2)),
+    ));
+    let out = bake(&scene, &settings(Method::Direct, 8.0));
+    let warning: Vec<&String> = out
+        .report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("overlap in the same plane"))
+        .collect();
+    println!("{warning:#?}");
+    assert_eq!(warning.len(), 1, "{:?}", out.report.warnings);
+    let w = warning[0];
+    // lamp_a and lamp_b overlap in a 0.2 × 0.4 strip: with two triangles each, 3–4 pairs.
+    assert!(w.contains("'lamp_a'") && w.contains("'lamp_b'"), "{w}");
+    for quiet in ["lamp_low", "lamp_up", "panel", "lamp_a_twin"] {
+        assert!(!w.contains(&format!("'{quiet}'")), "{quiet} in {w}");
+    }
+    // The hard furnace's pieces (coincident twins, slivers, wedge, cube) overlap nowhere.
+    let furnace = bake(
+        &hard_furnace(0.9, 10.0, &["tiny_cube", "wedge", "slivers", "coincident"]),
+        &settings(Method::Direct, 8.0),
+    );
+    assert!(
+        !furnace
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("overlap in the same plane")),
+        "{:?}",
+        furnace.report.warnings
+    );
+}

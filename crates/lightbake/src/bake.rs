@@ -244,6 +244,26 @@ fn bake_in_pool(
                 emitters.coincident
             ));
         }
+        if emitters.overlapping_count > 0 {
+            let name = |t: u32| {
+                let info = rays.triangles[t as usize];
+                format!(
+                    "'{}' triangle {}",
+                    baked_scene.instances[info.instance as usize].name, info.local
+                )
+            };
+            let listed: Vec<String> = emitters
+                .overlapping
+                .iter()
+                .map(|&(a, b)| format!("{} and {}", name(a), name(b)))
+                .collect();
+            warnings.push(format!(
+                "{} pair(s) of emissive triangles overlap in the same plane ({}{}); their light adds up where they overlap: remove one of each pair",
+                emitters.overlapping_count,
+                listed.join(", "),
+                if emitters.overlapping_count > listed.len() { ", …" } else { "" }
+            ));
+        }
         let ctx = BakeContext {
             scene: &baked_scene,
             layout: &layout,

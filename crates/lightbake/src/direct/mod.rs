@@ -81,6 +81,95 @@ pub struct Emitters {
     /// Emissive triangles left out of sampling because an earlier one has the same three
     /// world vertices (a duplicated mesh or face); rays that hit them still see their radiance.
     pub coincident: usize,
+    /// Pairs of sampled emitter triangles that lie in the same plane, face the same way and
+    /// overlap with positive area (not exact duplicates): their light adds up where they
+    /// overlap. Up to [`MAX_OVERLAPS_LISTED`] pairs of global triangles; see
+    /// [`Emitters::overlapping_count`] for how many there are.
+    pub overlapping: Vec<(u32, u32)>,
+    /// Number of such pairs.
+    pub overlapping_count: usize,
+}
+
+/// Overlapping emitter pairs kept by name in [`Emitters::overlapping`].
+pub const MAX_OVERLAPS_LISTED: usize = 8;
+
+/// Pairs (i < j) of `list` that lie in one plane, face the same way and overlap with positive
+/// area. Emitters are grouped by plane (normal to 10⁻⁴, offset to 10⁻⁵ of the scene extent
+/// `extent`), then swept by bounding box along the plane's first tangent, and each candidate
+/// pair is checked by separating axes in the plane with a small margin (triangles that share
+/// an edge touch but do not overlap).
+fn overlapping_pairs(list: &[Emitter], extent: f32) -> Vec<(usize, usize)> {
+    let tol = 1e-5 * extent.max(1e-30);
+    let mut keyed: Vec<((i64, i64, i64, i64), usize)> = list
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let n = e.normal;
+            let q = |x: f32| (x * 1e4).round() as i64;
+            let d = ((n.dot(e.vertices[0]) / tol).round()) as i64;
+            ((q(n.x), q(n.y), q(n.z), d), k)
+        })
+        .collect();
+    keyed.sort_unstable();
+    let mut pairs = Vec::new();
+    for group in keyed.chunk_by(|a, b| a.0 == b.0) {
+        if group.len() < 2 {
+            continue;
+        }
+        let (t, b) = crate::sampling::basis(list[group[0].1].normal);
+        let flat = |k: usize| list[k].vertices.map(|v| Vec2::new(v.dot(t), v.dot(b)));
+        let mut items: Vec<(f32, f32, usize, [Vec2; 3])> = group
+            .iter()
+            .map(|&(_, k)| {
+                let f = flat(k);
+                let (lo, hi) = f.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+                    (lo.min(p.x), hi.max(p.x))
+                });
+                (lo, hi, k, f)
+            })
+            .collect();
+        items.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        for (i, a) in items.iter().enumerate() {
+            for b in &items[i + 1..] {
+                if b.0 >= a.1 - tol {
+                    break;
+                }
+                if triangles_overlap(&a.3, &b.3, tol) {
+                    pairs.push((a.2.min(b.2), a.2.max(b.2)));
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Whether two plane triangles overlap by more than `margin` (no edge normal of either
+/// separates them with a gap or an overlap thinner than `margin`).
+fn triangles_overlap(a: &[Vec2; 3], b: &[Vec2; 3], margin: f32) -> bool {
+    for tri in [a, b] {
+        for i in 0..3 {
+            let e = tri[(i + 1) % 3] - tri[i];
+            let axis = Vec2::new(-e.y, e.x);
+            let len = axis.length();
+            if len <= 0.0 {
+                return false;
+            }
+            let axis = axis / len;
+            let project = |t: &[Vec2; 3]| {
+                t.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+                    let x = p.dot(axis);
+                    (lo.min(x), hi.max(x))
+                })
+            };
+            let (a0, a1) = project(a);
+            let (b0, b1) = project(b);
+            if a1.min(b1) - a0.max(b0) <= margin {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// Luminance weights of linear Rec.709 RGB.
@@ -179,7 +268,14 @@ impl Emitters {
             .chain(twins.iter().copied())
             .collect();
         by_triangle.sort_unstable();
+        let pairs = overlapping_pairs(&list, rays.extent);
         Self {
+            overlapping: pairs
+                .iter()
+                .take(MAX_OVERLAPS_LISTED)
+                .map(|&(a, b)| (list[a].triangle, list[b].triangle))
+                .collect(),
+            overlapping_count: pairs.len(),
             list,
             cdf,
             by_triangle,
