@@ -67,7 +67,7 @@ fn stages(c: &mut Criterion) {
     g.bench_function("validity", |b| {
         b.iter(|| {
             let mut p = Patches::build(&baked, &layout, &rays);
-            p.fix_validity(&baked, &layout, &rays, 0);
+            p.fix_validity(&baked, &layout, &rays);
             black_box(p.invalid)
         })
     });

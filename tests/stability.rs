@@ -795,7 +795,9 @@ fn overlapping_emitters_are_named_and_meshes_are_not() {
             material: Some(lamp),
             ..mesh
         });
-        scene.instances.push(Instance::new(name, m, Affine3A::IDENTITY));
+        scene
+            .instances
+            .push(Instance::new(name, m, Affine3A::IDENTITY));
     };
     put(&mut scene, square("lamp_a", -0.4, 0.45, Vec3::NEG_Y));
     put(&mut scene, square("lamp_b", -0.2, 0.45, Vec3::NEG_Y));

@@ -229,7 +229,7 @@ fn bake_in_pool(
             Ok((p, 0, note))
         })?;
         stages.run("validity", progress, patches.patches.len() as u64, || {
-            patches.fix_validity(&baked_scene, &layout, &rays, settings.seed);
+            patches.fix_validity(&baked_scene, &layout, &rays);
             let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
             Ok(((), patches.rays, note))
         })?;
@@ -671,7 +671,7 @@ impl Prepared {
         let baked = layout.apply(scene);
         let rays = RayScene::build(&baked);
         let mut patches = Patches::build(&baked, &layout, &rays);
-        patches.fix_validity(&baked, &layout, &rays, settings.seed);
+        patches.fix_validity(&baked, &layout, &rays);
         Ok(Self {
             scene: baked,
             layout,

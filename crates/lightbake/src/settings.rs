@@ -158,8 +158,10 @@ pub struct BakeSettings {
     /// Unwrap every mesh again with xatlas, even those that carry their own `TEXCOORD_1`.
     /// Default false.
     pub reunwrap: bool,
-    /// Seed of every random sequence (numbers are indexed by texel, sample and this seed, never
-    /// by thread). Default 0.
+    /// Seed of every Monte Carlo estimate (numbers are indexed by texel, sample and this seed,
+    /// never by thread). The validity pass, which decides geometry (which texels are inside
+    /// solids and where their points move), uses a fixed seed instead, so two seeds differ by
+    /// noise alone. Default 0.
     pub seed: u32,
     /// Worker threads; 0 uses every core. The result does not depend on it. Default 0.
     pub threads: usize,

@@ -76,6 +76,14 @@ pub struct Nodes {
     /// a neighbouring node of its chart; see [`HitMapper`]). Traced once here, for every
     /// mapper made for these nodes.
     pub split: Vec<bool>,
+    /// Per node: none of its texel's footprint points is open surface (the texel lies under
+    /// geometry, and validity moved its point to the open side of it, possibly past the
+    /// texel). Its representative point then stands for it: in its basis area, and as the
+    /// start of its transport rays, as in the hemicube and the VPL gather. Sampling its
+    /// support instead would find no start point (an empty row: no reflected light) or, at
+    /// high ray counts, a few from a sliver of surface, so the row would depend on the ray
+    /// count.
+    pub sliver: Vec<bool>,
 }
 
 impl Nodes {
@@ -101,13 +109,15 @@ impl Nodes {
             area: Vec::new(),
             albedo,
             split: Vec::new(),
+            sliver: Vec::new(),
         };
         let mapper = HitMapper::new(*ctx, &nodes, basis);
         let split = mapper.split_flags();
-        let area = basis_areas(ctx, &surface, &nodes, &mapper);
+        let (area, sliver) = basis_areas(ctx, &surface, &nodes, &mapper);
         drop(mapper);
         nodes.area = area;
         nodes.split = split;
+        nodes.sliver = sliver;
         nodes
     }
 
@@ -135,19 +145,24 @@ const AREA_SAMPLES: u32 = 16;
 /// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];
 /// invalid texels contribute their open rim), split over stratified points of its footprint,
 /// given to the nodes by the basis weights at those points.
+///
+/// Also returns, per node, whether none of its texel's footprint points is open (see
+/// [`Nodes::sliver`]).
 fn basis_areas(
     ctx: &BakeContext<'_>,
     surface: &Surface<'_>,
     nodes: &Nodes,
     mapper: &HitMapper<'_>,
-) -> Vec<f32> {
+) -> (Vec<f32>, Vec<bool>) {
     let patches = &ctx.patches.patches;
-    let chunks: Vec<Vec<(u32, f32)>> = patches
+    let chunks: Vec<(Vec<(u32, f32)>, Vec<u32>)> = patches
         .par_chunks(512)
-        .map(|chunk| {
+        .enumerate()
+        .map(|(c, chunk)| {
             let mut out = Vec::new();
+            let mut slivers = Vec::new();
             let mut w = [(0u32, 0f32); 4];
-            for p in chunk {
+            for (k, p) in chunk.iter().enumerate() {
                 let Some(rect) = ctx.layout.instances[p.instance as usize] else {
                     continue;
                 };
@@ -177,6 +192,7 @@ fn basis_areas(
                 }
                 if p.is_valid() && points.is_empty() {
                     // A sliver: its representative point stands for it.
+                    slivers.push(nodes.of_patch[c * 512 + k]);
                     points.push((
                         p.triangle,
                         texel + Vec2::splat(0.5),
@@ -196,20 +212,24 @@ fn basis_areas(
                     out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
                 }
             }
-            out
+            (out, slivers)
         })
         .collect();
     let mut area = vec![0.0f32; nodes.len()];
-    for chunk in chunks {
+    let mut sliver = vec![false; nodes.len()];
+    for (chunk, slivers) in chunks {
         for (j, a) in chunk {
             area[j as usize] += a;
+        }
+        for j in slivers {
+            sliver[j as usize] = true;
         }
     }
     // Every node keeps at least a sliver of its own area.
     for (i, a) in area.iter_mut().enumerate() {
         *a = a.max(1e-3 * patches[nodes.patch[i] as usize].area);
     }
-    area
+    (area, sliver)
 }
 
 /// Albedo of one texel: the material's factor times its texture averaged over the footprint.
@@ -891,36 +911,30 @@ impl Transport {
     }
 
     /// The samples of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
-    /// basis support, cosine-distributed about the surface there. Calls `f(weight, hit)` for
-    /// every support point, with `hit` the nodes and bilinear weights the ray reached (empty
-    /// when it escaped, was absorbed or pointed below the surface); returns the escaped weight.
+    /// basis support (from its representative point when it is a [`Nodes::sliver`], or when
+    /// no support point is open), cosine-distributed about the surface there. Calls
+    /// `f(weight, hit)` for every start point, with `hit` the nodes and bilinear weights the
+    /// ray reached (empty when it escaped, was absorbed or pointed below the surface); returns
+    /// the escaped weight.
     fn for_each_sample(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
+        nodes: &Nodes,
         i: usize,
-        p: &Patch,
         rays: u32,
         mut f: impl FnMut(f32, &[(u32, f32)]),
     ) -> f32 {
+        let p = &ctx.patches.patches[nodes.patch[i] as usize];
         let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
         let surface = mapper.surface();
         let mut escaped = 0.0f32;
         let mut out = [(0u32, 0f32); 4];
-        let fast = SupportFrame::new(ctx, mapper, i, p);
         let (starts, directions) = (Sobol02::new(key), Sobol02::new(key ^ 0x6a09_e667));
-        for k in 0..rays {
-            let start = match &fast {
-                Some(frame) => frame.point(starts.point(k)),
-                None => support_point(ctx, surface, mapper, i, p, k, key),
-            };
-            let Some((sp, weight)) = start else {
-                continue;
-            };
-            let u = directions.point(k);
-            let dir = cosine_hemisphere(sp.normal, u);
+        let mut trace = |sp: &crate::raster::SurfacePoint, weight: f32, k: u32| {
+            let dir = cosine_hemisphere(sp.normal, directions.point(k));
             if dir.dot(sp.geometric_normal) <= 0.0 {
                 f(weight, &[]); // below the surface: no light arrives from there
-                continue;
+                return;
             }
             let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
             match trace_to_nodes(mapper, origin, dir, &mut out) {
@@ -930,6 +944,26 @@ impl Transport {
                 }
                 RayFate::Absorbed => f(weight, &[]),
                 RayFate::Nodes(n) => f(weight, &out[..n]),
+            }
+        };
+        let mut started = 0u32;
+        if !nodes.sliver.get(i).copied().unwrap_or(false) {
+            let fast = SupportFrame::new(ctx, mapper, i, p);
+            for k in 0..rays {
+                let start = match &fast {
+                    Some(frame) => frame.point(starts.point(k)),
+                    None => support_point(ctx, surface, mapper, i, p, k, key),
+                };
+                if let Some((sp, weight)) = start {
+                    started += 1;
+                    trace(&sp, weight, k);
+                }
+            }
+        }
+        if started == 0 {
+            let sp = crate::direct::representative(p);
+            for k in 0..rays {
+                trace(&sp, 1.0, k);
             }
         }
         escaped
@@ -944,10 +978,9 @@ impl Transport {
         i: usize,
         rays: u32,
     ) -> (Vec<(u32, f32)>, f32) {
-        let p = &ctx.patches.patches[nodes.patch[i] as usize];
         let mut row: Vec<(u32, f32)> = Vec::with_capacity(rays as usize * 2);
         let mut total = 0.0f32;
-        let escaped = Self::for_each_sample(ctx, mapper, i, p, rays, |weight, hit| {
+        let escaped = Self::for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
             total += weight;
             row.extend(hit.iter().map(|&(j, wj)| (j, wj * weight)));
         });
@@ -982,9 +1015,8 @@ impl Transport {
         rays: u32,
         b: &[Vec3],
     ) -> (f64, f64) {
-        let p = &ctx.patches.patches[nodes.patch[i] as usize];
         let mut samples: Vec<(f64, f64)> = Vec::with_capacity(rays as usize);
-        Self::for_each_sample(ctx, mapper, i, p, rays, |weight, hit| {
+        Self::for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
             let v: f32 = hit
                 .iter()
                 .map(|&(j, wj)| wj * crate::direct::luminance(b[j as usize]))
