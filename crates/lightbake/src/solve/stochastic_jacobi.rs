@@ -216,6 +216,22 @@ pub fn solve(
         );
         progress.advance(1);
     };
+    // Sliver nodes (no open footprint point, see `Nodes::sliver`) stand for a point, not an
+    // area: shot rays almost never land on them. Their reflected light is gathered once at
+    // that point from the final exitance, as the gathering solvers' rows do.
+    let slivers: Vec<usize> = (0..n)
+        .filter(|&i| nodes.sliver.get(i).copied().unwrap_or(false))
+        .collect();
+    let gather_rays = ctx.settings.transport_rays.max(1);
+    let gathered: Vec<Vec3> = slivers
+        .par_iter()
+        .map(|&i| crate::transport::Transport::gather_row(ctx, mapper, nodes, i, gather_rays, &b))
+        .collect();
+    total_rays += slivers.len() as u64 * gather_rays as u64;
+    for (&i, h) in slivers.iter().zip(gathered) {
+        b[i] += nodes.albedo[i] * (h - indirect[i]);
+        indirect[i] = h;
+    }
     Solution {
         solver: "stochastic-jacobi",
         b,

@@ -1002,6 +1002,22 @@ impl Transport {
         (merged, escaped / total)
     }
 
+    /// Node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row estimated by
+    /// `rays` rays as [`Self::build_monte_carlo`] does, without storing the matrix. Returns the
+    /// irradiance and the rays traced.
+    pub fn gather_row(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        nodes: &Nodes,
+        i: usize,
+        rays: u32,
+        b: &[Vec3],
+    ) -> Vec3 {
+        let (row, _) = Self::mc_row(ctx, mapper, nodes, i, rays);
+        row.iter()
+            .fold(Vec3::ZERO, |s, &(j, w)| s + b[j as usize] * w)
+    }
+
     /// Standard error (luminance) of node `i`'s gathered irradiance (F·B)ᵢ when its row is
     /// estimated with `rays` rays, from the spread of the rays' values against the exitance
     /// `b`: the delta-method variance of the self-normalised estimator,
