@@ -139,6 +139,9 @@ impl Nodes {
     }
 }
 
+/// One chunk of [`basis_areas`]' work: (node, area share) entries, and the sliver nodes.
+type AreaChunk = (Vec<(u32, f32)>, Vec<u32>);
+
 /// Footprint samples per texel for the basis areas.
 const AREA_SAMPLES: u32 = 16;
 
@@ -155,7 +158,7 @@ fn basis_areas(
     mapper: &HitMapper<'_>,
 ) -> (Vec<f32>, Vec<bool>) {
     let patches = &ctx.patches.patches;
-    let chunks: Vec<(Vec<(u32, f32)>, Vec<u32>)> = patches
+    let chunks: Vec<AreaChunk> = patches
         .par_chunks(512)
         .enumerate()
         .map(|(c, chunk)| {
