@@ -19,9 +19,9 @@
 use glam::{Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::bvh::RayScene;
+use crate::bvh::{RayScene, TriangleInfo};
 use crate::sampling::{basis, cosine_hemisphere, hash_words, sobol_02};
-use crate::scene::Scene;
+use crate::scene::{Instance, Mesh, Scene};
 use crate::unwrap::Layout;
 
 /// A lightmap texel treated as a surface patch.
@@ -284,18 +284,30 @@ impl<'a> Surface<'a> {
         }
     }
 
-    /// The world surface point at texel-space point `q` (texel units of the instance's
-    /// rectangle) on global triangle `triangle`, if `q` lies inside it (`tol` in barycentric
-    /// units; clamped to the triangle when within it).
-    pub fn point(&self, triangle: u32, q: Vec2, tol: f32) -> Option<SurfacePoint> {
+    /// Global triangle `triangle` as the lightmap sees it: its ray-scene record, instance,
+    /// mesh, mesh vertex indices and texel-space UVs (`TEXCOORD_1` × the mesh's rectangle).
+    /// `None` when its mesh is not unwrapped.
+    #[allow(clippy::type_complexity)]
+    fn lightmap_triangle(
+        &self,
+        triangle: u32,
+    ) -> Option<(TriangleInfo, &Instance, &Mesh, [usize; 3], [Vec2; 3])> {
         let info = self.rays.triangles[triangle as usize];
         let inst = &self.scene.instances[info.instance as usize];
         let mesh = &self.scene.meshes[inst.mesh];
         let unwrap = self.layout.meshes[inst.mesh].as_ref()?;
         let uv1 = mesh.uv1.as_ref()?;
         let scale = Vec2::new(unwrap.width as f32, unwrap.height as f32);
-        let [a, b, c] = mesh.triangle(info.local as usize);
-        let b2 = barycentric_2d([uv1[a] * scale, uv1[b] * scale, uv1[c] * scale], q, tol)?;
+        let abc = mesh.triangle(info.local as usize);
+        Some((info, inst, mesh, abc, abc.map(|k| uv1[k] * scale)))
+    }
+
+    /// The world surface point at texel-space point `q` (texel units of the instance's
+    /// rectangle) on global triangle `triangle`, if `q` lies inside it (`tol` in barycentric
+    /// units; clamped to the triangle when within it).
+    pub fn point(&self, triangle: u32, q: Vec2, tol: f32) -> Option<SurfacePoint> {
+        let (info, inst, mesh, [a, b, c], t) = self.lightmap_triangle(triangle)?;
+        let b2 = barycentric_2d(t, q, tol)?;
         // Clamp into the triangle.
         let (mut u, mut v) = (b2.x.max(0.0), b2.y.max(0.0));
         if u + v > 1.0 {
@@ -322,14 +334,7 @@ impl<'a> Surface<'a> {
     /// triangle, so points near `q` need no barycentric solve. `None` for a degenerate triangle
     /// or one without lightmap UVs.
     pub fn frame(&self, triangle: u32, q: Vec2) -> Option<SurfaceFrame> {
-        let info = self.rays.triangles[triangle as usize];
-        let inst = &self.scene.instances[info.instance as usize];
-        let mesh = &self.scene.meshes[inst.mesh];
-        let unwrap = self.layout.meshes[inst.mesh].as_ref()?;
-        let uv1 = mesh.uv1.as_ref()?;
-        let scale = Vec2::new(unwrap.width as f32, unwrap.height as f32);
-        let [a, b, c] = mesh.triangle(info.local as usize);
-        let t = [uv1[a] * scale, uv1[b] * scale, uv1[c] * scale];
+        let (info, inst, mesh, [a, b, c], t) = self.lightmap_triangle(triangle)?;
         let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], q - t[0]);
         let det = e1.perp_dot(e2);
         if det.abs() < 1e-20 {

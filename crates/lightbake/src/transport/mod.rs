@@ -1006,8 +1006,7 @@ impl Transport {
     }
 
     /// Node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row estimated by
-    /// `rays` rays as [`Self::build_monte_carlo`] does, without storing the matrix. Returns the
-    /// irradiance and the rays traced.
+    /// `rays` rays as [`Self::build_monte_carlo`] does, without storing the matrix (lux).
     pub fn gather_row(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
