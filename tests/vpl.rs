@@ -335,3 +335,91 @@ fn vpl_method_reproduces_direct_light_of_a_point_light() {
         );
     }
 }
+
+/// Two 1 m plates 1 cm apart, facing each other, lit by a point light between them: nearly
+/// every texel's neighbourhood is within the clamp distance.
+fn sandwich() -> Scene {
+    let mut s = Scene::default();
+    let white = s.add_material(Material::diffuse("white", Vec3::splat(0.8)));
+    let plate = |name: &str, y: f32, facing: Vec3| {
+        quad(
+            name,
+            [
+                Vec3::new(0.0, y, -0.5),
+                Vec3::new(1.0, y, -0.5),
+                Vec3::new(1.0, y, 0.5),
+                Vec3::new(0.0, y, 0.5),
+            ],
+            facing,
+        )
+    };
+    for m in [plate("low", 0.0, Vec3::Y), plate("high", 0.01, Vec3::NEG_Y)] {
+        let name = m.name.clone();
+        let id = s.add_mesh(Mesh {
+            material: Some(white),
+            ..m
+        });
+        s.instances
+            .push(Instance::new(name, id, Affine3A::IDENTITY));
+    }
+    s.lights.push(Light {
+        name: "lamp".into(),
+        kind: LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 1.0,
+        range: None,
+        position: Vec3::new(0.5, 0.005, 0.0),
+        direction: Vec3::NEG_Y,
+    });
+    s
+}
+
+#[test]
+fn a_near_field_over_the_memory_budget_falls_back_to_one_bounce_and_says_so() {
+    // Between the plates every texel's near field holds dozens of nodes: its operator at 256
+    // rays per texel takes several MiB. With a 1 MiB budget (half of it for the operator) the
+    // compensation must still run, one bounce deep, and say why. One bounce restores less than
+    // the fixed point, more than nothing.
+    let prep = prepared(&sandwich(), 96.0);
+    let direct = prep.direct();
+    let emitters = Emitters::collect(&prep.scene, &prep.rays);
+    let run = |budget_mib: u64| {
+        let mut st = prep.settings.clone();
+        st.vpl_particles = 1024;
+        st.vpl_bias_compensation = true;
+        st.vpl_compensation_rays = 256;
+        st.memory_budget_mib = budget_mib;
+        let ctx = BakeContext {
+            settings: &st,
+            ..prep.ctx()
+        };
+        instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new())
+    };
+    let (full, full_report, _) = run(8192);
+    let (cut, cut_report, _) = run(1);
+    assert!(full_report.compensation_note.is_none());
+    assert!(full_report.compensation_iterations > 1);
+    let note = cut_report
+        .compensation_note
+        .expect("the cut-short compensation says so");
+    assert!(note.contains("one bounce"), "{note}");
+    assert_eq!(cut_report.compensation_iterations, 1);
+    let sum = |e: &[Vec3]| e.iter().map(|v| v.x as f64).sum::<f64>();
+    let clamped = {
+        let mut st = prep.settings.clone();
+        st.vpl_particles = 1024;
+        let ctx = BakeContext {
+            settings: &st,
+            ..prep.ctx()
+        };
+        instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new()).0
+    };
+    println!(
+        "indirect sums: clamped {:.1}, one bounce {:.1}, fixed point {:.1}",
+        sum(&clamped),
+        sum(&cut),
+        sum(&full)
+    );
+    assert!(cut.iter().all(|v| v.is_finite()));
+    assert!(sum(&clamped) < sum(&cut) && sum(&cut) < sum(&full));
+}

@@ -403,6 +403,9 @@ fn bake_in_pool(
                     }
                     unreachable!("the last round returns")
                 })?;
+            if let Some(note) = &report.compensation_note {
+                warnings.push(note.clone());
+            }
             // Keller's walk follows at most `vpl_max_depth` reflections: in a closed scene the
             // light beyond them is ρ̄^(d+1) of the total, and it is not baked.
             let depth = settings.vpl_max_depth.min(crate::vpl::walk::MAX_DEPTH);

@@ -210,75 +210,128 @@ pub struct NearField {
     entries: Vec<(u32, f32)>,
 }
 
+/// Patches whose near-field rows are traced before the memory check runs again.
+const NEAR_BLOCK: usize = 16_384;
+
 impl NearField {
+    /// Patch `p`'s row: `rays` cosine rays, the hits where G > `bound`, merged per node.
+    fn row(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        p: &crate::raster::Patch,
+        bound: f32,
+        rays: u32,
+        traced: &AtomicU64,
+    ) -> Vec<(u32, f32)> {
+        let mut row: Vec<(u32, f32)> = Vec::new();
+        if !p.is_valid() {
+            return row;
+        }
+        let sp = representative(p);
+        let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+        let key = p.rng(ctx.settings.seed, 0xc0a9);
+        let mut w = [(0u32, 0f32); 4];
+        // Only points closer than where G can exceed the bound matter: r² < 1/bound.
+        let reach = (1.0 / bound).sqrt();
+        let scale = 1.0 / rays.max(1) as f32;
+        for k in 0..rays {
+            let dir = cosine_hemisphere(sp.normal, sobol_02(k, key));
+            if dir.dot(sp.geometric_normal) <= 0.0 {
+                continue;
+            }
+            traced.fetch_add(1, Ordering::Relaxed);
+            let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, reach) else {
+                continue;
+            };
+            let info = ctx.rays.triangles[hit.triangle as usize];
+            let cos_x = sp.normal.dot(dir);
+            let cos_y = (-info.normal.dot(dir)).abs();
+            let g = cos_x * cos_y / (hit.t * hit.t);
+            if g <= bound {
+                continue;
+            }
+            let n = mapper.weights(&hit, &mut w);
+            let f = (1.0 - bound / g) * scale;
+            row.extend(w[..n].iter().map(|&(j, wj)| (j, wj * f)));
+        }
+        row.sort_unstable_by_key(|e| e.0);
+        row.dedup_by(|b, a| {
+            let same = a.0 == b.0;
+            if same {
+                a.1 += b.1;
+            }
+            same
+        });
+        row
+    }
+
     /// Traces `rays` cosine rays per valid texel and keeps the hits where G > `bound`.
-    /// Returns the operator and the rays traced.
+    /// Returns the operator and the rays traced, or `Err(projected bytes)` as soon as the rows
+    /// traced so far project past `max_bytes` (then nothing more is kept).
     pub fn trace(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
         bound: f32,
         rays: u32,
+        max_bytes: u64,
         progress: &Progress,
-    ) -> (Self, u64) {
+    ) -> Result<(Self, u64), u64> {
         let traced = AtomicU64::new(0);
-        let rows: Vec<Vec<(u32, f32)>> = ctx
+        let patches = &ctx.patches.patches;
+        let mut near = NearField {
+            row_ptr: Vec::with_capacity(patches.len() + 1),
+            entries: Vec::new(),
+        };
+        near.row_ptr.push(0);
+        for block in patches.chunks(NEAR_BLOCK) {
+            let rows: Vec<Vec<(u32, f32)>> = block
+                .par_iter()
+                .map(|p| {
+                    let row = Self::row(ctx, mapper, p, bound, rays, &traced);
+                    progress.advance(1);
+                    row
+                })
+                .collect();
+            for row in rows {
+                near.entries.extend(row);
+                near.row_ptr.push(near.entries.len() as u64);
+            }
+            let done = near.row_ptr.len() - 1;
+            let projected = (near.entries.len() as f64 / done as f64
+                * patches.len() as f64
+                * size_of::<(u32, f32)>() as f64) as u64;
+            if projected > max_bytes {
+                return Err(projected);
+            }
+        }
+        near.entries.shrink_to_fit();
+        Ok((near, traced.into_inner()))
+    }
+
+    /// The one-bounce compensation without storing the operator (for near fields over the
+    /// memory budget): each patch's row is traced and applied to `exitance` at once. Returns
+    /// the irradiance per patch and the rays traced.
+    pub fn trace_and_apply(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        bound: f32,
+        rays: u32,
+        exitance: &[Vec3],
+        progress: &Progress,
+    ) -> (Vec<Vec3>, u64) {
+        let traced = AtomicU64::new(0);
+        let out = ctx
             .patches
             .patches
             .par_iter()
             .map(|p| {
-                let mut row: Vec<(u32, f32)> = Vec::new();
-                if !p.is_valid() {
-                    return row;
-                }
-                let sp = representative(p);
-                let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-                let key = p.rng(ctx.settings.seed, 0xc0a9);
-                let mut w = [(0u32, 0f32); 4];
-                // Only points closer than where G can exceed the bound matter: r² < 1/bound.
-                let reach = (1.0 / bound).sqrt();
-                let scale = 1.0 / rays.max(1) as f32;
-                for k in 0..rays {
-                    let dir = cosine_hemisphere(sp.normal, sobol_02(k, key));
-                    if dir.dot(sp.geometric_normal) <= 0.0 {
-                        continue;
-                    }
-                    traced.fetch_add(1, Ordering::Relaxed);
-                    let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, reach) else {
-                        continue;
-                    };
-                    let info = ctx.rays.triangles[hit.triangle as usize];
-                    let cos_x = sp.normal.dot(dir);
-                    let cos_y = (-info.normal.dot(dir)).abs();
-                    let g = cos_x * cos_y / (hit.t * hit.t);
-                    if g <= bound {
-                        continue;
-                    }
-                    let n = mapper.weights(&hit, &mut w);
-                    let f = (1.0 - bound / g) * scale;
-                    row.extend(w[..n].iter().map(|&(j, wj)| (j, wj * f)));
-                }
-                row.sort_unstable_by_key(|e| e.0);
-                row.dedup_by(|b, a| {
-                    let same = a.0 == b.0;
-                    if same {
-                        a.1 += b.1;
-                    }
-                    same
-                });
+                let row = Self::row(ctx, mapper, p, bound, rays, &traced);
                 progress.advance(1);
-                row
+                row.iter()
+                    .fold(Vec3::ZERO, |s, &(j, w)| s + exitance[j as usize] * w)
             })
             .collect();
-        let mut near = NearField {
-            row_ptr: Vec::with_capacity(rows.len() + 1),
-            entries: Vec::with_capacity(rows.iter().map(Vec::len).sum()),
-        };
-        near.row_ptr.push(0);
-        for row in rows {
-            near.entries.extend(row);
-            near.row_ptr.push(near.entries.len() as u64);
-        }
-        (near, traced.into_inner())
+        (out, traced.into_inner())
     }
 
     /// Stored (patch, node) entries.

@@ -52,6 +52,8 @@ pub struct VplReport {
     /// Fixed-point iterations of the compensation (0 when it did not run; see
     /// [`gather::NearField`]).
     pub compensation_iterations: u32,
+    /// Why the compensation was cut short, when it was (a warning for the report).
+    pub compensation_note: Option<String>,
     /// Shadow rays of the gather.
     pub shadow_rays: u64,
     /// VPL–texel pairs culled before tracing.
@@ -179,6 +181,7 @@ pub fn instant_radiosity(
     let mut rays = set.rays + gathered.shadow_rays;
     let compensated = s.vpl_bias_compensation;
     let mut compensation_iterations = 0u32;
+    let mut compensation_note = None;
     if compensated {
         // Exitance at the nodes: reflection of what has been gathered (plus direct light in
         // hybrid), and emission (its near field was clamped too in method vpl).
@@ -202,29 +205,59 @@ pub fn instant_radiosity(
             })
             .collect();
         let mapper = HitMapper::new(*ctx, &nodes, Basis::Linear);
-        let (near, traced) =
-            gather::NearField::trace(ctx, &mapper, bound, s.vpl_compensation_rays, progress);
-        rays += traced;
-        // The fixed point E_comp = C·(B₀ + ρ·E_comp): the near field's exitance lacks what
-        // the clamp removed near it too. C's rows sum to at most 1, so this contracts by ρ̄
-        // or faster.
-        let mut extra = vec![Vec3::ZERO; irradiance.len()];
-        let norm = |v: &[Vec3]| v.iter().map(|e| luminance(*e) as f64).sum::<f64>();
-        for _ in 0..COMPENSATION_MAX_ITERATIONS {
-            let exitance: Vec<Vec3> = base
-                .iter()
+        let exitance_with = |extra: &[Vec3]| -> Vec<Vec3> {
+            base.iter()
                 .map(|&(b0, rho, i)| b0 + rho * extra[i])
-                .collect();
-            let next = near.apply(&exitance);
-            let change: f64 = next
-                .iter()
-                .zip(&extra)
-                .map(|(a, b)| luminance((*a - *b).abs()) as f64)
-                .sum();
-            extra = next;
-            compensation_iterations += 1;
-            if change <= COMPENSATION_TOLERANCE * norm(&extra) {
-                break;
+                .collect()
+        };
+        let mut extra = vec![Vec3::ZERO; irradiance.len()];
+        // The near-field operator may take half the memory budget.
+        let max_bytes = s.memory_budget_mib.saturating_mul(1 << 20) / 2;
+        match gather::NearField::trace(
+            ctx,
+            &mapper,
+            bound,
+            s.vpl_compensation_rays,
+            max_bytes,
+            progress,
+        ) {
+            Ok((near, traced)) => {
+                rays += traced;
+                // The fixed point E_comp = C·(B₀ + ρ·E_comp): the near field's exitance lacks
+                // what the clamp removed near it too. C's rows sum to at most 1, so this
+                // contracts by ρ̄ or faster.
+                let norm = |v: &[Vec3]| v.iter().map(|e| luminance(*e) as f64).sum::<f64>();
+                for _ in 0..COMPENSATION_MAX_ITERATIONS {
+                    let next = near.apply(&exitance_with(&extra));
+                    let change: f64 = next
+                        .iter()
+                        .zip(&extra)
+                        .map(|(a, b)| luminance((*a - *b).abs()) as f64)
+                        .sum();
+                    extra = next;
+                    compensation_iterations += 1;
+                    if change <= COMPENSATION_TOLERANCE * norm(&extra) {
+                        break;
+                    }
+                }
+            }
+            Err(projected) => {
+                let (one_bounce, traced) = gather::NearField::trace_and_apply(
+                    ctx,
+                    &mapper,
+                    bound,
+                    s.vpl_compensation_rays,
+                    &exitance_with(&extra),
+                    progress,
+                );
+                rays += traced;
+                extra = one_bounce;
+                compensation_iterations = 1;
+                compensation_note = Some(format!(
+                    "the bias compensation's near field would take {} MiB, over half the memory budget ({} MiB): it was compensated one bounce deep, which leaves light missing in sharp creases",
+                    projected >> 20,
+                    s.memory_budget_mib
+                ));
             }
         }
         for (e, x) in irradiance.iter_mut().zip(extra) {
@@ -246,6 +279,7 @@ pub fn instant_radiosity(
         },
         compensated,
         compensation_iterations,
+        compensation_note,
         shadow_rays: gathered.shadow_rays,
         culled: gathered.culled,
         gather_seconds,
