@@ -343,22 +343,23 @@ pub fn spherical_triangle(
     if omega.is_nan() || omega < min_solid_angle as f64 {
         return None;
     }
-    // Interior angles from the normals of the great circles through each pair of vertices.
-    let angle = |p: glam::DVec3, q: glam::DVec3, r: glam::DVec3| {
-        let (n1, n2) = (
-            p.cross(q).normalize_or_zero(),
-            p.cross(r).normalize_or_zero(),
-        );
-        n1.dot(n2).clamp(-1.0, 1.0).acos()
-    };
-    let alpha = angle(a, b, c);
+    // Interior angle α at a, from the normals of the great circles a–b and a–c: its cosine
+    // and sine directly (no acos), since only they and sin/cos(Â − α) are needed.
+    let (n1, n2) = (
+        a.cross(b).normalize_or_zero(),
+        a.cross(c).normalize_or_zero(),
+    );
+    let cos_alpha = n1.dot(n2).clamp(-1.0, 1.0);
+    let sin_alpha = n1.cross(n2).length().min(1.0);
     let cos_c = a.dot(b);
     // 1. Pick the sub-triangle area Â = u₀·Ω and find its third vertex ĉ on the arc from a to c.
-    let area = u.x as f64 * omega;
-    let (s, t) = (area - alpha).sin_cos();
-    let uu = t - alpha.cos();
-    let vv = s + alpha.sin() * cos_c;
-    let q = (((vv * t - uu * s) * alpha.cos() - vv) / ((vv * s + uu * t) * alpha.sin()))
+    let (sin_area, cos_area) = (u.x as f64 * omega).sin_cos();
+    // sin and cos of Â − α.
+    let s = sin_area * cos_alpha - cos_area * sin_alpha;
+    let t = cos_area * cos_alpha + sin_area * sin_alpha;
+    let uu = t - cos_alpha;
+    let vv = s + sin_alpha * cos_c;
+    let q = (((vv * t - uu * s) * cos_alpha - vv) / ((vv * s + uu * t) * sin_alpha))
         .clamp(-1.0, 1.0);
     let c_perp = (c - c.dot(a) * a).normalize_or_zero();
     let c_hat = q * a + (1.0 - q * q).max(0.0).sqrt() * c_perp;
