@@ -143,8 +143,6 @@ fn halton_walks_converge_faster_than_random_ones() {
 /// Two 1 m planes meeting at a 15° crease, facing into it, lit by a point light inside the
 /// opening: VPLs on one plane sit millimetres from texels of the other near the crease.
 fn crease() -> Scene {
-    let mut s = Scene::default();
-    let white = s.add_material(Material::diffuse("white", Vec3::splat(0.8)));
     let angle = 15f32.to_radians();
     let up = Vec3::new(angle.cos(), angle.sin(), 0.0);
     let a = quad(
@@ -167,7 +165,15 @@ fn crease() -> Scene {
         ],
         Vec3::new(angle.sin(), -angle.cos(), 0.0),
     );
-    for m in [a, b] {
+    white_meshes_with_a_lamp([a, b], Vec3::new(0.9, 0.12, 0.0), 10.0)
+}
+
+/// A scene of `meshes` in white (albedo 0.8) lit by one point light of `intensity` (cd) at
+/// `lamp`.
+fn white_meshes_with_a_lamp(meshes: [Mesh; 2], lamp: Vec3, intensity: f32) -> Scene {
+    let mut s = Scene::default();
+    let white = s.add_material(Material::diffuse("white", Vec3::splat(0.8)));
+    for m in meshes {
         let name = m.name.clone();
         let id = s.add_mesh(Mesh {
             material: Some(white),
@@ -180,9 +186,9 @@ fn crease() -> Scene {
         name: "lamp".into(),
         kind: LightKind::Point,
         color: Vec3::ONE,
-        intensity: 10.0,
+        intensity,
         range: None,
-        position: Vec3::new(0.9, 0.12, 0.0),
+        position: lamp,
         direction: Vec3::NEG_Y,
     });
     s
@@ -339,8 +345,6 @@ fn vpl_method_reproduces_direct_light_of_a_point_light() {
 /// Two 1 m plates 1 cm apart, facing each other, lit by a point light between them: nearly
 /// every texel's neighbourhood is within the clamp distance.
 fn sandwich() -> Scene {
-    let mut s = Scene::default();
-    let white = s.add_material(Material::diffuse("white", Vec3::splat(0.8)));
     let plate = |name: &str, y: f32, facing: Vec3| {
         quad(
             name,
@@ -353,25 +357,11 @@ fn sandwich() -> Scene {
             facing,
         )
     };
-    for m in [plate("low", 0.0, Vec3::Y), plate("high", 0.01, Vec3::NEG_Y)] {
-        let name = m.name.clone();
-        let id = s.add_mesh(Mesh {
-            material: Some(white),
-            ..m
-        });
-        s.instances
-            .push(Instance::new(name, id, Affine3A::IDENTITY));
-    }
-    s.lights.push(Light {
-        name: "lamp".into(),
-        kind: LightKind::Point,
-        color: Vec3::ONE,
-        intensity: 1.0,
-        range: None,
-        position: Vec3::new(0.5, 0.005, 0.0),
-        direction: Vec3::NEG_Y,
-    });
-    s
+    white_meshes_with_a_lamp(
+        [plate("low", 0.0, Vec3::Y), plate("high", 0.01, Vec3::NEG_Y)],
+        Vec3::new(0.5, 0.005, 0.0),
+        1.0,
+    )
 }
 
 #[test]

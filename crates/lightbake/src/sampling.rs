@@ -359,8 +359,8 @@ pub fn spherical_triangle(
     let t = cos_area * cos_alpha + sin_area * sin_alpha;
     let uu = t - cos_alpha;
     let vv = s + sin_alpha * cos_c;
-    let q = (((vv * t - uu * s) * cos_alpha - vv) / ((vv * s + uu * t) * sin_alpha))
-        .clamp(-1.0, 1.0);
+    let q =
+        (((vv * t - uu * s) * cos_alpha - vv) / ((vv * s + uu * t) * sin_alpha)).clamp(-1.0, 1.0);
     let c_perp = (c - c.dot(a) * a).normalize_or_zero();
     let c_hat = q * a + (1.0 - q * q).max(0.0).sqrt() * c_perp;
     // 2. Pick a point on the arc from b to ĉ with the right density.
