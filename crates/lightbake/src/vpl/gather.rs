@@ -266,8 +266,8 @@ impl NearField {
     }
 
     /// Traces `rays` cosine rays per valid texel and keeps the hits where G > `bound`.
-    /// Returns the operator and the rays traced, or `Err(projected bytes)` as soon as the rows
-    /// traced so far project past `max_bytes` (then nothing more is kept).
+    /// Returns the operator and the rays traced, or `Err((projected bytes, rays traced))` as
+    /// soon as the rows traced so far project past `max_bytes` (then nothing more is kept).
     pub fn trace(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
@@ -275,7 +275,7 @@ impl NearField {
         rays: u32,
         max_bytes: u64,
         progress: &Progress,
-    ) -> Result<(Self, u64), u64> {
+    ) -> Result<(Self, u64), (u64, u64)> {
         let traced = AtomicU64::new(0);
         let patches = &ctx.patches.patches;
         let mut near = NearField {
@@ -301,7 +301,7 @@ impl NearField {
                 * patches.len() as f64
                 * size_of::<(u32, f32)>() as f64) as u64;
             if projected > max_bytes {
-                return Err(projected);
+                return Err((projected, traced.into_inner()));
             }
         }
         near.entries.shrink_to_fit();

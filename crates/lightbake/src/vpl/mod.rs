@@ -241,7 +241,8 @@ pub fn instant_radiosity(
                     }
                 }
             }
-            Err(projected) => {
+            Err((projected, partial)) => {
+                rays += partial;
                 let (one_bounce, traced) = gather::NearField::trace_and_apply(
                     ctx,
                     &mapper,
