@@ -981,18 +981,24 @@ impl Transport {
         i: usize,
         rays: u32,
     ) -> (Vec<(u32, f32)>, f32) {
-        let mut row: Vec<(u32, f32)> = Vec::with_capacity(rays as usize * 2);
+        // Entries packed as (node << 32 | weight bits): one integer sort orders them by node
+        // (weights are non-negative, so their bits order like their values).
+        let mut row: Vec<u64> = Vec::with_capacity(rays as usize * 4);
         let mut total = 0.0f32;
         let escaped = Self::for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
             total += weight;
-            row.extend(hit.iter().map(|&(j, wj)| (j, wj * weight)));
+            row.extend(
+                hit.iter()
+                    .map(|&(j, wj)| (j as u64) << 32 | (wj * weight).to_bits() as u64),
+            );
         });
         if total <= 0.0 {
             return (Vec::new(), 0.0);
         }
-        row.sort_unstable_by_key(|e| e.0);
+        row.sort_unstable();
         let mut merged: Vec<(u32, f32)> = Vec::with_capacity(row.len());
-        for (j, v) in row {
+        for e in row {
+            let (j, v) = ((e >> 32) as u32, f32::from_bits(e as u32));
             match merged.last_mut() {
                 Some(last) if last.0 == j => last.1 += v,
                 _ => merged.push((j, v)),
