@@ -683,7 +683,7 @@ fn fast_support_frames_match_the_slow_sampler() {
             let key = 0x9e37_79b9 ^ i as u32;
             for k in 0..32 {
                 let fast = frame.point(lightbake::sampling::sobol_02(k, key));
-                let slow = support_point(&ctx, mapper.surface(), &mapper, i, p, k, key);
+                let slow = support_point(&ctx, &mapper, i, p, k, key);
                 let (Some((f, fw)), Some((s, sw))) = (fast, slow) else {
                     assert_eq!(
                         fast.is_some(),

@@ -38,7 +38,6 @@ use crate::bake::BakeContext;
 use crate::bvh::{Hit, RayScene, coincident_groups};
 use crate::direct::luminance;
 use crate::progress::Progress;
-use crate::raster::Surface;
 use crate::sampling::{cosine_hemisphere, hash_words, unit_float};
 use crate::transport::{HitMapper, Nodes, support_point};
 
@@ -67,7 +66,6 @@ pub fn solve(
 ) -> Solution {
     let n = nodes.len();
     let mut rec = Recorder::new(Some(progress));
-    let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
     let s_norm = norm(&to_f64(source), &nodes.area).max(1e-300);
     let mut b = source.to_vec();
     let mut unshot = source.to_vec();
@@ -141,15 +139,9 @@ pub fn solve(
                     // inside a chart, so 2/3 are accepted there).
                     let mut start = None;
                     for attempt in 0..8u32 {
-                        if let Some((sp, w)) = support_point(
-                            ctx,
-                            &surface,
-                            mapper,
-                            j,
-                            patch,
-                            attempt,
-                            hash_words(&[key, 7]),
-                        ) {
+                        if let Some((sp, w)) =
+                            support_point(ctx, mapper, j, patch, attempt, hash_words(&[key, 7]))
+                        {
                             let max_w = 1.5 * patch.texel_size * patch.texel_size;
                             if unit_float(hash_words(&[key, 8, attempt])) * max_w <= w {
                                 start = Some(sp);

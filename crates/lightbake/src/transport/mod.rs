@@ -113,7 +113,7 @@ impl Nodes {
         };
         let mapper = HitMapper::new(*ctx, &nodes, basis);
         let split = mapper.split_flags();
-        let (area, sliver) = basis_areas(ctx, &surface, &nodes, &mapper);
+        let (area, sliver) = basis_areas(ctx, &nodes, &mapper);
         drop(mapper);
         nodes.area = area;
         nodes.split = split;
@@ -153,7 +153,6 @@ const AREA_SAMPLES: u32 = 16;
 /// [`Nodes::sliver`]).
 fn basis_areas(
     ctx: &BakeContext<'_>,
-    surface: &Surface<'_>,
     nodes: &Nodes,
     mapper: &HitMapper<'_>,
 ) -> (Vec<f32>, Vec<bool>) {
@@ -178,7 +177,10 @@ fn basis_areas(
                 let mut on_surface = 0;
                 for s in 0..AREA_SAMPLES {
                     let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
-                    let Some(sp) = footprint.iter().find_map(|&t| surface.point(t, q, 0.0)) else {
+                    let Some(sp) = footprint
+                        .iter()
+                        .find_map(|&t| mapper.surface.point(t, q, 0.0))
+                    else {
                         continue;
                     };
                     on_surface += 1;
@@ -649,7 +651,6 @@ impl<'a> HitMapper<'a> {
 /// carry no area in [`Nodes::area`]).
 pub fn support_point(
     ctx: &BakeContext<'_>,
-    surface: &Surface<'_>,
     mapper: &HitMapper<'_>,
     node: usize,
     p: &Patch,
@@ -686,7 +687,7 @@ pub fn support_point(
         .patches
         .footprint_of(texel)
         .iter()
-        .find_map(|&t| surface.point(t, q, 0.0))?;
+        .find_map(|&t| mapper.surface.point(t, q, 0.0))?;
     // Hidden under geometry: not part of the surface (the basis areas leave it out too).
     if !ctx.patches.open_point(texel, &sp, p, ctx.rays) {
         return None;
@@ -929,7 +930,6 @@ impl Transport {
     ) -> f32 {
         let p = &ctx.patches.patches[nodes.patch[i] as usize];
         let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
-        let surface = mapper.surface();
         let mut escaped = 0.0f32;
         let mut out = [(0u32, 0f32); 4];
         let (starts, directions) = (Sobol02::new(key), Sobol02::new(key ^ 0x6a09_e667));
@@ -955,7 +955,7 @@ impl Transport {
             for k in 0..rays {
                 let start = match &fast {
                     Some(frame) => frame.point(starts.point(k)),
-                    None => support_point(ctx, surface, mapper, i, p, k, key),
+                    None => support_point(ctx, mapper, i, p, k, key),
                 };
                 if let Some((sp, weight)) = start {
                     started += 1;

@@ -334,16 +334,6 @@ impl NearField {
         (out, traced.into_inner())
     }
 
-    /// Stored (patch, node) entries.
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
-
-    /// Whether no texel has a near field.
-    pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
-    }
-
     /// The irradiance the clamp removed at every patch, lux, for node exitance `exitance`.
     pub fn apply(&self, exitance: &[Vec3]) -> Vec<Vec3> {
         (0..self.row_ptr.len().saturating_sub(1))
