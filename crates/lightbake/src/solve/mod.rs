@@ -36,8 +36,8 @@ use crate::transport::{Nodes, Transport};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SolverChoice {
-    /// Chosen from the scene: LU for small systems, BiCGStab when the albedo is high
-    /// (ρ_max > 0.9), Gauss–Seidel otherwise, stochastic Jacobi when the matrix does not fit.
+    /// Chosen from the scene: LU for small systems (≤ [`AUTO_DIRECT_NODES`] nodes), BiCGStab
+    /// otherwise, stochastic Jacobi when the matrix does not fit its budget.
     #[default]
     Auto,
     /// Jacobi gathering.
@@ -327,18 +327,36 @@ pub fn choose(nodes: usize, max_albedo: f32, matrix_fits: bool) -> (SolverChoice
             format!("{nodes} nodes: a dense LU solve is exact and quick"),
         );
     }
-    if max_albedo > 0.9 {
-        return (
-            SolverChoice::Krylov,
-            format!(
-                "max albedo {max_albedo:.3} makes Jacobi-type iterations slow (ln ε / ln ρ sweeps): BiCGStab"
-            ),
+    // BiCGStab: each iteration is two sparse products, which run on every thread. Gauss–
+    // Seidel needs fewer sweeps than Jacobi, but its sweep is sequential: on two threads it
+    // was the slowest of the three (docs/benchmarks.md, "Choosing the default solver").
+    let why = if max_albedo > 0.9 {
+        format!(
+            "max albedo {max_albedo:.3} makes Jacobi-type iterations slow (ln ε / ln ρ sweeps): BiCGStab"
+        )
+    } else {
+        format!(
+            "{nodes} nodes, max albedo {max_albedo:.3}: BiCGStab needs the fewest passes over the matrix, all of them parallel"
+        )
+    };
+    (SolverChoice::Krylov, why)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_picks_lu_when_small_bicgstab_when_large_and_no_matrix_when_over_budget() {
+        assert_eq!(choose(AUTO_DIRECT_NODES, 0.5, true).0, SolverChoice::Direct);
+        for albedo in [0.3, 0.8, 0.95, 0.999] {
+            let (choice, why) = choose(AUTO_DIRECT_NODES + 1, albedo, true);
+            assert_eq!(choice, SolverChoice::Krylov, "{albedo}: {why}");
+        }
+        assert_eq!(
+            choose(10, 0.5, false).0,
+            SolverChoice::StochasticJacobi,
+            "a matrix over budget is never built, however small the system"
         );
     }
-    (
-        SolverChoice::GaussSeidel,
-        format!(
-            "{nodes} nodes, max albedo {max_albedo:.3}: Gauss-Seidel converges in a few sweeps"
-        ),
-    )
 }

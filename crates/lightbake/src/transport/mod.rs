@@ -510,15 +510,20 @@ impl<'a> HitMapper<'a> {
         };
         let uv = tri.uv[0] * (1.0 - hit.u - hit.v) + tri.uv[1] * hit.u + tri.uv[2] * hit.v;
         let q = uv * Vec2::new(rect.width as f32, rect.height as f32);
-        let [v0, v1, v2] = ctx.rays.triangle_vertices(hit.triangle);
-        let point = v0 * (1.0 - hit.u - hit.v) + v1 * hit.u + v2 * hit.v;
-        let side = if hit.front_face {
-            info.normal
-        } else {
-            -info.normal
+        // The world point is only needed next to split nodes, so it is formed only there
+        // (its vertex loads are a cache miss per hit).
+        let from = || {
+            let [v0, v1, v2] = ctx.rays.triangle_vertices(hit.triangle);
+            let point = v0 * (1.0 - hit.u - hit.v) + v1 * hit.u + v2 * hit.v;
+            let side = if hit.front_face {
+                info.normal
+            } else {
+                -info.normal
+            };
+            (point, side)
         };
         let grid = self.grid_lookup(rect, tri.instance, tri.chart);
-        self.weights_with(grid, q, (point, side), out)
+        self.weights_with(grid, q, from, out)
     }
 
     /// Node weights at texel-space point `q` (in the instance's rectangle) on global triangle
@@ -540,7 +545,7 @@ impl<'a> HitMapper<'a> {
             return 0;
         };
         let grid = self.grid_lookup(rect, tri.instance, tri.chart);
-        self.weights_with(grid, q, from, out)
+        self.weights_with(grid, q, || from, out)
     }
 
     /// The lookup of rect-local texels of instance `instance`'s rectangle `rect`, chart `chart`.
@@ -559,12 +564,14 @@ impl<'a> HitMapper<'a> {
         }
     }
 
-    /// [`Self::weights_at`] with the texel lookup `grid` (see [`GridView::at`]).
+    /// [`Self::weights_at`] with the texel lookup `grid` (see [`GridView::at`]); `from` gives
+    /// the seen point and side, called only when a split node needs its visibility test.
+    #[inline]
     fn weights_with(
         &self,
         grid: GridView<'_>,
         q: Vec2,
-        from: (Vec3, Vec3),
+        from: impl Fn() -> (Vec3, Vec3),
         out: &mut [(u32, f32); 4],
     ) -> usize {
         if self.basis == Basis::Linear {
@@ -594,7 +601,7 @@ impl<'a> HitMapper<'a> {
             let mut n = 0;
             let mut sum = 0.0;
             for &(node, w, node_split) in &found[..m] {
-                if split && node_split && !self.sees(from, node) {
+                if split && node_split && !self.sees(from(), node) {
                     continue;
                 }
                 out[n] = (node, w);
@@ -612,7 +619,7 @@ impl<'a> HitMapper<'a> {
         // nearest valid texel of the chart around it.
         let (tx, ty) = (q.x.floor() as i64, q.y.floor() as i64);
         let usable = |f: Option<(u32, bool)>| {
-            f.filter(|&(node, split)| !split || self.sees(from, node))
+            f.filter(|&(node, split)| !split || self.sees(from(), node))
                 .map(|(node, _)| node)
         };
         if let Some(node) = usable(grid.at(tx, ty)) {
