@@ -84,7 +84,7 @@ fn run_case(kind: &str, value: f64) {
             .sum::<f64>()
     };
     println!(
-        "| {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {:.0} | {:.0} |",
+        "| {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.1} | {:.0} | {:.0} |",
         if kind == "texels" {
             format!("{density} texels/m")
         } else {
@@ -99,12 +99,12 @@ fn run_case(kind: &str, value: f64) {
         stage("transport"),
         stage("solve"),
         out.report.total_rays(),
+        out.report.floor.as_ref().map_or(f64::NAN, |f| f.seconds),
+        out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),
         out.report.memory.mib()
-            + out
-                .report
-                .indirect
-                .as_ref()
-                .map_or(0.0, |i| i.transport_estimate_bytes as f64 / 1048576.0),
+            + out.report.indirect.as_ref().map_or(0.0, |i| {
+                (i.transport_estimate_bytes + i.solver_working_bytes) as f64 / 1048576.0
+            }),
         peak_rss_mib(),
     );
 }
@@ -128,9 +128,9 @@ fn main() {
         &[18.0, 56.0, 125.0, 177.0]
     };
     println!(
-        "| case | triangles | atlas texels | patches | bake (s) | unwrap+raster+validity (s) | BVH (s) | transport (s) | solve (s) | rays | planned (MiB) | peak RSS (MiB) |"
+        "| case | triangles | atlas texels | patches | bake (s) | unwrap+raster+validity (s) | BVH (s) | transport (s) | solve (s) | rays | ray floor (s) | bake / floor | planned (MiB) | peak RSS (MiB) |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let exe = std::env::current_exe().expect("own path");
     for (kind, values) in [("texels", texels), ("triangles", splits)] {
         for &v in values {

@@ -630,6 +630,44 @@ fn transport_over_budget_falls_back_or_is_refused() {
     }
 }
 
+/// The transport budget holds the solver's own memory too: shooting builds the transpose (a
+/// second matrix), so a budget that holds one matrix refuses it, and says what it needed.
+#[test]
+fn transport_budget_counts_the_solvers_working_memory() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
+    let out = common::bake(&scene, &settings);
+    let report = out.report.indirect.as_ref().unwrap();
+    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
+    assert_eq!(
+        report.solver_working_bytes,
+        SolverChoice::Krylov.working_bytes(report.nodes, report.transport_estimate_bytes)
+    );
+    assert!(report.solver_working_bytes >= 10 * 24 * report.nodes as u64);
+    assert!(
+        report.transport_bytes <= report.transport_estimate_bytes
+            && report.transport_bytes * 5 >= report.transport_estimate_bytes * 4,
+        "matrix {} bytes against the estimate {}",
+        report.transport_bytes,
+        report.transport_estimate_bytes
+    );
+    let matrix_mib = report.transport_estimate_bytes.div_ceil(1 << 20);
+    assert!(matrix_mib >= 4, "the test needs a matrix of a few MiB");
+    settings.solver = SolverChoice::Shooting;
+    settings.transport_budget_mib = matrix_mib + 1;
+    match lightbake::bake(&scene, &settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(breakdown.contains("beside it"), "{breakdown}");
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+    settings.transport_budget_mib = 2 * matrix_mib + 2;
+    assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
+}
+
 /// The fast support sampler of interior nodes ([`SupportFrame`]) against the slow general one
 /// ([`support_point`]): the same start points, normals and weights, on the Cornell box and on
 /// a curved-normal grid under a rotated, non-uniformly scaled instance transform.

@@ -120,7 +120,8 @@ struct Args {
     /// Form-factor rays per texel (radiosity).
     #[arg(long)]
     transport_rays: Option<u32>,
-    /// Largest transport matrix, MiB (above it `auto` goes matrix-free).
+    /// Largest transport matrix plus the solver's vectors beside it, MiB (above it `auto` goes
+    /// matrix-free).
     #[arg(long)]
     transport_budget: Option<u64>,
     /// Target relative error of the radiosity solve.

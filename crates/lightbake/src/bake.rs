@@ -558,6 +558,7 @@ fn bake_in_pool(
                 transport_nnz: transport.as_ref().map_or(0, Transport::nnz),
                 transport_bytes: transport.as_ref().map_or(0, Transport::bytes),
                 transport_estimate_bytes: solver_plan.transport_estimate_bytes,
+                solver_working_bytes: solver_plan.solver_working_bytes,
                 solution,
             });
         }

@@ -31,6 +31,8 @@ pub struct SolverPlan {
     pub reason: String,
     /// Estimated bytes of the transport matrix (0 when not estimated).
     pub transport_estimate_bytes: u64,
+    /// Bytes the solver allocates beside the matrix ([`SolverChoice::working_bytes`]).
+    pub solver_working_bytes: u64,
 }
 
 /// Counters of the radiosity pass, for the report.
@@ -52,6 +54,8 @@ pub struct IndirectReport {
     pub transport_bytes: u64,
     /// Transport matrix: estimate made before building it.
     pub transport_estimate_bytes: u64,
+    /// Bytes planned for the solver beside the matrix.
+    pub solver_working_bytes: u64,
     /// The solver's result (history, iterations, stop reason).
     pub solution: Solution,
 }
@@ -69,20 +73,26 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     } else {
         0
     };
-    let fits = estimate <= budget;
+    // The budget holds the matrix and the solver's own vectors and matrix copies.
+    let n = nodes.len();
+    let fits_with = |c: SolverChoice| estimate + c.working_bytes(n, estimate) <= budget;
     let (choice, reason) = match s.solver {
-        SolverChoice::Auto => solve::choose(nodes.len(), nodes.max_albedo(), fits),
+        SolverChoice::Auto => solve::choose(n, nodes.max_albedo(), fits_with),
         c => (c, "chosen in the settings".to_string()),
     };
+    let fits = fits_with(choice);
+    let working = choice.working_bytes(nodes.len(), estimate);
     if choice.needs_matrix() && !fits {
         return Err(BakeError::OverMemoryBudget {
-            needed_mib: estimate as f64 / 1048576.0,
+            needed_mib: (estimate + working) as f64 / 1048576.0,
             budget_mib: s.transport_budget_mib as f64,
             breakdown: format!(
-                "the {} solver needs the transport matrix of {} nodes × {} rays; use --solver stochastic-jacobi (matrix-free) or raise the transport budget",
+                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver stochastic-jacobi (matrix-free) or raise the transport budget",
                 choice.name(),
                 nodes.len(),
-                s.transport_rays
+                s.transport_rays,
+                estimate as f64 / 1048576.0,
+                working as f64 / 1048576.0
             ),
         });
     }
@@ -100,6 +110,7 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
         choice,
         reason,
         transport_estimate_bytes: estimate,
+        solver_working_bytes: working,
     })
 }
 

@@ -98,8 +98,9 @@ pub struct BakeSettings {
     /// Monte Carlo form-factor rays per texel node. Range 1..=65 536.
     /// Default 128 (medium), 32 (preview), 512 (high).
     pub transport_rays: u32,
-    /// Largest transport matrix, MiB; beyond it `Auto` falls back to matrix-free stochastic
-    /// Jacobi and the matrix solvers refuse. Default 4096.
+    /// Largest transport matrix plus the solver's working memory beside it
+    /// ([`crate::solve::SolverChoice::working_bytes`]), MiB; beyond it `Auto` falls back to
+    /// matrix-free stochastic Jacobi and the matrix solvers refuse. Default 4096.
     pub transport_budget_mib: u64,
     /// Target relative error of the radiosity solve. Since ‖(I − ρF)⁻¹‖∞ ≤ 1/(1 − ρ_max),
     /// solvers stop at the relative residual ‖S + ρFB − B‖/‖S‖ ≤ target·(1 − ρ_max).

@@ -36,8 +36,9 @@ use crate::transport::{Nodes, Transport};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SolverChoice {
-    /// Chosen from the scene: LU for small systems (≤ [`AUTO_DIRECT_NODES`] nodes), BiCGStab
-    /// otherwise, stochastic Jacobi when the matrix does not fit its budget.
+    /// Chosen from the scene ([`choose`]): LU for small systems (≤ [`AUTO_DIRECT_NODES`]
+    /// nodes), BiCGStab otherwise (Gauss–Seidel when BiCGStab's vectors do not fit beside the
+    /// matrix), stochastic Jacobi when the matrix does not fit its budget.
     #[default]
     Auto,
     /// Jacobi gathering.
@@ -74,6 +75,24 @@ impl SolverChoice {
     /// Whether the solver needs the transport matrix.
     pub fn needs_matrix(self) -> bool {
         !matches!(self, Self::StochasticJacobi)
+    }
+
+    /// Bytes a matrix solver allocates beside a transport matrix of `matrix_bytes` for `n`
+    /// nodes: its double-precision RGB vectors (24 bytes per node each, counted from the
+    /// solvers' code, with the final residual and F·B products), plus the copies of the
+    /// matrix that shooting (the transpose) and CG (transpose, symmetrised rows and the packed
+    /// result) build. 0 for `Auto` and for stochastic Jacobi, which plans its own memory.
+    pub fn working_bytes(self, n: usize, matrix_bytes: u64) -> u64 {
+        let vector = n as u64 * size_of::<DVec3>() as u64;
+        match self {
+            Self::Auto | Self::StochasticJacobi => 0,
+            Self::Jacobi => 5 * vector,
+            Self::GaussSeidel => 4 * vector,
+            Self::Shooting => matrix_bytes + 4 * vector,
+            Self::Krylov => 10 * vector,
+            Self::KrylovCg => 3 * matrix_bytes + 16 * vector,
+            Self::Direct => 8 * n as u64 * n as u64 + 4 * vector,
+        }
     }
 }
 
@@ -313,15 +332,14 @@ pub const DIRECT_MAX_NODES: usize = 4096;
 /// Below this many nodes `Auto` picks the dense LU solve.
 pub const AUTO_DIRECT_NODES: usize = 1500;
 
-/// Resolves `Auto`: (choice, reason).
-pub fn choose(nodes: usize, max_albedo: f32, matrix_fits: bool) -> (SolverChoice, String) {
-    if !matrix_fits {
-        return (
-            SolverChoice::StochasticJacobi,
-            "the transport matrix is over its memory budget: matrix-free stochastic Jacobi".into(),
-        );
-    }
-    if nodes <= AUTO_DIRECT_NODES {
+/// Resolves `Auto`: (choice, reason). `fits` says whether the matrix and a solver's working
+/// memory ([`SolverChoice::working_bytes`]) fit the transport budget together.
+pub fn choose(
+    nodes: usize,
+    max_albedo: f32,
+    fits: impl Fn(SolverChoice) -> bool,
+) -> (SolverChoice, String) {
+    if nodes <= AUTO_DIRECT_NODES && fits(SolverChoice::Direct) {
         return (
             SolverChoice::Direct,
             format!("{nodes} nodes: a dense LU solve is exact and quick"),
@@ -329,17 +347,32 @@ pub fn choose(nodes: usize, max_albedo: f32, matrix_fits: bool) -> (SolverChoice
     }
     // BiCGStab: each iteration is two sparse products, which run on every thread. Gauss–
     // Seidel needs fewer sweeps than Jacobi, but its sweep is sequential: on two threads it
-    // was the slowest of the three (docs/benchmarks.md, "Choosing the default solver").
-    let why = if max_albedo > 0.9 {
-        format!(
-            "max albedo {max_albedo:.3} makes Jacobi-type iterations slow (ln ε / ln ρ sweeps): BiCGStab"
-        )
-    } else {
-        format!(
-            "{nodes} nodes, max albedo {max_albedo:.3}: BiCGStab needs the fewest passes over the matrix, all of them parallel"
-        )
-    };
-    (SolverChoice::Krylov, why)
+    // was the slowest of the three (docs/benchmarks.md, "Choosing the default solver"). It
+    // needs the fewest vectors, though, so it stands in when BiCGStab's do not fit.
+    if fits(SolverChoice::Krylov) {
+        let why = if max_albedo > 0.9 {
+            format!(
+                "max albedo {max_albedo:.3} makes Jacobi-type iterations slow (ln ε / ln ρ sweeps): BiCGStab"
+            )
+        } else {
+            format!(
+                "{nodes} nodes, max albedo {max_albedo:.3}: BiCGStab needs the fewest passes over the matrix, all of them parallel"
+            )
+        };
+        return (SolverChoice::Krylov, why);
+    }
+    if fits(SolverChoice::GaussSeidel) {
+        return (
+            SolverChoice::GaussSeidel,
+            format!(
+                "{nodes} nodes: BiCGStab's vectors do not fit beside the matrix in the transport budget; Gauss-Seidel needs the fewest"
+            ),
+        );
+    }
+    (
+        SolverChoice::StochasticJacobi,
+        "the transport matrix is over its memory budget: matrix-free stochastic Jacobi".into(),
+    )
 }
 
 #[cfg(test)]
@@ -348,13 +381,20 @@ mod tests {
 
     #[test]
     fn auto_picks_lu_when_small_bicgstab_when_large_and_no_matrix_when_over_budget() {
-        assert_eq!(choose(AUTO_DIRECT_NODES, 0.5, true).0, SolverChoice::Direct);
+        let all = |_: SolverChoice| true;
+        assert_eq!(choose(AUTO_DIRECT_NODES, 0.5, all).0, SolverChoice::Direct);
         for albedo in [0.3, 0.8, 0.95, 0.999] {
-            let (choice, why) = choose(AUTO_DIRECT_NODES + 1, albedo, true);
+            let (choice, why) = choose(AUTO_DIRECT_NODES + 1, albedo, all);
             assert_eq!(choice, SolverChoice::Krylov, "{albedo}: {why}");
         }
+        // A budget that holds the matrix and a few vectors but not BiCGStab's ten.
+        let n = 100_000;
+        let matrix = 50 << 20;
+        let budget = matrix + SolverChoice::GaussSeidel.working_bytes(n, matrix);
+        let fits = |c: SolverChoice| matrix + c.working_bytes(n, matrix) <= budget;
+        assert_eq!(choose(n, 0.5, fits).0, SolverChoice::GaussSeidel);
         assert_eq!(
-            choose(10, 0.5, false).0,
+            choose(10, 0.5, |_| false).0,
             SolverChoice::StochasticJacobi,
             "a matrix over budget is never built, however small the system"
         );

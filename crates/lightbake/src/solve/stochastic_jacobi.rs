@@ -54,6 +54,9 @@ pub struct StochasticOptions {
 }
 
 const CHUNK: u64 = 4096;
+/// Chunks shot before their deposits are merged: at most 256 × 4096 rays × 4 deposits × 16
+/// bytes = 64 MiB of deposits at a time.
+const BLOCK_CHUNKS: u64 = 256;
 
 /// Runs stochastic Jacobi on the nodes with source `source` (S = ρ·H_direct).
 pub fn solve(
@@ -118,82 +121,91 @@ pub fn solve(
         let rays = ((options.first_iteration_rays as f64 * total / phi0).ceil() as u64).max(CHUNK);
         let u0 = unit_float(hash_words(&[ctx.settings.seed, iteration, 0x5707]));
         let seed = hash_words(&[ctx.settings.seed, iteration]);
-        // 2–3. Shoot in fixed chunks; each chunk returns its sorted deposits.
-        let chunks: Vec<Vec<(u32, Vec3)>> = (0..rays.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let mut deposits: Vec<(u32, Vec3)> = Vec::new();
-                let mut out = [(0u32, 0f32); 4];
-                for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
-                    let xi = ((k as f64 + u0 as f64) / rays as f64) * total;
-                    let j = cdf.partition_point(|&v| v <= xi).min(n - 1);
-                    let pj = (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64 / total;
-                    if pj <= 0.0 {
-                        continue;
-                    }
-                    let power = unshot[j] * (nodes.area[j] * sides[j] / (rays as f64 * pj) as f32);
-                    let patch = &ctx.patches.patches[nodes.patch[j] as usize];
-                    let key = hash_words(&[seed, k as u32]);
-                    // Start on the source's basis support, ∝ φ_j: tent samples accepted with
-                    // probability weight / (1.5 × texel area) (the weight is the texel area
-                    // inside a chart, so 2/3 are accepted there).
-                    let mut start = None;
-                    for attempt in 0..8u32 {
-                        if let Some((sp, w)) =
-                            support_point(ctx, mapper, j, patch, attempt, hash_words(&[key, 7]))
-                        {
-                            let max_w = 1.5 * patch.texel_size * patch.texel_size;
-                            if unit_float(hash_words(&[key, 8, attempt])) * max_w <= w {
-                                start = Some(sp);
-                                break;
-                            }
-                        }
-                    }
-                    let sp = start.unwrap_or_else(|| crate::direct::representative(patch));
-                    let u = Vec2::new(
-                        unit_float(hash_words(&[key, 1])),
-                        unit_float(hash_words(&[key, 2])),
-                    );
-                    // A double-sided source leaves from its back for half its rays.
-                    let back = sides[j] > 1.0 && hash_words(&[key, 9]) & 1 == 1;
-                    let (normal, geometric) = if back {
-                        (-sp.normal, -sp.geometric_normal)
-                    } else {
-                        (sp.normal, sp.geometric_normal)
-                    };
-                    let dir = cosine_hemisphere(normal, u);
-                    if dir.dot(geometric) <= 0.0 {
-                        continue;
-                    }
-                    let origin = ctx.rays.offset(sp.position, geometric);
-                    let power = power / twins.count(sp.triangle) as f32;
-                    let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) else {
-                        continue;
-                    };
-                    twins.deposit(ctx.rays, origin, dir, &hit, |hit| {
-                        // The back of a double-sided face: its texels hold the front only.
-                        if !hit.front_face {
-                            return;
-                        }
-                        let m = mapper.weights(hit, &mut out);
-                        for &(i, w) in &out[..m] {
-                            deposits.push((i, power * (w / nodes.area[i as usize])));
-                        }
-                    });
-                }
-                deposits.sort_by_key(|d| d.0);
-                deposits
-            })
-            .collect();
-        total_rays += rays;
-        // 4. Merge in chunk order and update.
+        // 2–3. Shoot in fixed chunks; each chunk returns its sorted deposits. Chunks run in
+        // blocks whose deposits are merged (in chunk order) before the next block, so the
+        // deposits in memory stay bounded however many rays the iteration shoots (all at
+        // once they took 14 GB at 4 M nodes).
         // A node can receive millions of deposits in one iteration: sum them in f64.
         let mut received = vec![glam::DVec3::ZERO; n];
-        for chunk in chunks {
-            for (i, h) in chunk {
-                received[i as usize] += h.as_dvec3();
+        let chunks = rays.div_ceil(CHUNK);
+        for block in (0..chunks).step_by(BLOCK_CHUNKS as usize) {
+            let deposits: Vec<Vec<(u32, Vec3)>> = (block..(block + BLOCK_CHUNKS).min(chunks))
+                .into_par_iter()
+                .map(|c| {
+                    let mut deposits: Vec<(u32, Vec3)> = Vec::new();
+                    let mut out = [(0u32, 0f32); 4];
+                    for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
+                        let xi = ((k as f64 + u0 as f64) / rays as f64) * total;
+                        let j = cdf.partition_point(|&v| v <= xi).min(n - 1);
+                        let pj =
+                            (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64 / total;
+                        if pj <= 0.0 {
+                            continue;
+                        }
+                        let power =
+                            unshot[j] * (nodes.area[j] * sides[j] / (rays as f64 * pj) as f32);
+                        let patch = &ctx.patches.patches[nodes.patch[j] as usize];
+                        let key = hash_words(&[seed, k as u32]);
+                        // Start on the source's basis support, ∝ φ_j: tent samples accepted with
+                        // probability weight / (1.5 × texel area) (the weight is the texel area
+                        // inside a chart, so 2/3 are accepted there).
+                        let mut start = None;
+                        for attempt in 0..8u32 {
+                            if let Some((sp, w)) =
+                                support_point(ctx, mapper, j, patch, attempt, hash_words(&[key, 7]))
+                            {
+                                let max_w = 1.5 * patch.texel_size * patch.texel_size;
+                                if unit_float(hash_words(&[key, 8, attempt])) * max_w <= w {
+                                    start = Some(sp);
+                                    break;
+                                }
+                            }
+                        }
+                        let sp = start.unwrap_or_else(|| crate::direct::representative(patch));
+                        let u = Vec2::new(
+                            unit_float(hash_words(&[key, 1])),
+                            unit_float(hash_words(&[key, 2])),
+                        );
+                        // A double-sided source leaves from its back for half its rays.
+                        let back = sides[j] > 1.0 && hash_words(&[key, 9]) & 1 == 1;
+                        let (normal, geometric) = if back {
+                            (-sp.normal, -sp.geometric_normal)
+                        } else {
+                            (sp.normal, sp.geometric_normal)
+                        };
+                        let dir = cosine_hemisphere(normal, u);
+                        if dir.dot(geometric) <= 0.0 {
+                            continue;
+                        }
+                        let origin = ctx.rays.offset(sp.position, geometric);
+                        let power = power / twins.count(sp.triangle) as f32;
+                        let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY)
+                        else {
+                            continue;
+                        };
+                        twins.deposit(ctx.rays, origin, dir, &hit, |hit| {
+                            // The back of a double-sided face: its texels hold the front only.
+                            if !hit.front_face {
+                                return;
+                            }
+                            let m = mapper.weights(hit, &mut out);
+                            for &(i, w) in &out[..m] {
+                                deposits.push((i, power * (w / nodes.area[i as usize])));
+                            }
+                        });
+                    }
+                    deposits.sort_by_key(|d| d.0);
+                    deposits
+                })
+                .collect();
+            for chunk in deposits {
+                for (i, h) in chunk {
+                    received[i as usize] += h.as_dvec3();
+                }
             }
         }
+        total_rays += rays;
+        // 4. Update.
         for i in 0..n {
             let received = received[i].as_vec3();
             indirect[i] += received;

@@ -1068,7 +1068,9 @@ impl Transport {
     }
 
     /// Estimated bytes of the Monte Carlo matrix: up to 512 evenly spaced rows are traced and
-    /// their merged lengths extrapolated (× 1.25 for safety).
+    /// their merged lengths extrapolated, × 1.1: the build reserves 1.1× its first block's
+    /// mean row length. The pilot alone was within 1% of the built matrix on the Cornell box
+    /// at 63 k, 127 k and 979 k nodes and on the sunlit room (the margin was 1.25 before).
     pub fn estimate_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, rays: u32, basis: Basis) -> u64 {
         let n = nodes.len();
         if n == 0 {
@@ -1085,7 +1087,7 @@ impl Transport {
             })
             .sum();
         let per_row = entries as f64 / pilot as f64;
-        (n as f64 * (per_row * 8.0 * 1.25 + 12.0)) as u64
+        (n as f64 * (per_row * 8.0 * 1.1 + 12.0)) as u64
     }
 
     /// Builds F by Monte Carlo with `rays` rays per node (see the module docs).
