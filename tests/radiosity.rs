@@ -150,6 +150,38 @@ fn iterative_solvers_agree_with_the_dense_solve() {
     assert!(rms < 0.05, "symmetrisation moved B by {rms}");
 }
 
+/// The error bounds in the solvers' histories hold: at a loose and a tight tolerance, the
+/// last entry's bound is at least the true ∞-norm error against the dense solve, and
+/// BiCGStab (the default) has a bound at every iteration.
+#[test]
+fn solver_error_bounds_hold_against_the_dense_solve() {
+    let (_prep, nodes, transport, source) = small_cornell();
+    let system = System::for_nodes(&transport, &nodes, &source);
+    let reference = solve::solve_matrix(SolverChoice::Direct, &system, &SolveOptions::default());
+    for solver in [
+        SolverChoice::Jacobi,
+        SolverChoice::GaussSeidel,
+        SolverChoice::Krylov,
+    ] {
+        for tolerance in [3e-2, 1e-4] {
+            let options = SolveOptions {
+                tolerance,
+                max_iterations: 100_000,
+            };
+            let s = solve::solve_matrix(solver, &system, &options);
+            let bound = s.history.last().unwrap().error_bound.unwrap();
+            let (_, max) = rel_diff(&s.b, &reference.b, &nodes.area);
+            assert!(
+                max > 0.0 && max <= bound * 1.05,
+                "{solver:?} at {tolerance:e}: error {max:.3e} above its bound {bound:.3e}"
+            );
+            if solver == SolverChoice::Krylov {
+                assert!(s.history.iter().all(|h| h.error_bound.is_some()));
+            }
+        }
+    }
+}
+
 #[test]
 fn stochastic_jacobi_converges_to_the_dense_solve() {
     let (prep, nodes, _, source) = small_cornell();
