@@ -81,7 +81,8 @@ impl SolverChoice {
     /// nodes: its double-precision RGB vectors (24 bytes per node each, counted from the
     /// solvers' code, with the final residual and F·B products), plus the copies of the
     /// matrix that shooting (the transpose) and CG (transpose, symmetrised rows and the packed
-    /// result) build. 0 for `Auto` and for stochastic Jacobi, which plans its own memory.
+    /// result) build. 0 for `Auto`, and for stochastic Jacobi, which builds no matrix (its
+    /// per-node vectors are small, and it merges its ray deposits in bounded blocks).
     pub fn working_bytes(self, n: usize, matrix_bytes: u64) -> u64 {
         let vector = n as u64 * size_of::<DVec3>() as u64;
         match self {

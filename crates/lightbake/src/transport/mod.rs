@@ -510,8 +510,7 @@ impl<'a> HitMapper<'a> {
         };
         let uv = tri.uv[0] * (1.0 - hit.u - hit.v) + tri.uv[1] * hit.u + tri.uv[2] * hit.v;
         let q = uv * Vec2::new(rect.width as f32, rect.height as f32);
-        // The world point is only needed next to split nodes, so it is formed only there
-        // (its vertex loads are a cache miss per hit).
+        // The world point is only needed next to split nodes, so it is formed only there.
         let from = || {
             let [v0, v1, v2] = ctx.rays.triangle_vertices(hit.triangle);
             let point = v0 * (1.0 - hit.u - hit.v) + v1 * hit.u + v2 * hit.v;
