@@ -80,9 +80,8 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
         SolverChoice::Auto => solve::choose(n, nodes.max_albedo(), fits_with),
         c => (c, "chosen in the settings".to_string()),
     };
-    let fits = fits_with(choice);
-    let working = choice.working_bytes(nodes.len(), estimate);
-    if choice.needs_matrix() && !fits {
+    let working = choice.working_bytes(n, estimate);
+    if choice.needs_matrix() && !fits_with(choice) {
         return Err(BakeError::OverMemoryBudget {
             needed_mib: (estimate + working) as f64 / 1048576.0,
             budget_mib: s.transport_budget_mib as f64,
