@@ -7,7 +7,7 @@
 //! with Rᵢ = vᵢ − p. The polygon is first clipped to the receiver's upper half-space (parts
 //! below the horizon send nothing). Irradiance from radiance L is E = π·L·F.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// The unoccluded form factor from a differential patch at `p` with unit normal `n` to the
 /// convex polygon `poly` (any winding), in [0, 1].
@@ -22,35 +22,52 @@ pub fn point_to_polygon_form_factor(p: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
     {
         return 0.0;
     }
-    // Clip to the half-space n·(x − p) ≥ 0 (Sutherland–Hodgman against one plane).
-    let mut clipped: Vec<Vec3> = Vec::with_capacity(poly.len() + 2);
+    // Clip to the half-space n·(x − p) ≥ 0 (Sutherland–Hodgman against one plane), summing
+    // Lambert's edge terms over the clipped polygon's edges as its vertices come out (no
+    // vertex list is kept: this runs for every emitter at every footprint sample).
+    let n64 = n.as_dvec3();
+    let mut sum = 0.0f64;
+    let mut count = 0usize;
+    let (mut first, mut last) = (DVec3::ZERO, DVec3::ZERO);
+    let mut emit = |v: Vec3| {
+        let r = (v - p).as_dvec3();
+        if count == 0 {
+            first = r;
+        } else {
+            sum += edge_term(last, r, n64);
+        }
+        last = r;
+        count += 1;
+    };
     for i in 0..poly.len() {
         let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
         let (da, db) = (n.dot(a - p), n.dot(b - p));
         if da >= 0.0 {
-            clipped.push(a);
+            emit(a);
         }
         if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
-            clipped.push(a + (b - a) * (da / (da - db)));
+            emit(a + (b - a) * (da / (da - db)));
         }
     }
-    if clipped.len() < 3 {
+    if count < 3 {
         return 0.0;
     }
-    let mut sum = 0.0f64;
-    for i in 0..clipped.len() {
-        let a = (clipped[i] - p).as_dvec3();
-        let b = (clipped[(i + 1) % clipped.len()] - p).as_dvec3();
-        let c = a.cross(b);
-        let len = c.length();
-        if len <= 0.0 {
-            continue;
-        }
-        let theta = len.atan2(a.dot(b));
-        sum += theta * n.as_dvec3().dot(c / len);
-    }
+    sum += edge_term(last, first, n64);
     // The sign follows the winding as seen from p; the magnitude is the form factor.
     ((sum.abs() / (2.0 * std::f64::consts::PI)) as f32).min(1.0)
+}
+
+/// Lambert's term of one polygon edge from `a` to `b` (relative to the receiver):
+/// Θ·(n · Γ̂) with Θ the angle between them and Γ̂ the unit normal of their plane; zero for
+/// a degenerate edge.
+#[inline]
+fn edge_term(a: DVec3, b: DVec3, n: DVec3) -> f64 {
+    let c = a.cross(b);
+    let len = c.length();
+    if len <= 0.0 {
+        return 0.0;
+    }
+    len.atan2(a.dot(b)) * n.dot(c) / len
 }
 
 #[cfg(test)]
