@@ -826,3 +826,45 @@ fn sliver_nodes_gather_like_the_hemicube() {
     assert_eq!(empty, 0);
     assert!(diff < 0.05, "{diff}");
 }
+
+/// ∫φᵢ dA: the node areas add up to the surface, and inside a flat square (texels whose
+/// 3 × 3 block lies in one triangle) the linear basis' tent gives each node exactly one texel
+/// of area; the 16-point sampled split is off by about a percent there.
+#[test]
+fn node_areas_add_up_and_are_exact_inside_a_square() {
+    let scene = two_squares(false);
+    let settings = radiosity_settings(24.0, SolverChoice::Auto);
+    let prep = Prepared::new(&scene, &settings).unwrap();
+    let ctx = prep.ctx();
+    for basis in [Basis::Linear, Basis::Constant] {
+        let nodes = Nodes::new(&ctx, basis);
+        let patches = &prep.patches.patches;
+        let surface: f64 = patches.iter().map(|p| p.area as f64).sum();
+        let total: f64 = nodes.area.iter().map(|&a| a as f64).sum();
+        assert!(
+            (total - surface).abs() < 1e-4 * surface,
+            "{basis:?}: node areas {total} vs texel areas {surface}"
+        );
+        let mut inside: Vec<f64> = (0..nodes.len())
+            .filter_map(|i| {
+                let p = &patches[nodes.patch[i] as usize];
+                let margin = 2.5 * p.texel_size;
+                let c = p.position;
+                let away = |v: f32| v > margin && v < 1.0 - margin;
+                (away(c.x) && away(c.z))
+                    .then(|| ((nodes.area[i] / (p.texel_size * p.texel_size)) as f64 - 1.0).abs())
+            })
+            .collect();
+        assert!(
+            inside.len() > 300,
+            "{basis:?}: {} inner nodes",
+            inside.len()
+        );
+        inside.sort_by(f64::total_cmp);
+        let median = inside[inside.len() / 2];
+        assert!(
+            median < 1e-5,
+            "{basis:?}: median relative area error {median}"
+        );
+    }
+}

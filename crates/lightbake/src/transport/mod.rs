@@ -168,6 +168,9 @@ fn basis_areas(
                 let Some(rect) = ctx.layout.instances[p.instance as usize] else {
                     continue;
                 };
+                if exact_split(mapper, p, rect, &mut out) {
+                    continue;
+                }
                 let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
                 let footprint = ctx.patches.footprint_of(p);
                 // Full-texel world area per sample; a valid texel's samples share its
@@ -235,6 +238,55 @@ fn basis_areas(
         *a = a.max(1e-3 * patches[nodes.patch[i] as usize].area);
     }
     (area, sliver)
+}
+
+/// A texel's area split over the nodes in closed form, where the sampled split of
+/// [`basis_areas`] can only approximate it: the texel is valid, away from other geometry and
+/// its square lies inside its triangle (every point of it is open surface), and each texel of
+/// the 3 × 3 block around it carries an unsplit node of its chart. The bilinear weight of the
+/// node `d` texels away then integrates over the texel square to g(dx)·g(dy), with
+/// g(0) = 3/4 and g(±1) = 1/8 (the texel's own node under the constant basis takes it all).
+/// Appends the shares to `out` and returns whether it applied.
+fn exact_split(
+    mapper: &HitMapper<'_>,
+    p: &Patch,
+    rect: crate::unwrap::InstanceRect,
+    out: &mut Vec<(u32, f32)>,
+) -> bool {
+    if !p.is_valid() || p.flags & Patch::NEAR_GEOMETRY != 0 {
+        return false;
+    }
+    let (x, y) = ((p.x - rect.x) as i64, (p.y - rect.y) as i64);
+    let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+    let Some(frame) = mapper.surface.frame(p.triangle, centre) else {
+        return false;
+    };
+    let corners = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)];
+    if !corners
+        .iter()
+        .all(|&(cx, cy)| frame.contains(Vec2::new(cx, cy), SUPPORT_MARGIN))
+    {
+        return false;
+    }
+    let grid = mapper.grid_lookup(rect, p.instance, p.chart);
+    if mapper.basis == Basis::Constant {
+        let Some((node, false)) = grid.at(x, y) else {
+            return false;
+        };
+        out.push((node, p.area));
+        return true;
+    }
+    let mut block = [(0u32, 0f32); 9];
+    const G: [f32; 3] = [0.125, 0.75, 0.125];
+    for (k, entry) in block.iter_mut().enumerate() {
+        let (dx, dy) = (k as i64 % 3 - 1, k as i64 / 3 - 1);
+        let Some((node, false)) = grid.at(x + dx, y + dy) else {
+            return false;
+        };
+        *entry = (node, p.area * G[(dx + 1) as usize] * G[(dy + 1) as usize]);
+    }
+    out.extend(block);
+    true
 }
 
 /// Albedo of one texel: the material's factor times its texture averaged over the footprint.
