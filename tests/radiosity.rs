@@ -700,13 +700,9 @@ fn transport_budget_counts_the_solvers_working_memory() {
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
 
-/// The fast support sampler of interior nodes ([`SupportFrame`]) against the slow general one
-/// ([`support_point`]): the same start points, normals and weights, on the Cornell box and on
-/// a curved-normal grid under a rotated, non-uniformly scaled instance transform.
-#[test]
-fn fast_support_frames_match_the_slow_sampler() {
-    use lightbake::transport::{HitMapper, SupportFrame, support_point};
-    let cornell = cornell_box(CornellLight::Area);
+/// A curved-normal grid (shading normals vary across every triangle) under a rotated,
+/// non-uniformly scaled instance transform, lit by a point light.
+fn bent_grid() -> Scene {
     let mut bent = Scene::default();
     let mat = bent.add_material(Material::diffuse("grey", Vec3::splat(0.5)));
     let mut g = lightbake::scene::testscenes::grid("bent", 2.0, 6);
@@ -736,6 +732,17 @@ fn fast_support_frames_match_the_slow_sampler() {
         position: Vec3::new(0.0, 2.0, 0.0),
         direction: Vec3::NEG_Y,
     });
+    bent
+}
+
+/// The fast support sampler of interior nodes ([`SupportFrame`]) against the slow general one
+/// ([`support_point`]): the same start points, normals and weights, on the Cornell box and on
+/// a curved-normal grid under a rotated, non-uniformly scaled instance transform.
+#[test]
+fn fast_support_frames_match_the_slow_sampler() {
+    use lightbake::transport::{HitMapper, SupportFrame, support_point};
+    let cornell = cornell_box(CornellLight::Area);
+    let bent = bent_grid();
     for (name, scene, density) in [("cornell", cornell, 64.0), ("bent grid", bent, 48.0)] {
         let prep =
             Prepared::new(&scene, &radiosity_settings(density, SolverChoice::Direct)).unwrap();
@@ -865,6 +872,51 @@ fn node_areas_add_up_and_are_exact_inside_a_square() {
         assert!(
             median < 1e-5,
             "{basis:?}: median relative area error {median}"
+        );
+    }
+}
+
+/// Footprint points of texels inside one triangle come from an affine map of the texel square
+/// instead of a search of the footprint triangles: the same points (Cornell box, and the
+/// curved-normal grid under a rotated, non-uniformly scaled instance).
+#[test]
+fn affine_footprints_match_the_searched_points() {
+    use lightbake::direct::Footprint;
+    use lightbake::raster::Surface;
+    for (name, scene, density) in [
+        ("cornell", cornell_box(CornellLight::Area), 64.0),
+        ("bent grid", bent_grid(), 48.0),
+    ] {
+        let prep =
+            Prepared::new(&scene, &radiosity_settings(density, SolverChoice::Direct)).unwrap();
+        let ctx = prep.ctx();
+        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let (mut affine, mut valid, mut worst) = (0, 0, (0.0f32, 0.0f32, 0.0f32));
+        for p in ctx.patches.patches.iter().filter(|p| p.is_valid()) {
+            valid += 1;
+            let footprint = Footprint::new(ctx.layout, ctx.patches, &surface, ctx.rays, p, 7);
+            if !footprint.is_affine() {
+                continue;
+            }
+            affine += 1;
+            for s in 0..16 {
+                let mut rays = 0;
+                let (f, g) = (
+                    footprint.point(s, &mut rays),
+                    footprint.searched_point(s, &mut rays),
+                );
+                assert_eq!(rays, 0, "{name}: texels of affine footprints trace no rays");
+                assert_eq!(f.triangle, g.triangle, "{name}");
+                worst.0 = worst.0.max(f.position.distance(g.position) / p.texel_size);
+                worst.1 = worst.1.max(f.normal.distance(g.normal));
+                worst.2 = worst.2.max((f.bary - g.bary).abs().max_element());
+            }
+        }
+        println!("{name}: {affine} of {valid} texels affine; worst {worst:?}");
+        assert!(affine * 2 > valid && affine < valid, "{name}");
+        assert!(
+            worst.0 < 1e-3 && worst.1 < 1e-4 && worst.2 < 1e-4,
+            "{name}: {worst:?}"
         );
     }
 }

@@ -402,6 +402,14 @@ impl SurfaceFrame {
         b.x >= margin && b.y >= margin && 1.0 - b.x - b.y >= margin
     }
 
+    /// Whether the square q₀ ± `half` (texels) lies inside the triangle by at least `margin`
+    /// in every barycentric (its four corners do; the triangle is convex).
+    pub fn covers(&self, half: f32, margin: f32) -> bool {
+        [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)]
+            .iter()
+            .all(|&(x, y)| self.contains(Vec2::new(x, y) * half, margin))
+    }
+
     /// The surface point at q₀ + `d` (texels), as [`Surface::point`] gives it for a point
     /// inside the triangle.
     pub fn point(&self, d: Vec2) -> SurfacePoint {

@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bake::BakeContext;
 use crate::bvh::Hit;
-use crate::direct::footprint_point;
+use crate::direct::Footprint;
 use crate::progress::Progress;
 use crate::raster::{Patch, Surface};
 use crate::sampling::{Sobol02, cosine_hemisphere, sobol_02};
@@ -261,11 +261,7 @@ fn exact_split(
     let Some(frame) = mapper.surface.frame(p.triangle, centre) else {
         return false;
     };
-    let corners = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)];
-    if !corners
-        .iter()
-        .all(|&(cx, cy)| frame.contains(Vec2::new(cx, cy), SUPPORT_MARGIN))
-    {
+    if !frame.covers(0.5, SUPPORT_MARGIN) {
         return false;
     }
     let grid = mapper.grid_lookup(rect, p.instance, p.chart);
@@ -307,17 +303,16 @@ fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3
     let mesh = &ctx.scene.meshes[inst.mesh];
     let mut sum = Vec3::ZERO;
     let mut rays = 0;
+    let footprint = Footprint::new(
+        ctx.layout,
+        ctx.patches,
+        surface,
+        ctx.rays,
+        p,
+        ctx.settings.seed,
+    );
     for s in 0..ALBEDO_SAMPLES {
-        let sp = footprint_point(
-            ctx.layout,
-            ctx.patches,
-            surface,
-            ctx.rays,
-            p,
-            s,
-            ctx.settings.seed,
-            &mut rays,
-        );
+        let sp = footprint.point(s, &mut rays);
         let info = ctx.rays.triangles[sp.triangle as usize];
         let [a, b, c] = mesh.triangle(info.local as usize);
         let uv = uv0[a] * (1.0 - sp.bary.x - sp.bary.y) + uv0[b] * sp.bary.x + uv0[c] * sp.bary.y;
@@ -837,11 +832,7 @@ impl SupportFrame {
         }
         let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let frame = mapper.surface.frame(p.triangle, centre)?;
-        let corners = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)];
-        if !corners
-            .iter()
-            .all(|&(cx, cy)| frame.contains(Vec2::new(cx, cy), SUPPORT_MARGIN))
-        {
+        if !frame.covers(1.0, SUPPORT_MARGIN) {
             return None;
         }
         Some(Self {
