@@ -700,6 +700,42 @@ fn transport_budget_counts_the_solvers_working_memory() {
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
 
+/// The matrix and the solver share the memory budget with the rest of the bake: with a
+/// large transport budget and a memory budget that leaves no room for the matrix, `auto` goes
+/// matrix-free and a matrix solver is refused with the memory budget named.
+#[test]
+fn memory_budget_also_bounds_the_transport() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
+    let out = common::bake(&scene, &settings);
+    let report = out.report.indirect.as_ref().unwrap();
+    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
+    let rest_mib = out.report.memory.mib();
+    let matrix_mib = report.transport_estimate_bytes as f64 / 1048576.0;
+    assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");
+    settings.transport_budget_mib = 1 << 20;
+    settings.memory_budget_mib = (rest_mib + 0.5 * matrix_mib).ceil() as u64;
+    let out = common::bake(&scene, &settings);
+    let report = out.report.indirect.as_ref().unwrap();
+    assert_eq!(
+        report.solver, "stochastic-jacobi",
+        "{}",
+        report.solver_reason
+    );
+    settings.solver = SolverChoice::Jacobi;
+    match lightbake::bake(&scene, &settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(breakdown.contains("memory budget"), "{breakdown}");
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+    settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;
+    assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
+}
+
 /// A curved-normal grid (shading normals vary across every triangle) under a rotated,
 /// non-uniformly scaled instance transform, lit by a point light.
 fn bent_grid() -> Scene {

@@ -121,7 +121,7 @@ struct Args {
     #[arg(long)]
     transport_rays: Option<u32>,
     /// Largest transport matrix plus the solver's vectors beside it, MiB (above it `auto` goes
-    /// matrix-free).
+    /// matrix-free); what the memory budget leaves beside the rest of the bake also bounds it.
     #[arg(long)]
     transport_budget: Option<u64>,
     /// Target relative error of the radiosity solve.
@@ -175,7 +175,8 @@ struct Args {
     /// Uniform sky luminance R,G,B in nits (overrides the scene's).
     #[arg(long, value_delimiter = ',', num_args = 3)]
     sky: Option<Vec<f32>>,
-    /// Refuse bakes estimated to need more memory than this (MiB).
+    /// Refuse bakes estimated to need more memory than this (MiB); the transport matrix is
+    /// planned within what the rest of the bake leaves of it.
     #[arg(long)]
     memory_budget: Option<u64>,
     /// Target relative RMS error (0.02 = 2%): sample counts become a pilot, and each sampling

@@ -67,7 +67,23 @@ pub struct IndirectReport {
 /// fit; [`BakeError::BadSetting`] when `direct` is asked for too many nodes.
 pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let s = ctx.settings;
-    let budget = s.transport_budget_mib * 1024 * 1024;
+    // The matrix and the solver share the memory budget with the rest of the bake (patches,
+    // pages, ray tracing; see `crate::memory`), and the transport budget caps them on their
+    // own: the smaller room applies.
+    const MIB: u64 = 1024 * 1024;
+    let rest = crate::memory::estimate_from_layout(ctx.scene, ctx.layout).total;
+    let memory_room = (s.memory_budget_mib * MIB).saturating_sub(rest);
+    let budget = (s.transport_budget_mib * MIB).min(memory_room);
+    let limit = if memory_room < s.transport_budget_mib * MIB {
+        format!(
+            "the memory budget ({} MiB) leaves {:.0} MiB beside the rest of the bake ({:.0} MiB); raise --memory-budget",
+            s.memory_budget_mib,
+            memory_room as f64 / MIB as f64,
+            rest as f64 / MIB as f64
+        )
+    } else {
+        "raise the transport budget".to_string()
+    };
     let estimate = if s.solver.needs_matrix() {
         Transport::estimate_bytes(ctx, nodes, s.transport_rays, s.basis)
     } else {
@@ -83,15 +99,15 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let working = choice.working_bytes(n, estimate);
     if choice.needs_matrix() && !fits_with(choice) {
         return Err(BakeError::OverMemoryBudget {
-            needed_mib: (estimate + working) as f64 / 1048576.0,
-            budget_mib: s.transport_budget_mib as f64,
+            needed_mib: (estimate + working) as f64 / MIB as f64,
+            budget_mib: budget as f64 / MIB as f64,
             breakdown: format!(
-                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver stochastic-jacobi (matrix-free) or raise the transport budget",
+                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver stochastic-jacobi (matrix-free), or {limit}",
                 choice.name(),
                 nodes.len(),
                 s.transport_rays,
-                estimate as f64 / 1048576.0,
-                working as f64 / 1048576.0
+                estimate as f64 / MIB as f64,
+                working as f64 / MIB as f64
             ),
         });
     }

@@ -100,7 +100,9 @@ pub struct BakeSettings {
     pub transport_rays: u32,
     /// Largest transport matrix plus the solver's working memory beside it
     /// ([`crate::solve::SolverChoice::working_bytes`]), MiB; beyond it `Auto` falls back to
-    /// matrix-free stochastic Jacobi and the matrix solvers refuse. Default 4096.
+    /// matrix-free stochastic Jacobi and the matrix solvers refuse. The smaller of this and
+    /// what [`Self::memory_budget_mib`] leaves beside the rest of the bake applies.
+    /// Default 4096.
     pub transport_budget_mib: u64,
     /// Target relative error of the radiosity solve. Since ‖(I − ρF)⁻¹‖∞ ≤ 1/(1 − ρ_max),
     /// solvers stop at the relative residual ‖S + ρFB − B‖/‖S‖ ≤ target·(1 − ρ_max).
@@ -166,7 +168,8 @@ pub struct BakeSettings {
     pub seed: u32,
     /// Worker threads; 0 uses every core. The result does not depend on it. Default 0.
     pub threads: usize,
-    /// Refuse a bake whose estimated memory exceeds this many MiB. Default 8192.
+    /// Refuse a bake whose estimated memory exceeds this many MiB; the transport matrix and
+    /// the solver are planned within what the rest of the bake leaves of it. Default 8192.
     pub memory_budget_mib: u64,
     /// Target relative RMS error of the lightmap (e.g. 0.02 for 2%; see
     /// [`crate::estimate`]). When set, the sample counts above become the pilot: each
