@@ -26,10 +26,8 @@ const PACKET_BITS: u32 = 28;
 
 /// Stack entries a traversal needs on the machine stack; deeper trees use a heap stack.
 const INLINE_STACK: usize = 192;
-/// Smaller machine stacks for shallower trees (see [`Bvh4::with_stack`]).
+/// A smaller machine stack for shallow trees (see [`Bvh4::with_stack`]).
 const SMALL_STACK: usize = 16;
-/// See [`SMALL_STACK`].
-const MEDIUM_STACK: usize = 64;
 
 /// Child reference: an inner node index, a leaf (`LEAF_BIT` | packet index) or `EMPTY`.
 const LEAF_BIT: u32 = 1 << 31;
@@ -311,21 +309,16 @@ impl Bvh4 {
     fn with_stack<R>(&self, f: impl FnOnce(&mut [(u32, f32)]) -> R) -> R {
         // The array is zeroed on every ray, so it is no larger than the tree needs: zeroing
         // all `INLINE_STACK` entries cost 2% of a bake in a 32-triangle box.
-        let (mut small, mut medium, mut large, mut heap);
-        let stack: &mut [(u32, f32)] = if self.stack_need <= SMALL_STACK {
-            small = [(0u32, 0f32); SMALL_STACK];
-            &mut small
-        } else if self.stack_need <= MEDIUM_STACK {
-            medium = [(0u32, 0f32); MEDIUM_STACK];
-            &mut medium
+        fn on_stack<const N: usize, R>(f: impl FnOnce(&mut [(u32, f32)]) -> R) -> R {
+            f(&mut [(0u32, 0f32); N])
+        }
+        if self.stack_need <= SMALL_STACK {
+            on_stack::<SMALL_STACK, R>(f)
         } else if self.stack_need <= INLINE_STACK {
-            large = [(0u32, 0f32); INLINE_STACK];
-            &mut large
+            on_stack::<INLINE_STACK, R>(f)
         } else {
-            heap = vec![(0u32, 0f32); self.stack_need];
-            &mut heap
-        };
-        f(stack)
+            f(&mut vec![(0u32, 0f32); self.stack_need])
+        }
     }
 
     /// The closest hit with t in [ray.tmin, ray.tmax].
