@@ -878,6 +878,15 @@ pub fn trace_to_nodes(
     }
 }
 
+/// A run of consecutive matrix rows in flat arrays: columns and weights one row after the
+/// other, and each row's length.
+#[derive(Default)]
+struct RowBlock {
+    cols: Vec<u32>,
+    vals: Vec<f32>,
+    lens: Vec<u32>,
+}
+
 /// Rows the Monte Carlo build makes before packing them into the matrix.
 const BUILD_BLOCK_ROWS: usize = 16_384;
 
@@ -934,6 +943,18 @@ impl Transport {
             self.row_ptr.push(self.cols.len() as u64);
             self.escaped.push(escaped);
         }
+    }
+
+    /// Appends a run of rows made in order (see [`RowBlock`]) and their escaped fractions.
+    fn push_block(&mut self, rows: RowBlock, escaped: Vec<f32>) {
+        self.cols.extend_from_slice(&rows.cols);
+        self.vals.extend_from_slice(&rows.vals);
+        let mut end = *self.row_ptr.last().expect("row_ptr starts with 0");
+        for len in rows.lens {
+            end += len as u64;
+            self.row_ptr.push(end);
+        }
+        self.escaped.extend(escaped);
     }
 
     /// Builds F from rows produced in order (used by the builders).
@@ -1030,34 +1051,51 @@ impl Transport {
         i: usize,
         rays: u32,
     ) -> (Vec<(u32, f32)>, f32) {
+        let mut rows = RowBlock::default();
+        let escaped = Self::mc_row_into(ctx, mapper, nodes, i, rays, &mut Vec::new(), &mut rows);
+        (rows.cols.into_iter().zip(rows.vals).collect(), escaped)
+    }
+
+    /// [`Self::mc_row`] appended to `out` (its columns, weights and length), with `scratch`
+    /// as the row's sort buffer (both reused across rows). Returns the escaped fraction.
+    fn mc_row_into(
+        ctx: &BakeContext<'_>,
+        mapper: &HitMapper<'_>,
+        nodes: &Nodes,
+        i: usize,
+        rays: u32,
+        scratch: &mut Vec<u64>,
+        out: &mut RowBlock,
+    ) -> f32 {
         // Entries packed as (node << 32 | weight bits): one integer sort orders them by node
         // (weights are non-negative, so their bits order like their values).
-        let mut row: Vec<u64> = Vec::with_capacity(rays as usize * 4);
+        scratch.clear();
         let mut total = 0.0f32;
         let escaped = Self::for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
             total += weight;
-            row.extend(
+            scratch.extend(
                 hit.iter()
                     .map(|&(j, wj)| (j as u64) << 32 | (wj * weight).to_bits() as u64),
             );
         });
-        if total <= 0.0 {
-            return (Vec::new(), 0.0);
-        }
-        row.sort_unstable();
-        let mut merged: Vec<(u32, f32)> = Vec::with_capacity(row.len());
-        for e in row {
-            let (j, v) = ((e >> 32) as u32, f32::from_bits(e as u32));
-            match merged.last_mut() {
-                Some(last) if last.0 == j => last.1 += v,
-                _ => merged.push((j, v)),
+        let start = out.cols.len();
+        if total > 0.0 {
+            scratch.sort_unstable();
+            for &e in scratch.iter() {
+                let (j, v) = ((e >> 32) as u32, f32::from_bits(e as u32));
+                if out.cols.len() > start && out.cols.last() == Some(&j) {
+                    *out.vals.last_mut().expect("a value per column") += v;
+                } else {
+                    out.cols.push(j);
+                    out.vals.push(v);
+                }
+            }
+            for v in &mut out.vals[start..] {
+                *v /= total;
             }
         }
-        for e in &mut merged {
-            e.1 /= total;
-        }
-        merged.shrink_to_fit();
-        (merged, escaped / total)
+        out.lens.push((out.cols.len() - start) as u32);
+        if total > 0.0 { escaped / total } else { 0.0 }
     }
 
     /// Node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row estimated by
@@ -1149,26 +1187,43 @@ impl Transport {
         // first block's mean row length sizes the packed arrays.
         for start in (0..n).step_by(BUILD_BLOCK_ROWS) {
             let end = (start + BUILD_BLOCK_ROWS).min(n);
-            let rows: Vec<(Vec<(u32, f32)>, f32)> = (start..end)
+            // Each task makes a run of rows into flat arrays, reusing its sort buffer.
+            let runs: Vec<(RowBlock, Vec<f32>)> = (start..end)
                 .into_par_iter()
                 .with_min_len(64)
-                .map(|i| {
-                    if progress.is_cancelled() {
-                        return (Vec::new(), 0.0);
-                    }
-                    let r = Self::mc_row(ctx, &mapper, nodes, i, rays);
-                    traced.fetch_add(rays as u64, Ordering::Relaxed);
-                    progress.advance(1);
-                    r
-                })
+                .fold(
+                    || (RowBlock::default(), Vec::new(), Vec::new()),
+                    |(mut rows, mut escaped, mut scratch), i| {
+                        if progress.is_cancelled() {
+                            rows.lens.push(0);
+                            escaped.push(0.0);
+                        } else {
+                            escaped.push(Self::mc_row_into(
+                                ctx,
+                                &mapper,
+                                nodes,
+                                i,
+                                rays,
+                                &mut scratch,
+                                &mut rows,
+                            ));
+                            traced.fetch_add(rays as u64, Ordering::Relaxed);
+                            progress.advance(1);
+                        }
+                        (rows, escaped, scratch)
+                    },
+                )
+                .map(|(rows, escaped, _)| (rows, escaped))
                 .collect();
             if start == 0 {
-                let block: usize = rows.iter().map(|r| r.0.len()).sum();
+                let block: usize = runs.iter().map(|r| r.0.cols.len()).sum();
                 let expected = (block as f64 / (end - start) as f64 * n as f64 * 1.1) as usize;
                 t.cols.reserve_exact(expected);
                 t.vals.reserve_exact(expected);
             }
-            t.push_rows(rows);
+            for (rows, escaped) in runs {
+                t.push_block(rows, escaped);
+            }
         }
         t.cols.shrink_to_fit();
         t.vals.shrink_to_fit();
