@@ -129,6 +129,10 @@ pub fn solve(
         let mut received = vec![glam::DVec3::ZERO; n];
         let chunks = rays.div_ceil(CHUNK);
         for block in (0..chunks).step_by(BLOCK_CHUNKS as usize) {
+            // A large iteration shoots many blocks: a cancel is seen between them.
+            if progress.is_cancelled() {
+                break;
+            }
             let deposits: Vec<Vec<(u32, Vec3)>> = (block..(block + BLOCK_CHUNKS).min(chunks))
                 .into_par_iter()
                 .map(|c| {
@@ -203,6 +207,9 @@ pub fn solve(
                     received[i as usize] += h.as_dvec3();
                 }
             }
+        }
+        if progress.is_cancelled() {
+            break (false, "cancelled".into());
         }
         total_rays += rays;
         // 4. Update.
