@@ -310,7 +310,7 @@ fn bake_in_pool(
                             ErrorEstimate::from_standard_errors(
                                 &valid(&patches, &r.standard_error),
                                 rms_luminance(&valid(&patches, &r.irradiance)),
-                                format!("variance over {} footprint samples", s.samples_per_texel),
+                                crate::direct::error_method(&s, c.plan.sky),
                             )
                         });
                         let factor = match (share, &est) {
