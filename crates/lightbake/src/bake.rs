@@ -497,11 +497,7 @@ fn bake_in_pool(
                     let rays = sol.rays;
                     Ok((sol, rays, note))
                 })?;
-                // The Monte Carlo error of the matrix rows (stochastic Jacobi has its own
-                // noise, which a re-gather does not measure: it is left to the study).
-                if transport.is_none() {
-                    break (solver_plan, transport, solution, None);
-                }
+                // The Monte Carlo error of the matrix rows, or of stochastic Jacobi's shooting.
                 let error = stages.run(&format!("estimate{suffix}"), progress, 1, || {
                     let (e, rays) = indirect::gather_error(
                         &c,
@@ -516,8 +512,14 @@ fn bake_in_pool(
                 })?;
                 stages.annotate(RayKind::Closest, Some(error.clone()), progress);
                 let factor = share.map_or(1.0, |t| count_factor(error.relative_rms, t));
-                let next = scaled(s.transport_rays, factor, 65_536);
-                if factor <= 1.0 || next == s.transport_rays || round == TARGET_ROUNDS {
+                // The count that sets the noise: form-factor rays, or the shooting's rays.
+                let count = if transport.is_some() {
+                    &mut s.transport_rays
+                } else {
+                    &mut s.stochastic_rays_per_node
+                };
+                let next = scaled(*count, factor, 65_536);
+                if factor <= 1.0 || next == *count || round == TARGET_ROUNDS {
                     if factor > 1.0 {
                         warnings.push(format!(
                             "radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
@@ -528,7 +530,7 @@ fn bake_in_pool(
                     break (solver_plan, transport, solution, Some(error));
                 }
                 drop(transport);
-                s.transport_rays = next;
+                *count = next;
                 round += 1;
             };
             if let Some(e) = error {

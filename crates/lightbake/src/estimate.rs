@@ -1,10 +1,18 @@
 //! Error estimates: what each Monte Carlo stage says about its own noise, and how a bake
 //! adds them up.
 //!
-//! Every stage that samples estimates, per texel, the **standard error** of its result from
-//! the spread of its own samples (the sample variance over N samples divided by N; for a
-//! ratio estimator, the delta-method variance). Luminance is used throughout (lux). Over the
-//! lightmap they are summarised as
+//! Every stage that samples estimates, per texel, the **standard error** of its result
+//! (luminance, lux):
+//!
+//! - direct light: the spread of four blocks of its footprint samples, each block a stratified
+//!   replicate of the whole ([`crate::direct`]); below eight samples, the sample variance
+//!   over N samples divided by N (for the closed-form emitter's ratio estimator, the
+//!   delta-method variance);
+//! - radiosity: two independent re-gathers of sample nodes against the solution
+//!   ([`crate::indirect::gather_error`]);
+//! - instant radiosity: the variance over particle paths.
+//!
+//! Over the lightmap they are summarised as
 //!
 //! - **relative RMS** = √(Σ_t se_t²) / √(Σ_t E_t²) — the RMS error relative to the RMS value,
 //!   the same normalisation the convergence study uses for the *measured* error, so the two
@@ -13,11 +21,10 @@
 //!   again relative to the lightmap's RMS value (not to each texel, which would let dark
 //!   texels dominate).
 //!
-//! Stages sample independently, so their absolute RMS errors add in quadrature. Sample
-//! variance treats quasi-random samples as if they were independent; it therefore
-//! *over*-estimates the error of the low-discrepancy sequences the baker uses. The
-//! convergence study (`bake convergence`) prints the ratio of estimated to measured error so
-//! the user can see by how much.
+//! Stages sample independently, so their absolute RMS errors add in quadrature. None of the
+//! estimates sees bias (clamping, a basis' discretisation); the convergence study
+//! (`bake convergence`) prints the ratio of estimated to measured error so the user can see
+//! how far they can be trusted.
 
 use serde::Serialize;
 
