@@ -662,6 +662,19 @@ fn transport_over_budget_falls_back_or_is_refused() {
     }
 }
 
+/// The bake is refused as over its memory budget, with `needle` in the breakdown.
+fn assert_over_budget(scene: &Scene, settings: &BakeSettings, needle: &str) {
+    match lightbake::bake(scene, settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(breakdown.contains(needle), "{breakdown}");
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+}
+
 /// The transport budget holds the solver's own memory too: shooting builds the transpose (a
 /// second matrix), so a budget that holds one matrix refuses it, and says what it needed.
 #[test]
@@ -687,15 +700,7 @@ fn transport_budget_counts_the_solvers_working_memory() {
     assert!(matrix_mib >= 4, "the test needs a matrix of a few MiB");
     settings.solver = SolverChoice::Shooting;
     settings.transport_budget_mib = matrix_mib + 1;
-    match lightbake::bake(&scene, &settings, &Progress::new()) {
-        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
-            assert!(breakdown.contains("beside it"), "{breakdown}");
-        }
-        other => panic!(
-            "expected a refusal, got {:?}",
-            other.map(|o| o.report.texels)
-        ),
-    }
+    assert_over_budget(&scene, &settings, "beside it");
     settings.transport_budget_mib = 2 * matrix_mib + 2;
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
@@ -723,15 +728,7 @@ fn memory_budget_also_bounds_the_transport() {
         report.solver_reason
     );
     settings.solver = SolverChoice::Jacobi;
-    match lightbake::bake(&scene, &settings, &Progress::new()) {
-        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
-            assert!(breakdown.contains("memory budget"), "{breakdown}");
-        }
-        other => panic!(
-            "expected a refusal, got {:?}",
-            other.map(|o| o.report.texels)
-        ),
-    }
+    assert_over_budget(&scene, &settings, "memory budget");
     settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
