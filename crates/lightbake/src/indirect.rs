@@ -206,7 +206,9 @@ pub const ERROR_SAMPLE_NODES: usize = 2048;
 /// quasi-random rays overstated their error 1.5–1.9×, and hid stochastic Jacobi's noise
 /// entirely). What the gathers share is not seen: the noise other nodes' rows carried into
 /// B, and the basis' own discretisation bias. Relative to the direct plus reflected light of
-/// the same nodes. Returns the estimate and the rays traced.
+/// the same nodes. Its p95 is that of the per-node terms' square roots (negative terms count
+/// as zero): each is a one-sample estimate, so their spread is wider than the nodes' errors.
+/// Returns the estimate and the rays traced.
 pub fn gather_error(
     ctx: &BakeContext<'_>,
     nodes: &Nodes,

@@ -176,8 +176,10 @@ pub struct BakeSettings {
     /// Monte Carlo stage measures its own error, predicts the count that reaches its share of
     /// the target (the target divided by √(number of sampling stages); error falls as
     /// 1/√count), runs again with it, and repeats (at most 3 rounds, counts capped at their
-    /// ranges) until its estimate is at or below its share; the radiosity solver's tolerance
-    /// is tightened to a quarter of the target. Range (0, 1). Default none.
+    /// ranges) until its estimate is at or below its share (the counts: samples per texel,
+    /// form-factor rays per node, or stochastic Jacobi's rays per node, and VPL particles);
+    /// the radiosity solver's tolerance is tightened to a quarter of the target. Range
+    /// (0, 1). Default none.
     pub target_error: Option<f32>,
     /// Which files to write.
     pub formats: OutputFormats,
