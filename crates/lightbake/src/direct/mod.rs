@@ -676,6 +676,8 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
         let mut escaped = 0u32;
         let scale = std::f64::consts::PI * luminance(ctx.scene.sky) as f64;
         for k in 0..n {
+            let block = &mut blocks[(k as usize * BLOCKS) / n as usize];
+            block.sky_n += 1;
             let sp = samples[(k % spp) as usize];
             let dir = cosine_hemisphere(sp.normal, sobol_02(k, p.rng(seed, stream::SKY)));
             if sp.geometric_normal.dot(dir) <= 0.0 {
@@ -685,11 +687,8 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
             let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
             if !ctx.rays.occluded(origin, dir, 0.0, far) {
                 escaped += 1;
-                blocks[(k as usize * BLOCKS) / n as usize].sky += scale;
+                block.sky += scale;
             }
-        }
-        for (b, block) in blocks.iter_mut().enumerate() {
-            block.sky_n = (((b + 1) * n as usize) / BLOCKS - (b * n as usize) / BLOCKS) as u32;
         }
         irradiance += ctx.scene.sky * (std::f32::consts::PI * escaped as f32 / n as f32);
         if n > 1 {

@@ -253,7 +253,7 @@ fn exact_split(
     rect: crate::unwrap::InstanceRect,
     out: &mut Vec<(u32, f32)>,
 ) -> bool {
-    if !p.is_valid() || p.flags & Patch::NEAR_GEOMETRY != 0 {
+    if !p.is_valid() || p.flags & (Patch::NEAR_GEOMETRY | Patch::MOVED) != 0 {
         return false;
     }
     let (x, y) = ((p.x - rect.x) as i64, (p.y - rect.y) as i64);
