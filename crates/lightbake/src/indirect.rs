@@ -244,8 +244,8 @@ pub fn gather_error(
         .into_par_iter()
         .map(|k| {
             let i = k * n / picked;
-            let g1 = Transport::gather_standard_error(&c1, &mapper, nodes, i, rays, b).0;
-            let g2 = Transport::gather_standard_error(&c2, &mapper, nodes, i, rays, b).0;
+            let g1 = Transport::gather_luminance(&c1, &mapper, nodes, i, rays, b);
+            let g2 = Transport::gather_luminance(&c2, &mapper, nodes, i, rays, b);
             let h = crate::direct::luminance(indirect[i]) as f64;
             let mean = 0.5 * (g1 + g2);
             (mean - h) * (mean - h) - 0.25 * (g1 - g2) * (g1 - g2)

@@ -1113,38 +1113,27 @@ impl Transport {
             .fold(Vec3::ZERO, |s, &(j, w)| s + b[j as usize] * w)
     }
 
-    /// Standard error (luminance) of node `i`'s gathered irradiance (F·B)ᵢ when its row is
-    /// estimated with `rays` rays, from the spread of the rays' values against the exitance
-    /// `b`: the delta-method variance of the self-normalised estimator,
-    /// Σw²(v − H)²/(Σw)², with v the luminance of B at each ray's hit and H their weighted
-    /// mean. Returns (H, standard error); traces the same rays as the row itself.
-    pub fn gather_standard_error(
+    /// Luminance of node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row
+    /// estimated by `rays` rays as [`Self::build_monte_carlo`] does: the self-normalised
+    /// mean Σw·v / Σw of the luminance v of B at each ray's hit, without forming the row (lux).
+    pub fn gather_luminance(
         ctx: &BakeContext<'_>,
         mapper: &HitMapper<'_>,
         nodes: &Nodes,
         i: usize,
         rays: u32,
         b: &[Vec3],
-    ) -> (f64, f64) {
-        let mut samples: Vec<(f64, f64)> = Vec::with_capacity(rays as usize);
+    ) -> f64 {
+        let (mut total, mut weighted) = (0.0f64, 0.0f64);
         Self::for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
             let v: f32 = hit
                 .iter()
                 .map(|&(j, wj)| wj * crate::direct::luminance(b[j as usize]))
                 .sum();
-            samples.push((weight as f64, v as f64));
+            total += weight as f64;
+            weighted += weight as f64 * v as f64;
         });
-        let total: f64 = samples.iter().map(|s| s.0).sum();
-        if total <= 0.0 {
-            return (0.0, 0.0);
-        }
-        let h = samples.iter().map(|(w, v)| w * v).sum::<f64>() / total;
-        let var = samples
-            .iter()
-            .map(|(w, v)| w * w * (v - h) * (v - h))
-            .sum::<f64>()
-            / (total * total);
-        (h, var.sqrt())
+        if total <= 0.0 { 0.0 } else { weighted / total }
     }
 
     /// Estimated bytes of the Monte Carlo matrix: up to 512 evenly spaced rows are traced and
