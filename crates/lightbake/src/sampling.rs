@@ -292,15 +292,44 @@ pub fn concentric_disc(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    // The angle is π/4·(y/x) in the left and right wedges and π/2 − π/4·(x/y) in the top and
+    // bottom ones: both within a quarter turn, where [`sin_cos_quarter`] holds.
+    let q = std::f32::consts::FRAC_PI_4;
+    if o.x.abs() > o.y.abs() {
+        let (s, c) = sin_cos_quarter(q * (o.y / o.x));
+        o.x * Vec2::new(c, s)
     } else {
-        (
-            o.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
-        )
-    };
-    r * Vec2::new(theta.cos(), theta.sin())
+        let (s, c) = sin_cos_quarter(q * (o.x / o.y));
+        o.y * Vec2::new(s, c)
+    }
+}
+
+/// (sin a, cos a) for |a| ≤ π/4, to within 2.5·10⁻⁷ of the standard library's: short
+/// polynomials in place of `sincosf`, which was 2.3 % of a Cornell bake (one call per
+/// cosine-weighted transport direction). sin a = a + a³·S(a²) and cos a = 1 − a²/2 +
+/// a⁴·C(a²) with S and C cubics fitted (least squares at 400 Chebyshev nodes, weighted for
+/// relative error, against 40-digit references) on [0, π²/16]: their relative error is below
+/// 2·10⁻¹⁰, far under f32 rounding.
+#[inline]
+fn sin_cos_quarter(a: f32) -> (f32, f32) {
+    const S: [f32; 4] = [
+        -0.166_666_67,
+        0.008_333_332,
+        -0.000_198_400_82,
+        2.724_937_3e-6,
+    ];
+    const C: [f32; 4] = [
+        0.041_666_668,
+        -0.001_388_888_8,
+        2.480_059_8e-5,
+        -2.730_066e-7,
+    ];
+    debug_assert!(a.abs() <= std::f32::consts::FRAC_PI_4 * 1.0001, "{a}");
+    let z = a * a;
+    // Horner's rule with plain multiply-adds (`mul_add` is a library call without the `fma`
+    // target feature).
+    let horner = |c: &[f32; 4]| c.iter().rev().fold(0.0, |acc, &k| acc * z + k);
+    (a + a * z * horner(&S), 1.0 - 0.5 * z + z * z * horner(&C))
 }
 
 /// Uniform direction in the cone of half-angle acos(`cos_max`) about unit `axis`.
@@ -374,6 +403,43 @@ pub fn spherical_triangle(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quarter_sin_cos_matches_the_standard_library() {
+        let q = std::f32::consts::FRAC_PI_4;
+        let mut worst = 0.0f32;
+        for i in 0..=100_000 {
+            let a = -q + 2.0 * q * i as f32 / 100_000.0;
+            let (s, c) = sin_cos_quarter(a);
+            worst = worst.max((s - a.sin()).abs()).max((c - a.cos()).abs());
+        }
+        assert!(worst < 2.5e-7, "{worst}");
+        assert_eq!(sin_cos_quarter(0.0), (0.0, 1.0));
+    }
+
+    /// The polynomial sine and cosine give the disc the standard library's angles.
+    #[test]
+    fn concentric_disc_matches_its_trigonometric_definition() {
+        use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
+        let mut worst = 0.0f32;
+        for i in 0..=256 {
+            for j in 0..=256 {
+                let u = Vec2::new(i as f32, j as f32) / 256.0;
+                let o = 2.0 * u - Vec2::ONE;
+                let expected = if o == Vec2::ZERO {
+                    Vec2::ZERO
+                } else if o.x.abs() > o.y.abs() {
+                    let t = FRAC_PI_4 * (o.y / o.x);
+                    o.x * Vec2::new(t.cos(), t.sin())
+                } else {
+                    let t = FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y);
+                    o.y * Vec2::new(t.cos(), t.sin())
+                };
+                worst = worst.max((concentric_disc(u) - expected).abs().max_element());
+            }
+        }
+        assert!(worst < 3e-7, "{worst}");
+    }
 
     #[test]
     fn table_sobol_matches_the_bitwise_definition() {
