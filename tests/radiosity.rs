@@ -662,6 +662,17 @@ fn transport_over_budget_falls_back_or_is_refused() {
     }
 }
 
+/// The area-lit Cornell box at 48 texels/m with `auto`, which picks BiCGStab: the scene, its
+/// settings and the bake (the budget tests' baseline).
+fn krylov_cornell_bake() -> (Scene, BakeSettings, lightbake::BakeOutput) {
+    let scene = cornell_box(CornellLight::Area);
+    let settings = radiosity_settings(48.0, SolverChoice::Auto);
+    let out = common::bake(&scene, &settings);
+    let report = out.report.indirect.as_ref().unwrap();
+    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
+    (scene, settings, out)
+}
+
 /// The bake is refused as over its memory budget, with `needle` in the breakdown.
 fn assert_over_budget(scene: &Scene, settings: &BakeSettings, needle: &str) {
     match lightbake::bake(scene, settings, &Progress::new()) {
@@ -679,11 +690,8 @@ fn assert_over_budget(scene: &Scene, settings: &BakeSettings, needle: &str) {
 /// second matrix), so a budget that holds one matrix refuses it, and says what it needed.
 #[test]
 fn transport_budget_counts_the_solvers_working_memory() {
-    let scene = cornell_box(CornellLight::Area);
-    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
-    let out = common::bake(&scene, &settings);
+    let (scene, mut settings, out) = krylov_cornell_bake();
     let report = out.report.indirect.as_ref().unwrap();
-    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
     assert_eq!(
         report.solver_working_bytes,
         SolverChoice::Krylov.working_bytes(report.nodes, report.transport_estimate_bytes)
@@ -710,11 +718,8 @@ fn transport_budget_counts_the_solvers_working_memory() {
 /// matrix-free and a matrix solver is refused with the memory budget named.
 #[test]
 fn memory_budget_also_bounds_the_transport() {
-    let scene = cornell_box(CornellLight::Area);
-    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
-    let out = common::bake(&scene, &settings);
+    let (scene, mut settings, out) = krylov_cornell_bake();
     let report = out.report.indirect.as_ref().unwrap();
-    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
     let rest_mib = out.report.memory.mib();
     let matrix_mib = report.transport_estimate_bytes as f64 / 1048576.0;
     assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");

@@ -693,7 +693,6 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
         irradiance += ctx.scene.sky * (std::f32::consts::PI * escaped as f32 / n as f32);
         if n > 1 {
             let q = escaped as f64 / n as f64;
-            let scale = std::f64::consts::PI * luminance(ctx.scene.sky) as f64;
             variance += scale * scale * q * (1.0 - q) / n as f64;
         }
     }
