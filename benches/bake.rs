@@ -12,16 +12,16 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use lightbake::bake::{BakeContext, Prepared};
 use lightbake::bvh::RayScene;
-use lightbake::direct::{Emitters, direct_light};
-use lightbake::indirect;
+use lightbake::context::{BakeContext, Prepared};
+use lightbake::direct::direct_light;
+use lightbake::lights::Emitters;
 use lightbake::progress::Progress;
+use lightbake::radiosity::{self, Nodes, monte_carlo};
 use lightbake::raster::Patches;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
 use lightbake::settings::BakeSettings;
 use lightbake::settings::Method;
-use lightbake::transport::{Nodes, Transport};
 use lightbake::unwrap::unwrap_scene;
 use lightbake::vpl::instant_radiosity;
 
@@ -82,7 +82,7 @@ fn stages(c: &mut Criterion) {
     g.bench_function("direct_medium_preset", |b| {
         b.iter(|| black_box(direct_light(&ctx, &emitters, &Progress::new())))
     });
-    let direct = prepared.direct();
+    let direct = lightbake::direct::direct_irradiance(&prepared.ctx());
     let mut vpl_settings = settings.clone();
     vpl_settings.method = Method::Hybrid;
     vpl_settings.vpl_particles = 256;
@@ -103,15 +103,15 @@ fn stages(c: &mut Criterion) {
     });
     let nodes = Nodes::new(&ctx, settings.basis);
     let (irr, _) = {
-        let t = Transport::build_monte_carlo(&ctx, &nodes, 32, settings.basis, &Progress::new());
-        let plan = indirect::plan_solver(&ctx, &nodes).expect("plan");
-        let source = indirect::source(&nodes, &direct);
-        let s = indirect::solve_system(&ctx, &nodes, &plan, Some(&t), &source, &Progress::new());
+        let t = monte_carlo::build(&ctx, &nodes, 32, settings.basis, &Progress::new());
+        let plan = radiosity::plan_solver(&ctx, &nodes).expect("plan");
+        let source = radiosity::source(&nodes, &direct);
+        let s = radiosity::solve_system(&ctx, &nodes, &plan, Some(&t), &source, &Progress::new());
         (s, t)
     };
     g.bench_function("error_estimate_regather", |b| {
         b.iter(|| {
-            black_box(indirect::gather_error(
+            black_box(radiosity::gather_error(
                 &ctx,
                 &nodes,
                 &irr.b,

@@ -12,15 +12,18 @@ use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DVec3, Vec3};
-use lightbake::bake::Prepared;
+use lightbake::context::Prepared;
 use lightbake::progress::Progress;
+use lightbake::radiosity::stochastic_jacobi::{self, StochasticOptions};
+use lightbake::radiosity::{HitMapper, Nodes, monte_carlo};
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, furnace_box};
 use lightbake::settings::BakeSettings;
+use lightbake::settings::Basis;
+use lightbake::settings::SolverChoice;
+use lightbake::solve::Transport;
 use lightbake::solve::shooting;
-use lightbake::solve::stochastic_jacobi::{self, StochasticOptions};
-use lightbake::solve::{self, SolveOptions, SolverChoice, System};
-use lightbake::transport::{Basis, HitMapper, Nodes, Transport};
+use lightbake::solve::{self, SolveOptions};
 
 struct Case {
     prep: Prepared,
@@ -38,10 +41,10 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
     let prep = Prepared::new(scene, &settings).expect("prepare");
     let ctx = prep.ctx();
     let nodes = Nodes::new(&ctx, Basis::Linear);
-    let direct = prep.direct();
-    let source = lightbake::indirect::source(&nodes, &direct);
+    let direct = lightbake::direct::direct_irradiance(&prep.ctx());
+    let source = lightbake::radiosity::source(&nodes, &direct);
     let start = Instant::now();
-    let transport = Transport::build_monte_carlo(
+    let transport = monte_carlo::build(
         &ctx,
         &nodes,
         settings.transport_rays,
@@ -65,7 +68,7 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
 }
 
 fn table(name: &str, c: &Case) {
-    let system = System::for_nodes(&c.transport, &c.nodes, &c.source);
+    let system = lightbake::radiosity::system(&c.transport, &c.nodes, &c.source);
     let options = SolveOptions {
         tolerance: 1e-3,
         max_iterations: 100_000,
@@ -152,7 +155,7 @@ fn solvers(c: &mut Criterion) {
     g.bench_function("spmv_jacobi_sweep", |b| {
         b.iter(|| cornell.transport.mul64(black_box(&x), &mut y))
     });
-    let system = System::for_nodes(&cornell.transport, &cornell.nodes, &cornell.source);
+    let system = lightbake::radiosity::system(&cornell.transport, &cornell.nodes, &cornell.source);
     let one = SolveOptions {
         tolerance: 1e-30,
         max_iterations: 1,
@@ -215,7 +218,7 @@ fn solvers(c: &mut Criterion) {
     let ctx = small.prep.ctx();
     g.bench_function("monte_carlo_128_rays_cornell_64", |b| {
         b.iter(|| {
-            black_box(Transport::build_monte_carlo(
+            black_box(monte_carlo::build(
                 &ctx,
                 &small.nodes,
                 128,

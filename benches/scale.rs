@@ -102,7 +102,7 @@ fn run_case(kind: &str, value: f64) {
         out.report.floor.as_ref().map_or(f64::NAN, |f| f.seconds),
         out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),
         out.report.memory.mib()
-            + out.report.indirect.as_ref().map_or(0.0, |i| {
+            + out.report.radiosity.as_ref().map_or(0.0, |i| {
                 (i.transport_estimate_bytes + i.solver_working_bytes) as f64 / 1048576.0
             }),
         peak_rss_mib(),

@@ -150,7 +150,7 @@ pub struct BakeStatus {
     pub error_estimate: Option<f32>,
     /// The stages finished so far in the running (or last) bake, in order: wall time, rays
     /// and, for the sampling stages, their own error estimate
-    /// ([`lightbake::estimate::ErrorEstimate`], relative RMS and 95th percentile).
+    /// ([`lightbake::report::ErrorEstimate`], relative RMS and 95th percentile).
     pub finished_stages: Vec<lightbake::report::StageStats>,
     /// Seconds since the bake started (wall clock).
     pub elapsed_seconds: f32,

@@ -13,7 +13,7 @@
 
 use bevy::gltf::GltfExtras;
 use bevy::prelude::*;
-use serde_json::Value;
+use lightbake::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
 
 use crate::components::{BakedLight, Lightmapped};
 
@@ -21,35 +21,11 @@ use crate::components::{BakedLight, Lightmapped};
 #[derive(Component, Clone, Copy, Debug, Default)]
 pub struct LightmapLookedUp;
 
-/// One entry of a node's `extras.lightbake.lightmaps`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct NodeLightmapEntry {
-    /// Primitive index within the node's mesh.
-    pub primitive: usize,
-    /// Page image path, relative to the glTF file.
-    pub image: String,
-    /// `[min u, min v, max u, max v]`.
-    pub uv_rect: Rect,
-}
-
-/// Parses a node's extras JSON. Entries that are malformed are skipped; `None` when the node
-/// has no lightmaps.
-pub fn parse_node_lightmaps(extras: &str) -> Option<Vec<NodeLightmapEntry>> {
-    let json: Value = serde_json::from_str(extras).ok()?;
-    let list = json.pointer("/lightbake/lightmaps")?.as_array()?;
-    Some(
-        list.iter()
-            .filter_map(|e| {
-                let r = e["uv_rect"].as_array()?;
-                let f = |k: usize| r.get(k).and_then(Value::as_f64).map(|v| v as f32);
-                Some(NodeLightmapEntry {
-                    primitive: e["primitive"].as_u64()? as usize,
-                    image: e["image"].as_str()?.to_string(),
-                    uv_rect: Rect::new(f(0)?, f(1)?, f(2)?, f(3)?),
-                })
-            })
-            .collect(),
-    )
+/// A node's lightmaps from its extras JSON (`extras.lightbake.lightmaps`, the core's
+/// [`NodeExtras`] schema); malformed entries are skipped, and `None` when the node has none.
+pub fn parse_node_lightmaps(extras: &str) -> Option<Vec<NodeLightmap>> {
+    let lb: NodeExtras = extras::read(Some(extras), "node", &mut Vec::new());
+    (!lb.lightmaps.is_empty()).then_some(lb.lightmaps)
 }
 
 /// The primitive index in a glTF mesh label `MeshM/PrimitiveP`.
@@ -57,12 +33,9 @@ pub fn primitive_of_label(label: &str) -> Option<usize> {
     label.split_once("/Primitive")?.1.parse().ok()
 }
 
-/// Whether a light's extras say it was baked.
+/// Whether a light's extras say it was baked (the core's [`LightExtras`] schema).
 pub fn is_baked_light(extras: &str) -> bool {
-    serde_json::from_str::<Value>(extras)
-        .ok()
-        .and_then(|v| v.pointer("/lightbake/baked").and_then(Value::as_bool))
-        .unwrap_or(false)
+    extras::read::<LightExtras>(Some(extras), "light", &mut Vec::new()).baked
 }
 
 /// Gives every mesh entity of a baked glTF its [`Lightmapped`] from its node's extras.
@@ -114,9 +87,10 @@ pub(crate) fn attach_gltf_lightmaps(
                 continue;
             }
         };
+        let [u0, v0, u1, v1] = entry.uv_rect;
         commands.entity(entity).insert(Lightmapped {
             image: server.load(image_path),
-            uv_rect: entry.uv_rect,
+            uv_rect: Rect::new(u0, v0, u1, v1),
         });
     }
 }
@@ -165,10 +139,11 @@ mod tests {
         let list = parse_node_lightmaps(x).unwrap();
         assert_eq!(
             list,
-            vec![NodeLightmapEntry {
+            vec![NodeLightmap {
                 primitive: 1,
+                page: 0,
                 image: "lightmaps/lightmap_0.exr".into(),
-                uv_rect: Rect::new(0.0, 0.5, 0.25, 1.0),
+                uv_rect: [0.0, 0.5, 0.25, 1.0],
             }]
         );
         assert_eq!(parse_node_lightmaps(r#"{"a": 1}"#), None);

@@ -9,7 +9,7 @@ use bevy::asset::RenderAssetUsages;
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use half::f16;
-use lightbake::lightmap::LightmapPage;
+use lightbake::lightmap::{HALF_MAX, LightmapPage, bilinear_taps};
 
 /// A baked page as an `Rgba16Float` image (alpha 1), kept on the CPU as well so that games
 /// and tests can read it.
@@ -17,7 +17,7 @@ pub fn page_image(page: &LightmapPage) -> Image {
     let mut data = Vec::with_capacity(page.texels.len() * 8);
     for t in &page.texels {
         for c in [t.x, t.y, t.z, 1.0] {
-            data.extend_from_slice(&f16::from_f32(c.min(f16::MAX.to_f32())).to_le_bytes());
+            data.extend_from_slice(&f16::from_f32(c.min(HALF_MAX)).to_le_bytes());
         }
     }
     Image::new(
@@ -50,7 +50,7 @@ pub fn narrow_to_half(image: &mut Image) -> bool {
         .chunks_exact(4)
         .flat_map(|c| {
             let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-            f16::from_f32(v.min(f16::MAX.to_f32())).to_le_bytes()
+            f16::from_f32(v.min(HALF_MAX)).to_le_bytes()
         })
         .collect();
     image.data = Some(half);
@@ -86,17 +86,13 @@ pub fn texel(image: &Image, x: u32, y: u32) -> Option<Vec3> {
 }
 
 /// Bilinear sample at `uv` ∈ [0, 1]² (texel centres at (x + ½)/W), clamped at the edges:
-/// what Bevy's lightmap sampler returns.
+/// what Bevy's lightmap sampler returns (the core's [`bilinear_taps`]).
 pub fn sample_bilinear(image: &Image, uv: Vec2) -> Option<Vec3> {
-    let (w, h) = (image.width() as f32, image.height() as f32);
-    let p = uv * Vec2::new(w, h) - 0.5;
-    let p0 = p.floor();
-    let f = p - p0;
-    let clamp = |v: f32, n: f32| v.clamp(0.0, n - 1.0) as u32;
-    let at = |dx: f32, dy: f32| texel(image, clamp(p0.x + dx, w), clamp(p0.y + dy, h));
-    let top = at(0.0, 0.0)?.lerp(at(1.0, 0.0)?, f.x);
-    let bottom = at(0.0, 1.0)?.lerp(at(1.0, 1.0)?, f.x);
-    Some(top.lerp(bottom, f.y))
+    bilinear_taps(image.width(), image.height(), uv.x, uv.y)
+        .iter()
+        .try_fold(Vec3::ZERO, |sum, &((x, y), w)| {
+            Some(sum + texel(image, x, y)? * w)
+        })
 }
 
 #[cfg(test)]

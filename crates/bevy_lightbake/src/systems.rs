@@ -3,7 +3,6 @@
 //! images.
 
 use std::collections::{HashMap, HashSet};
-use std::sync::Arc;
 use std::time::Instant;
 
 use bevy::asset::AssetId;
@@ -12,9 +11,7 @@ use bevy::light::GlobalAmbientLight;
 use bevy::mesh::{Indices, MeshAccessError};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use lightbake::progress::Progress;
-use lightbake::unwrap::{MeshUnwrap, UvOrigin};
-use lightbake::{BakeError, BakeOutput, BakeSettings, Scene};
+use lightbake::{BakeError, BakeHandle, BakeOutput, BakeSettings, MeshUnwrap, Scene, UvOrigin};
 
 use crate::components::{
     BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
@@ -36,15 +33,13 @@ struct Finished {
 
 /// The running bake.
 ///
-/// It runs on a thread of its own (with its own rayon pool of `settings.threads` workers),
-/// not on Bevy's `AsyncComputeTaskPool`: Bevy compiles render pipelines on that pool, which
-/// has a single thread on a 2-core machine, and a bake holding it froze the first frames of
-/// the Cornell example for 2.8 s (measured), waiting for pipelines. The frame loop only polls
-/// [`std::thread::JoinHandle::is_finished`].
+/// It runs on a thread of its own ([`BakeHandle`], with its own rayon pool of
+/// `settings.threads` workers), not on Bevy's `AsyncComputeTaskPool`: Bevy compiles render
+/// pipelines on that pool, which has a single thread on a 2-core machine, and a bake holding
+/// it stalls the first frames waiting for pipelines. The frame loop only polls the handle.
 #[derive(Resource)]
 pub(crate) struct BakeJob {
-    thread: Option<std::thread::JoinHandle<Result<Finished, BakeError>>>,
-    progress: Arc<Progress>,
+    handle: BakeHandle<Finished>,
     started: Instant,
     mapping: SceneMapping,
 }
@@ -73,13 +68,13 @@ pub(crate) fn read_requests(
     if let Some(r) = requests.read().last() {
         pending.0 = Some(r.clone());
         if let Some(job) = &job {
-            job.progress.cancel();
+            job.handle.cancel();
         }
     }
     if cancels.read().count() > 0 {
         pending.0 = None;
         if let Some(job) = &job {
-            job.progress.cancel();
+            job.handle.cancel();
         }
     }
 }
@@ -104,30 +99,19 @@ pub(crate) fn start_bake(world: &mut World) {
     for w in &scene.warnings {
         warn!("lightbake: {w}");
     }
-    let progress = Arc::new(Progress::new());
     let out_dir = config
         .write_files
         .then(|| config.assets_folder.join(&config.output_dir));
-    let task_progress = progress.clone();
     let output_dir = config.output_dir.clone();
-    let spawned = std::thread::Builder::new()
-        .name("lightbake".into())
-        .spawn(move || {
-            bake_and_write(
-                &scene,
-                &settings,
-                &task_progress,
-                out_dir.as_deref(),
-                &output_dir,
-            )
-        });
-    let thread = match spawned {
-        Ok(t) => t,
-        Err(e) => return fail(world, started, format!("cannot start the bake thread: {e}")),
+    let spawned = BakeHandle::spawn_then(scene, settings, move |output, scene, settings| {
+        write_files(output, scene, settings, out_dir.as_deref(), &output_dir)
+    });
+    let handle = match spawned {
+        Ok(h) => h,
+        Err(e) => return fail(world, started, e.to_string()),
     };
     world.insert_resource(BakeJob {
-        thread: Some(thread),
-        progress,
+        handle,
         started,
         mapping,
     });
@@ -141,18 +125,18 @@ pub(crate) fn start_bake(world: &mut World) {
     status.elapsed_seconds = 0.0;
 }
 
-/// The task body: bake, then (optionally) write the outputs atomically into the assets folder.
-fn bake_and_write(
+/// After the bake, on its thread: (optionally) write the outputs atomically into the assets
+/// folder.
+fn write_files(
+    output: BakeOutput,
     scene: &Scene,
     settings: &BakeSettings,
-    progress: &Progress,
     out_dir: Option<&std::path::Path>,
     output_dir: &str,
 ) -> Result<Finished, BakeError> {
-    let output = lightbake::bake(scene, settings, progress)?;
     let page_paths = match out_dir {
         Some(dir) => {
-            lightbake::output::write_outputs(dir, &output, scene, None, settings)?;
+            lightbake::write_outputs(dir, &output, scene, None, settings)?;
             let pages = lightbake::output::page_files(&output, settings);
             Some(
                 pages
@@ -182,7 +166,7 @@ pub(crate) fn poll_bake(world: &mut World) {
     let Some(mut job) = world.remove_resource::<BakeJob>() else {
         return;
     };
-    let snap = job.progress.snapshot();
+    let snap = job.handle.snapshot();
     {
         let mut status = world.resource_mut::<BakeStatus>();
         status.stage = snap.stage.clone();
@@ -192,19 +176,9 @@ pub(crate) fn poll_bake(world: &mut World) {
         status.finished_stages = snap.finished;
         status.elapsed_seconds = job.started.elapsed().as_secs_f32();
     }
-    if !job.thread.as_ref().is_some_and(|t| t.is_finished()) {
+    let Some(result) = job.handle.try_join() else {
         world.insert_resource(job);
         return;
-    }
-    let result = match job.thread.take().map(std::thread::JoinHandle::join) {
-        Some(Ok(result)) => result,
-        _ => {
-            return fail(
-                world,
-                job.started,
-                "the bake thread panicked (a bug in lightbake; please report it)".into(),
-            );
-        }
     };
     let seconds = job.started.elapsed().as_secs_f64();
     match result {

@@ -12,87 +12,29 @@
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::time::Duration;
 
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
-use lightbake::plan::BakePlan;
-use lightbake::progress::Progress;
-use lightbake::sampling::Sequence;
-use lightbake::scene::gltf_import::import_gltf;
-use lightbake::settings::{BakeSettings, LightConvention, Method, Quality};
-use lightbake::solve::SolverChoice;
-use lightbake::transport::Basis;
+use lightbake::report::BakePlan;
+use lightbake::{
+    BakeHandle, BakeSettings, Basis, ImageFormat, LightConvention, Method, OutputFormats, Progress,
+    Quality, Sequence, SolverChoice, import_gltf,
+};
 
 mod plot;
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum QualityArg {
-    Preview,
-    Medium,
-    High,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum FormatArg {
-    Exr,
-    Hdr,
-    Ktx2,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum MethodArg {
-    /// Direct light only.
-    Direct,
-    /// Direct light plus interreflection by radiosity over the texels.
-    Radiosity,
-    /// Instant radiosity: all light from virtual point lights.
-    Vpl,
-    /// Direct light exact, indirect light from virtual point lights.
-    Hybrid,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum SequenceArg {
-    Halton,
-    ScrambledHalton,
-    Jittered,
-    Random,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum SolverArg {
-    /// Chosen from the scene (stated in the plan).
-    Auto,
-    Jacobi,
-    GaussSeidel,
-    /// Progressive refinement (Southwell shooting).
-    Shooting,
-    /// Matrix-free, for scenes whose transport matrix does not fit.
-    StochasticJacobi,
-    /// BiCGStab, for stiff scenes (albedo near 1).
-    Krylov,
-    /// Conjugate gradients on the reciprocity-symmetrised system.
-    KrylovCg,
-    /// Dense LU (small scenes).
-    Direct,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum BasisArg {
-    /// Bilinear between texel centres (what the GPU shows).
-    Linear,
-    /// Constant per texel.
-    Constant,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum ConventionArg {
-    /// The glTF specification: linear light colours, no range = infinite.
-    Gltf,
-    /// What Bevy 0.19's glTF loader does: sRGB light colours, no range = 20 m.
-    Bevy,
+/// Parses `R,G,B` (three numbers separated by commas).
+fn parse_rgb(text: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [r, g, b] = parts[..] else {
+        return Err(format!("expected R,G,B (three numbers), got {text:?}"));
+    };
+    let num = |p: &str| {
+        p.parse::<f32>()
+            .map_err(|e| format!("{p:?} is not a number: {e}"))
+    };
+    Ok([num(r)?, num(g)?, num(b)?])
 }
 
 /// Bake lightmaps for a glTF scene: xatlas unwrap, texel patches, shadow-ray direct light;
@@ -107,16 +49,16 @@ struct Args {
     output: PathBuf,
     /// Preset for density and samples; the options below override it.
     #[arg(long, value_enum, default_value = "medium")]
-    quality: QualityArg,
+    quality: Quality,
     /// How light is computed.
     #[arg(long, value_enum, default_value = "radiosity")]
-    method: MethodArg,
+    method: Method,
     /// Radiosity solver.
     #[arg(long, value_enum, default_value = "auto")]
-    solver: SolverArg,
+    solver: SolverChoice,
     /// Radiosity basis over the texel grid.
     #[arg(long, value_enum, default_value = "linear")]
-    basis: BasisArg,
+    basis: Basis,
     /// Form-factor rays per texel (radiosity).
     #[arg(long)]
     transport_rays: Option<u32>,
@@ -127,6 +69,12 @@ struct Args {
     /// Target relative error of the radiosity solve.
     #[arg(long)]
     tolerance: Option<f64>,
+    /// Give the radiosity solver up after this many iterations (sweeps).
+    #[arg(long)]
+    max_solver_iterations: Option<u32>,
+    /// Stochastic Jacobi: rays per node in its first iteration.
+    #[arg(long)]
+    stochastic_rays: Option<u32>,
     /// Instant radiosity: particles started from the lights.
     #[arg(long)]
     vpl_particles: Option<u32>,
@@ -135,22 +83,36 @@ struct Args {
     vpl_time_budget: Option<f64>,
     /// Instant radiosity: number pattern of the walks.
     #[arg(long, value_enum, default_value = "scrambled-halton")]
-    vpl_sequence: SequenceArg,
+    vpl_sequence: Sequence,
     /// Instant radiosity: clamp distance in metres (default 2% of the scene's diagonal).
     #[arg(long)]
     vpl_clamp: Option<f32>,
     /// Instant radiosity: restore the clamped energy (Kollig & Keller bias compensation).
     #[arg(long)]
     bias_compensation: bool,
+    /// Instant radiosity: rays per texel of the bias compensation.
+    #[arg(long)]
+    vpl_compensation_rays: Option<u32>,
+    /// Instant radiosity: deepest reflection followed (at most 29).
+    #[arg(long)]
+    vpl_max_depth: Option<u32>,
     /// Lightmap texels per metre (overrides the preset and the scene's own hint).
     #[arg(long)]
     texel_density: Option<f32>,
+    /// Use the preset's texel density even when the scene suggests one
+    /// (`extras.lightbake.texel_density`).
+    #[arg(long)]
+    ignore_scene_density: bool,
     /// Samples per texel for direct light (footprint points × one sample per light).
     #[arg(long)]
     samples: Option<u32>,
     /// Sky rays per texel.
     #[arg(long)]
     sky_samples: Option<u32>,
+    /// Emissive triangles up to which direct light is computed in closed form (above it they
+    /// are sampled by power).
+    #[arg(long)]
+    max_closed_form_emitters: Option<u32>,
     /// Empty texels between charts.
     #[arg(long)]
     padding: Option<u32>,
@@ -159,7 +121,7 @@ struct Args {
     max_page_size: Option<u32>,
     /// HDR formats to write, comma separated.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "exr")]
-    format: Vec<FormatArg>,
+    format: Vec<ImageFormat>,
     /// Do not write the tonemapped PNG previews.
     #[arg(long)]
     no_preview: bool,
@@ -172,9 +134,9 @@ struct Args {
     /// Seed of the sample sequences.
     #[arg(long, default_value_t = 0)]
     seed: u32,
-    /// Uniform sky luminance R,G,B in nits (overrides the scene's).
-    #[arg(long, value_delimiter = ',', num_args = 3)]
-    sky: Option<Vec<f32>>,
+    /// Uniform sky luminance in nits, linear RGB (overrides the scene's).
+    #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
+    sky: Option<[f32; 3]>,
     /// Refuse bakes estimated to need more memory than this (MiB); the transport matrix is
     /// planned within what the rest of the bake leaves of it.
     #[arg(long)]
@@ -185,7 +147,7 @@ struct Args {
     target_error: Option<f32>,
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
-    light_convention: ConventionArg,
+    light_convention: LightConvention,
     /// Print the plan and exit without baking.
     #[arg(long)]
     plan_only: bool,
@@ -216,21 +178,18 @@ struct ConvergenceArgs {
     threads: usize,
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
-    light_convention: ConventionArg,
+    light_convention: LightConvention,
 }
 
 mod convergence {
     use super::*;
-    use lightbake::output::atomic::StagedFiles;
-    use lightbake::study::{StudyRow, StudySize, run_study};
+    use lightbake::analysis::study::{StudyRow, StudySize, run_study};
+    use lightbake::atomic::StagedFiles;
 
     pub(super) fn run(args: ConvergenceArgs) -> Result<(), String> {
         let mut settings = BakeSettings::medium();
         settings.threads = args.threads;
-        settings.light_convention = match args.light_convention {
-            ConventionArg::Gltf => LightConvention::GltfSpec,
-            ConventionArg::Bevy => LightConvention::BevyGltfLoader,
-        };
+        settings.light_convention = args.light_convention;
         if let Some(d) = args.texel_density {
             settings.texel_density = d;
             settings.texel_density_from_scene = false;
@@ -289,84 +248,55 @@ mod convergence {
     }
 }
 
+/// The settings the command line asks for: the preset, then every flag given (one flag per
+/// field of [`BakeSettings`]).
 fn settings_from(args: &Args) -> BakeSettings {
-    let mut s = BakeSettings::preset(match args.quality {
-        QualityArg::Preview => Quality::Preview,
-        QualityArg::Medium => Quality::Medium,
-        QualityArg::High => Quality::High,
-    });
-    if let Some(d) = args.texel_density {
-        s.texel_density = d;
-        s.texel_density_from_scene = false;
-    }
-    if let Some(v) = args.samples {
-        s.samples_per_texel = v;
-    }
-    if let Some(v) = args.sky_samples {
-        s.sky_samples = v;
-    }
-    if let Some(v) = args.padding {
-        s.padding = v;
-    }
-    if let Some(v) = args.max_page_size {
-        s.max_page_size = v;
-    }
-    if let Some(v) = args.memory_budget {
-        s.memory_budget_mib = v;
-    }
-    s.target_error = args.target_error;
-    s.method = match args.method {
-        MethodArg::Direct => Method::Direct,
-        MethodArg::Radiosity => Method::Radiosity,
-        MethodArg::Vpl => Method::Vpl,
-        MethodArg::Hybrid => Method::Hybrid,
+    let mut s = BakeSettings::preset(args.quality);
+    let set = |field: &mut u32, v: Option<u32>| {
+        if let Some(v) = v {
+            *field = v;
+        }
     };
-    if let Some(v) = args.vpl_particles {
-        s.vpl_particles = v;
-    }
-    s.vpl_time_budget_s = args.vpl_time_budget;
-    s.vpl_sequence = match args.vpl_sequence {
-        SequenceArg::Halton => Sequence::Halton,
-        SequenceArg::ScrambledHalton => Sequence::ScrambledHalton,
-        SequenceArg::Jittered => Sequence::Jittered,
-        SequenceArg::Random => Sequence::Random,
-    };
-    s.vpl_clamp_distance = args.vpl_clamp;
-    s.vpl_bias_compensation = args.bias_compensation;
-    s.solver = match args.solver {
-        SolverArg::Auto => SolverChoice::Auto,
-        SolverArg::Jacobi => SolverChoice::Jacobi,
-        SolverArg::GaussSeidel => SolverChoice::GaussSeidel,
-        SolverArg::Shooting => SolverChoice::Shooting,
-        SolverArg::StochasticJacobi => SolverChoice::StochasticJacobi,
-        SolverArg::Krylov => SolverChoice::Krylov,
-        SolverArg::KrylovCg => SolverChoice::KrylovCg,
-        SolverArg::Direct => SolverChoice::Direct,
-    };
-    s.basis = match args.basis {
-        BasisArg::Linear => Basis::Linear,
-        BasisArg::Constant => Basis::Constant,
-    };
-    if let Some(v) = args.transport_rays {
-        s.transport_rays = v;
-    }
+    s.method = args.method;
+    s.solver = args.solver;
+    s.basis = args.basis;
+    set(&mut s.transport_rays, args.transport_rays);
     if let Some(v) = args.transport_budget {
         s.transport_budget_mib = v;
     }
     if let Some(v) = args.tolerance {
         s.solver_tolerance = v;
     }
-    s.formats.exr = args.format.iter().any(|f| matches!(f, FormatArg::Exr));
-    s.formats.hdr = args.format.iter().any(|f| matches!(f, FormatArg::Hdr));
-    s.formats.ktx2 = args.format.iter().any(|f| matches!(f, FormatArg::Ktx2));
-    s.formats.png_preview = !args.no_preview;
+    set(&mut s.max_solver_iterations, args.max_solver_iterations);
+    set(&mut s.stochastic_rays_per_node, args.stochastic_rays);
+    set(&mut s.vpl_particles, args.vpl_particles);
+    s.vpl_time_budget_s = args.vpl_time_budget;
+    s.vpl_sequence = args.vpl_sequence;
+    s.vpl_clamp_distance = args.vpl_clamp;
+    s.vpl_bias_compensation = args.bias_compensation;
+    set(&mut s.vpl_compensation_rays, args.vpl_compensation_rays);
+    set(&mut s.vpl_max_depth, args.vpl_max_depth);
+    if let Some(d) = args.texel_density {
+        s.texel_density = d;
+    }
+    s.texel_density_from_scene = args.texel_density.is_none() && !args.ignore_scene_density;
+    set(&mut s.samples_per_texel, args.samples);
+    set(&mut s.sky_samples, args.sky_samples);
+    set(
+        &mut s.max_closed_form_emitters,
+        args.max_closed_form_emitters,
+    );
+    set(&mut s.padding, args.padding);
+    set(&mut s.max_page_size, args.max_page_size);
+    s.formats = OutputFormats::of(&args.format, !args.no_preview);
     s.reunwrap = args.reunwrap;
     s.threads = args.threads;
     s.seed = args.seed;
-    s.light_convention = match args.light_convention {
-        ConventionArg::Gltf => LightConvention::GltfSpec,
-        ConventionArg::Bevy => LightConvention::BevyGltfLoader,
-    };
+    if let Some(v) = args.memory_budget {
+        s.memory_budget_mib = v;
+    }
+    s.target_error = args.target_error;
+    s.light_convention = args.light_convention;
     s
 }
 
@@ -375,8 +305,8 @@ fn run(args: Args) -> Result<(), String> {
     settings.validate().map_err(|e| e.to_string())?;
     let mut imported =
         import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
-    if let Some(sky) = &args.sky {
-        imported.scene.sky = glam::Vec3::new(sky[0], sky[1], sky[2]);
+    if let Some(sky) = args.sky {
+        imported.scene.sky = glam::Vec3::from_array(sky);
     }
     let scene = &imported.scene;
     for w in &scene.warnings {
@@ -396,18 +326,10 @@ fn run(args: Args) -> Result<(), String> {
         return Ok(());
     }
 
-    let progress = Arc::new(Progress::new());
-    let worker = {
-        let progress = Arc::clone(&progress);
-        let scene = imported.scene.clone();
-        let settings = settings.clone();
-        std::thread::spawn(move || lightbake::bake(&scene, &settings, &progress))
-    };
-    watch(&progress, &worker, args.quiet);
-    let output = worker
-        .join()
-        .map_err(|_| "the bake thread panicked".to_string())?
-        .map_err(|e| e.to_string())?;
+    let handle =
+        BakeHandle::spawn(imported.scene.clone(), settings.clone()).map_err(|e| e.to_string())?;
+    watch(&handle, args.quiet);
+    let output = handle.join().map_err(|e| e.to_string())?;
     let written = lightbake::output::write_outputs(
         &args.output,
         &output,
@@ -438,7 +360,7 @@ fn run(args: Args) -> Result<(), String> {
             if v.compensated { " and restored" } else { "" }
         );
     }
-    if let Some(ind) = &output.report.indirect {
+    if let Some(ind) = &output.report.radiosity {
         println!(
             "radiosity: {} nodes, solver {} ({}), {} iterations, {}",
             ind.nodes,
@@ -450,12 +372,6 @@ fn run(args: Args) -> Result<(), String> {
     }
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
-    }
-    if written.clamped_channels > 0 {
-        eprintln!(
-            "warning: {} texel channels clamped to the half-float maximum 65504",
-            written.clamped_channels
-        );
     }
     println!(
         "wrote {} files to {}:",
@@ -469,14 +385,15 @@ fn run(args: Args) -> Result<(), String> {
 }
 
 /// Draws one progress bar per stage until the bake thread finishes.
-fn watch<T>(progress: &Progress, worker: &std::thread::JoinHandle<T>, quiet: bool) {
+fn watch<T: Send + 'static>(handle: &BakeHandle<T>, quiet: bool) {
+    let progress: &Progress = handle.progress();
     let style =
         ProgressStyle::with_template("{prefix:>10} [{bar:32}] {pos}/{len} {elapsed_precise} {msg}")
             .expect("valid template")
             .progress_chars("=> ");
     let mut bar: Option<ProgressBar> = None;
     let mut index = 0;
-    while !worker.is_finished() {
+    while !handle.is_finished() {
         let snap = progress.snapshot();
         if !quiet {
             if snap.stage_index != index {
@@ -545,5 +462,70 @@ pub fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::from(1)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every field of `BakeSettings` has a flag: a command line that sets every flag away
+    /// from the preset changes every field (compared through the settings' JSON form, so a
+    /// new field without a flag fails here).
+    #[test]
+    fn every_setting_has_a_flag() {
+        let args = Args::try_parse_from([
+            "bake",
+            "scene.gltf",
+            "-o",
+            "out",
+            "--method=hybrid",
+            "--solver=krylov-cg",
+            "--basis=constant",
+            "--transport-rays=7",
+            "--transport-budget=9",
+            "--tolerance=0.25",
+            "--max-solver-iterations=11",
+            "--stochastic-rays=13",
+            "--vpl-particles=17",
+            "--vpl-time-budget=1.5",
+            "--vpl-sequence=jittered",
+            "--vpl-clamp=0.5",
+            "--bias-compensation",
+            "--vpl-compensation-rays=19",
+            "--vpl-max-depth=5",
+            "--texel-density=3",
+            "--samples=23",
+            "--sky-samples=29",
+            "--max-closed-form-emitters=31",
+            "--padding=3",
+            "--max-page-size=512",
+            "--format=hdr",
+            "--no-preview",
+            "--reunwrap",
+            "--threads=1",
+            "--seed=37",
+            "--memory-budget=41",
+            "--target-error=0.05",
+            "--light-convention=bevy",
+        ])
+        .unwrap();
+        let json = |s: &BakeSettings| match serde_json::to_value(s).unwrap() {
+            serde_json::Value::Object(m) => m,
+            _ => unreachable!("settings serialise as an object"),
+        };
+        let preset = json(&BakeSettings::medium());
+        let set = json(&settings_from(&args));
+        for (field, value) in &preset {
+            assert_ne!(&set[field], value, "no flag changes `{field}`");
+        }
+        assert_eq!(preset.len(), set.len());
+    }
+
+    #[test]
+    fn sky_is_r_comma_g_comma_b() {
+        assert_eq!(parse_rgb("1, 2.5,3"), Ok([1.0, 2.5, 3.0]));
+        assert!(parse_rgb("1 2 3").is_err());
+        assert!(parse_rgb("1,2").unwrap_err().contains("three numbers"));
     }
 }

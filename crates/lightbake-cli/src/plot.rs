@@ -2,7 +2,7 @@
 //! as SVG and PNG. Text uses the Noto Mono font shipped in `assets/fonts` (SIL OFL 1.1, see
 //! `assets/fonts/NotoMono-LICENSE`), so no system fonts are needed.
 
-use lightbake::study::Study;
+use lightbake::analysis::study::Study;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 

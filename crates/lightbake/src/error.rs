@@ -180,6 +180,18 @@ pub enum BakeError {
         /// The encoder's message.
         message: String,
     },
+    /// The bake's thread could not be started ([`crate::BakeHandle`]).
+    #[error("cannot start the bake thread: {source}")]
+    Thread {
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A bug in lightbake (a panic on the bake's thread, say); please report it.
+    #[error("internal error: {message} (a bug in lightbake; please report it)")]
+    Internal {
+        /// What went wrong.
+        message: String,
+    },
     /// The bake was cancelled through [`crate::progress::Progress::cancel`].
     #[error("the bake was cancelled")]
     Cancelled,

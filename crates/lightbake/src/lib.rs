@@ -1,65 +1,105 @@
 //! # lightbake
 //!
-//! An engine-free lightmap baker. A [`Scene`] (imported from glTF with
-//! [`scene::gltf_import::import_gltf`], or built in code) goes through the pipeline in the
-//! order of the modules below, and comes out as HDR lightmap pages, a baked glTF with
-//! `TEXCOORD_1`, a manifest and a report:
-//!
-//! 1. [`scene`]: meshes, instances, materials, lights, sky; glTF import.
-//! 2. [`plan`]: which stages this scene needs, and why the others are skipped.
-//! 3. [`unwrap`]: lightmap UVs with xatlas (or the mesh's own), packed into atlas pages.
-//! 4. [`raster`]: every covered texel becomes a patch; patches inside geometry are fixed.
-//! 5. [`bvh`]: closest-hit and any-hit ray queries (obvhs PLOC build, our four-wide BVH).
-//! 6. [`direct`]: point, spot, directional, sky and emissive-surface light with shadow rays.
-//! 7. [`transport`], [`solve`], [`indirect`]: radiosity over the texel nodes — form factors
-//!    (Monte Carlo, hemicube, closed form) and the solver family.
-//!    [`vpl`]: instant radiosity — quasi-random walks leave virtual point lights, gathered
-//!    into the texels (methods `vpl` and `hybrid`).
-//! 8. [`lightmap`]: pages of E/π, invalid texels filled, padding dilated.
-//! 9. [`output`]: EXR/HDR/KTX2 + PNG preview, baked glTF, manifest, report; atomically.
+//! An engine-free lightmap baker. A [`Scene`] (imported from glTF with [`import_gltf`], or
+//! built in code) is baked with [`bake`] (or in the background with [`BakeHandle`]) into HDR
+//! lightmap pages with direct and interreflected light, and [`write_outputs`] writes them with
+//! a baked glTF (`TEXCOORD_1`), a manifest and a report:
 //!
 //! ```no_run
-//! use lightbake::{bake, settings::BakeSettings, progress::Progress};
-//! use lightbake::scene::gltf_import::import_gltf;
-//! use lightbake::settings::LightConvention;
+//! use lightbake::{BakeSettings, LightConvention, Progress, import_gltf, write_outputs};
 //!
 //! let imported = import_gltf("assets/cornell_box.gltf".as_ref(), LightConvention::GltfSpec)?;
 //! let settings = BakeSettings::medium();
-//! let out = bake(&imported.scene, &settings, &Progress::new())?;
-//! lightbake::output::write_outputs("baked".as_ref(), &out, &imported.scene, Some(&imported.source), &settings)?;
+//! let out = lightbake::bake(&imported.scene, &settings, &Progress::new())?;
+//! write_outputs("baked".as_ref(), &out, &imported.scene, Some(&imported.source), &settings)?;
 //! println!("{}", out.report.table());
 //! # Ok::<(), lightbake::BakeError>(())
 //! ```
 //!
 //! Units: metres; glTF / Bevy light units (candela, lux, nits). Texels store irradiance / π.
 //! See `docs/units.md`.
+//!
+//! # Layers
+//!
+//! The modules form one order, and **each imports only modules listed before it** (the
+//! workspace test `layers` checks this against the source):
+//!
+//! | # | module | what it holds |
+//! |---|---|---|
+//! | 1 | [`error`] | the user-facing error type |
+//! | 1 | [`atomic`] | files staged to temporary names and renamed into place together |
+//! | 1 | `color` | luminance, the sRGB transfer function |
+//! | 1 | `form_factor` | Lambert's closed-form point-to-polygon form factor |
+//! | 1 | `sampling` | hashes, Halton and Sobol' sequences, warps |
+//! | 1 | [`settings`] | [`BakeSettings`], the presets and the setting enums |
+//! | 1 | [`error_estimate`] | how a stage's error estimate is summarised and combined |
+//! | 1 | [`progress`] | progress, cancellation and finished-stage counters |
+//! | 2 | [`scene`] | meshes, instances, materials, textures, lights; glTF import and extras |
+//! | 3 | `unwrap` | lightmap UVs (xatlas or the mesh's own) packed into atlas pages |
+//! | 4 | `bvh` | closest-hit and any-hit ray queries |
+//! | 5 | `raster` | texel patches, surface queries, validity, texel footprints |
+//! | 6 | `lights` | the light interface, one file per kind (and emissive triangles) |
+//! | 7 | `plan` | which stages the scene needs and why |
+//! | 7 | `memory` | memory planning before allocating |
+//! | 7 | `context` | what every lighting pass reads |
+//! | 8 | `direct` | direct light at every texel |
+//! | 9 | `solve` | the matrix F and the linear solvers (pure linear algebra) |
+//! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, the radiosity pass |
+//! | 11 | `vpl` | instant radiosity: walks, gather, bias compensation |
+//! | 12 | [`lightmap`] | pages of E/π, filled and dilated |
+//! | 13 | [`report`] | what a bake records about itself |
+//! | 14 | [`bake`] | the driver and [`BakeHandle`] |
+//! | 15 | [`output`] | EXR/HDR/KTX2 + PNG, baked glTF, manifest, report; atomically |
+//! | 16 | [`analysis`] | the reference path tracer and the convergence study |
+//!
+//! Modules without a link are the stages' internals: crate-private, and public with the
+//! `internals` feature (for the benchmarks and the core's tests). The scenes of the core's
+//! tests and of the shipped assets are behind the `testscenes` feature
+//! (`lightbake::scene::testscenes`).
 
-pub mod bake;
-pub mod bvh;
-pub mod direct;
+/// Declares stage modules: private, or public with the `internals` feature.
+macro_rules! internal {
+    ($($name:ident),* $(,)?) => {
+        $(
+            #[cfg(feature = "internals")]
+            pub mod $name;
+            #[cfg(not(feature = "internals"))]
+            mod $name;
+        )*
+    };
+}
+
+// 1. Foundations.
+pub mod atomic;
 pub mod error;
-pub mod estimate;
-pub mod indirect;
-pub mod lightmap;
-pub mod memory;
-pub mod output;
-pub mod plan;
+internal!(color, form_factor, sampling);
+pub mod error_estimate;
 pub mod progress;
-pub mod raster;
-pub mod reference;
-pub mod report;
-pub mod sampling;
-pub mod scene;
 pub mod settings;
-pub mod solve;
-pub mod study;
-pub mod transport;
-pub mod unwrap;
-pub mod vpl;
+// 2–7. The scene and what the lighting passes stand on.
+pub mod scene;
+internal!(unwrap, bvh, raster, lights, plan, memory, context);
+// 8–11. The lighting passes.
+internal!(direct, solve, radiosity, vpl);
+// 12–16. Results, the driver, writing, analysis.
+pub mod analysis;
+pub mod bake;
+pub mod lightmap;
+pub mod output;
+pub mod report;
 
-pub use bake::{BakeOutput, bake};
+pub use bake::{BakeHandle, BakeOutput, bake};
 pub use error::{BakeError, Result};
 /// The `glam` the scene types use (re-exported so engine layers name the same version).
 pub use glam;
+pub use lightmap::LightmapPage;
+pub use output::{Written, write_outputs};
+pub use progress::{Progress, ProgressSnapshot};
+pub use report::BakeReport;
 pub use scene::Scene;
-pub use settings::BakeSettings;
+pub use scene::gltf_import::{GltfSource, ImportedScene, import_gltf};
+pub use settings::{
+    BakeSettings, Basis, ImageFormat, LightConvention, Method, OutputFormats, Quality, Sequence,
+    SolverChoice,
+};
+pub use unwrap::{InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};

@@ -14,6 +14,29 @@ use glam::Vec3;
 use crate::raster::Patches;
 use crate::unwrap::Layout;
 
+/// Largest finite half-float value: every output format, and Bevy's `Rgba16Float` images,
+/// clamp texels to it.
+pub const HALF_MAX: f32 = 65504.0;
+
+/// The four texels and weights of a bilinear sample at `uv` of a `width` × `height` image
+/// (texel centres at (i + ½)/W, Bevy's and the GPU's convention), clamped at the edges:
+/// ((x, y), weight) in the order top-left, top-right, bottom-left, bottom-right.
+pub fn bilinear_taps(width: u32, height: u32, u: f32, v: f32) -> [((u32, u32), f32); 4] {
+    let x = u * width as f32 - 0.5;
+    let y = v * height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let clamp = |i: f32, n: u32| (i.max(0.0) as u32).min(n - 1);
+    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
+    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
+    [
+        ((xa, ya), (1.0 - fx) * (1.0 - fy)),
+        ((xb, ya), fx * (1.0 - fy)),
+        ((xa, yb), (1.0 - fx) * fy),
+        ((xb, yb), fx * fy),
+    ]
+}
+
 /// One atlas page of lightmap texels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightmapPage {
@@ -43,24 +66,20 @@ impl LightmapPage {
         self.texels[(y * self.width + x) as usize]
     }
 
-    /// Bilinear sample at page uv (Bevy's convention: texel centres at (i + ½)/W), clamped
-    /// at the page edge: what the GPU shows.
+    /// Bilinear sample at page uv ([`bilinear_taps`]): what the GPU shows.
     pub fn sample_bilinear(&self, u: f32, v: f32) -> Vec3 {
-        let x = u * self.width as f32 - 0.5;
-        let y = v * self.height as f32 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let clamp_x = |i: f32| (i.max(0.0) as u32).min(self.width - 1);
-        let clamp_y = |i: f32| (i.max(0.0) as u32).min(self.height - 1);
-        let (xa, xb, ya, yb) = (
-            clamp_x(x0),
-            clamp_x(x0 + 1.0),
-            clamp_y(y0),
-            clamp_y(y0 + 1.0),
-        );
-        let top = self.get(xa, ya).lerp(self.get(xb, ya), fx);
-        let bottom = self.get(xa, yb).lerp(self.get(xb, yb), fx);
-        top.lerp(bottom, fy)
+        bilinear_taps(self.width, self.height, u, v)
+            .iter()
+            .map(|&((x, y), w)| self.get(x, y) * w)
+            .sum()
+    }
+
+    /// Texel channels above [`HALF_MAX`] (clamped in every output).
+    pub fn channels_over_half(&self) -> usize {
+        self.texels
+            .iter()
+            .map(|t| t.to_array().iter().filter(|&&c| c > HALF_MAX).count())
+            .sum()
     }
 }
 

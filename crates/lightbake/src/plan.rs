@@ -10,11 +10,11 @@
 //! * no lights, no emission and a black sky → nothing to bake: the lightmaps are black and the
 //!   raster, ray-tracing and lighting stages are skipped.
 
-use glam::Vec3;
 use serde::Serialize;
 
-use crate::scene::{LightKind, Scene};
-use crate::settings::{BakeSettings, Method};
+use crate::lights::LightSource;
+use crate::scene::Scene;
+use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
 
 /// One stage of the pipeline and whether it runs.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -71,84 +71,15 @@ pub struct BakePlan {
 impl BakePlan {
     /// Plans a bake of `scene` with `settings`.
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Self {
-        let (texel_density, texel_density_source) =
-            match (scene.texel_density_hint, settings.texel_density_from_scene) {
-                (Some(d), true) if d.is_finite() && d > 0.0 => (
-                    d,
-                    "the scene's hint (extras.lightbake.texel_density)".to_string(),
-                ),
-                _ => (settings.texel_density, "settings".to_string()),
-            };
+        let (texel_density, texel_density_source) = texel_density(scene, settings);
         let baked: Vec<usize> = (0..scene.instances.len())
             .filter(|&i| {
                 scene.instances[i].bake
                     && scene.meshes[scene.instances[i].mesh].triangle_count() > 0
             })
             .collect();
-        let mut stages = Vec::new();
-        let mut stage = |name: &str, run: bool, reason: String| {
-            stages.push(PlannedStage {
-                name: name.into(),
-                run,
-                reason,
-            })
-        };
-
-        // Unwrap.
-        let mut baked_meshes: Vec<usize> = baked.iter().map(|&i| scene.instances[i].mesh).collect();
-        baked_meshes.sort_unstable();
-        baked_meshes.dedup();
-        let keeping = baked_meshes
-            .iter()
-            .filter(|&&m| scene.meshes[m].uv1.is_some() && !settings.reunwrap)
-            .count();
-        let unwrapping = baked_meshes.len() - keeping;
-
-        // Lights.
-        let mut lights_per_instance = vec![Vec::new(); scene.instances.len()];
-        let mut lights = Vec::new();
-        for (li, light) in scene.lights.iter().enumerate() {
-            let mut reach = LightReach {
-                light: light.name.clone(),
-                kind: light.kind_name(),
-                instances: 0,
-                skipped: 0,
-                skip_reasons: Vec::new(),
-            };
-            let mut reasons: Vec<(String, Vec<String>)> = Vec::new();
-            let mut note =
-                |reason: &str, who: &str| match reasons.iter_mut().find(|(r, _)| r == reason) {
-                    Some((_, names)) => names.push(who.to_string()),
-                    None => reasons.push((reason.to_string(), vec![who.to_string()])),
-                };
-            for &ii in &baked {
-                let inst = &scene.instances[ii];
-                match light_misses(scene, ii, light) {
-                    Some(why) => {
-                        reach.skipped += 1;
-                        note(why, &inst.name);
-                    }
-                    None => {
-                        reach.instances += 1;
-                        lights_per_instance[ii].push(li as u32);
-                    }
-                }
-            }
-            reach.skip_reasons = reasons
-                .into_iter()
-                .map(|(r, names)| {
-                    let shown: Vec<&str> = names.iter().take(3).map(String::as_str).collect();
-                    let more = names.len().saturating_sub(3);
-                    if more > 0 {
-                        format!("{r}: {} and {more} more", shown.join(", "))
-                    } else {
-                        format!("{r}: {}", shown.join(", "))
-                    }
-                })
-                .collect();
-            lights.push(reach);
-        }
-        let any_light = lights.iter().any(|l| l.instances > 0);
+        let (unwrapping, keeping) = uv_sources(scene, settings, &baked);
+        let (lights, lights_per_instance) = light_reaches(scene, &baked);
         let emissive_instances = scene
             .instances
             .iter()
@@ -156,179 +87,26 @@ impl BakePlan {
                 scene.material_of(inst.mesh).is_emissive() && scene.meshes[inst.mesh].area() > 0.0
             })
             .count();
+        let any_light = lights.iter().any(|l| l.instances > 0);
         let area_lights = emissive_instances > 0 && !baked.is_empty();
         let sky = scene.sky.max_element() > 0.0 && !baked.is_empty();
         let nothing_to_bake = !(any_light || area_lights || sky) || baked.is_empty();
-
-        stage(
-            "unwrap",
-            unwrapping > 0 || keeping > 0,
-            match (unwrapping, keeping) {
-                (0, 0) => "no instance is baked".to_string(),
-                (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
-                (0, k) => {
-                    format!("all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)")
-                }
-                (u, k) => format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1"),
-            },
-        );
-        let work = !nothing_to_bake;
-        let why_not = if baked.is_empty() {
-            "no instance is baked".to_string()
-        } else {
-            "nothing to bake: no light reaches the scene, nothing is emissive and the sky is black"
-                .to_string()
+        let facts = Facts {
+            scene,
+            settings,
+            baked: baked.len(),
+            unwrapping,
+            keeping,
+            lights: lights.iter().filter(|l| l.instances > 0).count(),
+            emissive_instances,
+            area_lights,
+            sky,
+            work: !nothing_to_bake,
         };
-        stage(
-            "raster",
-            work,
-            if work {
-                format!("{} instance(s) into texel patches", baked.len())
-            } else {
-                why_not.clone()
-            },
-        );
-        stage(
-            "bvh",
-            work,
-            if work {
-                format!(
-                    "{} triangles for shadow rays",
-                    scene.instanced_triangle_count()
-                )
-            } else {
-                why_not.clone()
-            },
-        );
-        stage(
-            "validity",
-            work,
-            if work {
-                "move texels out of geometry; mark those that cannot be".to_string()
-            } else {
-                why_not.clone()
-            },
-        );
-        let light_count = lights.iter().filter(|l| l.instances > 0).count();
-        // Method vpl carries all light, direct included, by VPLs.
-        let vpl_only = settings.method == Method::Vpl;
-        let as_vpls = "method 'vpl': the light sources are the first generation of VPLs";
-        stage(
-            "direct lights",
-            light_count > 0 && work && !vpl_only,
-            if scene.lights.is_empty() {
-                "the scene has no punctual or directional lights".to_string()
-            } else if light_count == 0 {
-                "no light reaches a baked instance (range, cone or zero intensity)".to_string()
-            } else if vpl_only {
-                as_vpls.to_string()
-            } else {
-                format!(
-                    "{light_count} of {} light(s) reach baked instances",
-                    scene.lights.len()
-                )
-            },
-        );
-        stage(
-            "area lights",
-            area_lights && work && !vpl_only,
-            if !area_lights {
-                "no emissive surfaces".to_string()
-            } else if vpl_only {
-                as_vpls.to_string()
-            } else {
-                format!("{emissive_instances} emissive instance(s)")
-            },
-        );
-        stage(
-            "sky",
-            sky && work && !vpl_only,
-            if !sky {
-                "the sky is black".to_string()
-            } else if vpl_only {
-                as_vpls.to_string()
-            } else {
-                format!("sky luminance {:?} nits", scene.sky.to_array())
-            },
-        );
-        let all_black = scene
-            .instances
-            .iter()
-            .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
-        let particles = settings.vpl_time_budget_s.map_or_else(
-            || format!("{} particles", settings.vpl_particles),
-            |t| format!("particles for a {t} s gather"),
-        );
-        let (run_indirect, why) = match settings.method {
-            Method::Direct if all_black => (
-                false,
-                "method 'direct' computes no interreflection (and every albedo is zero)"
-                    .to_string(),
-            ),
-            Method::Direct => (
-                false,
-                "method 'direct' computes no interreflection".to_string(),
-            ),
-            Method::Radiosity | Method::Hybrid if all_black => (
-                false,
-                "every surface has zero albedo: nothing is reflected".to_string(),
-            ),
-            _ if !work => (false, why_not.clone()),
-            Method::Radiosity => (
-                true,
-                format!(
-                    "radiosity, {} basis, solver {}{}",
-                    match settings.basis {
-                        crate::transport::Basis::Linear => "piecewise-linear",
-                        crate::transport::Basis::Constant => "piecewise-constant",
-                    },
-                    settings.solver.name(),
-                    if settings.solver == crate::solve::SolverChoice::Auto {
-                        " (chosen once the texels are known)"
-                    } else {
-                        ""
-                    }
-                ),
-            ),
-            Method::Hybrid => (
-                true,
-                format!(
-                    "instant radiosity from the first reflection on: {particles}, {:?} walks",
-                    settings.vpl_sequence
-                ),
-            ),
-            Method::Vpl => (
-                true,
-                format!(
-                    "instant radiosity, all light from VPLs: {particles}, {:?} walks{}",
-                    settings.vpl_sequence,
-                    if all_black {
-                        " (every albedo is zero: no reflections)"
-                    } else {
-                        ""
-                    }
-                ),
-            ),
-        };
-        stage("indirect", run_indirect, why);
-        stage(
-            "dilate",
-            work,
-            if work {
-                format!(
-                    "fill invalid texels and {} texels of padding",
-                    settings.padding
-                )
-            } else {
-                why_not
-            },
-        );
-        stage(
-            "write",
-            true,
-            "lightmaps, baked glTF, manifest and report".to_string(),
-        );
-
+        let mut stages = facts.geometry_stages();
+        stages.extend(facts.light_stages());
+        stages.push(facts.indirect_stage());
+        stages.extend(facts.output_stages());
         Self {
             texel_density,
             texel_density_source,
@@ -389,54 +167,305 @@ impl BakePlan {
     }
 }
 
-/// The largest diffuse albedo a mesh's material can have (a texture can at most keep the
-/// factor as it is).
-fn albedo_upper_bound(scene: &Scene, mesh: usize) -> Vec3 {
-    let m = scene.material_of(mesh);
-    m.base_color.truncate() * (1.0 - m.metallic)
+/// The texel density and where it came from.
+fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
+    match (scene.texel_density_hint, settings.texel_density_from_scene) {
+        (Some(d), true) if d.is_finite() && d > 0.0 => (
+            d,
+            "the scene's hint (extras.lightbake.texel_density)".to_string(),
+        ),
+        _ => (settings.texel_density, "settings".to_string()),
+    }
 }
 
-/// Why `light` cannot reach instance `ii` (or `None` when it may).
-fn light_misses(scene: &Scene, ii: usize, light: &crate::scene::Light) -> Option<&'static str> {
-    if light.intensity <= 0.0 || light.color.max_element() <= 0.0 {
-        return Some("it emits nothing");
-    }
-    if matches!(light.kind, LightKind::Directional { .. }) {
-        return None;
-    }
-    let (lo, hi) = scene.instance_bounds(ii);
-    let nearest = light.position.clamp(lo, hi);
-    let distance = nearest.distance(light.position);
-    if let Some(range) = light.range {
-        if distance >= range {
-            return Some("out of range");
-        }
-    }
-    if let LightKind::Spot {
-        outer_cone_angle, ..
-    } = light.kind
-    {
-        let centre = 0.5 * (lo + hi);
-        let radius = 0.5 * (hi - lo).length();
-        let to = centre - light.position;
-        let d = to.length();
-        if d > radius {
-            let angle_to_centre = light.direction.dot(to / d).clamp(-1.0, 1.0).acos();
-            let angular_radius = (radius / d).clamp(0.0, 1.0).asin();
-            if angle_to_centre - angular_radius > outer_cone_angle {
-                return Some("outside the cone");
+/// Of the meshes of the baked instances: how many xatlas unwraps and how many keep their own
+/// `TEXCOORD_1`.
+fn uv_sources(scene: &Scene, settings: &BakeSettings, baked: &[usize]) -> (usize, usize) {
+    let mut meshes: Vec<usize> = baked.iter().map(|&i| scene.instances[i].mesh).collect();
+    meshes.sort_unstable();
+    meshes.dedup();
+    let keeping = meshes
+        .iter()
+        .filter(|&&m| scene.meshes[m].uv1.is_some() && !settings.reunwrap)
+        .count();
+    (meshes.len() - keeping, keeping)
+}
+
+/// Per light, which baked instances it reaches and why it skips the others; per instance,
+/// the lights that reach it.
+fn light_reaches(scene: &Scene, baked: &[usize]) -> (Vec<LightReach>, Vec<Vec<u32>>) {
+    let mut lights_per_instance = vec![Vec::new(); scene.instances.len()];
+    let mut lights = Vec::new();
+    for (li, light) in scene.lights.iter().enumerate() {
+        let mut reach = LightReach {
+            light: light.name.clone(),
+            kind: light.kind_name(),
+            instances: 0,
+            skipped: 0,
+            skip_reasons: Vec::new(),
+        };
+        let mut reasons: Vec<(String, Vec<String>)> = Vec::new();
+        for &ii in baked {
+            let (lo, hi) = scene.instance_bounds(ii);
+            match light.misses(lo, hi) {
+                Some(why) => {
+                    reach.skipped += 1;
+                    let who = scene.instances[ii].name.clone();
+                    match reasons.iter_mut().find(|(r, _)| r == why) {
+                        Some((_, names)) => names.push(who),
+                        None => reasons.push((why.to_string(), vec![who])),
+                    }
+                }
+                None => {
+                    reach.instances += 1;
+                    lights_per_instance[ii].push(li as u32);
+                }
             }
         }
+        reach.skip_reasons = reasons
+            .into_iter()
+            .map(|(r, names)| {
+                let shown: Vec<&str> = names.iter().take(3).map(String::as_str).collect();
+                let more = names.len().saturating_sub(3);
+                if more > 0 {
+                    format!("{r}: {} and {more} more", shown.join(", "))
+                } else {
+                    format!("{r}: {}", shown.join(", "))
+                }
+            })
+            .collect();
+        lights.push(reach);
     }
-    None
+    (lights, lights_per_instance)
+}
+
+/// What the stage list is decided from.
+struct Facts<'a> {
+    scene: &'a Scene,
+    settings: &'a BakeSettings,
+    /// Baked instances.
+    baked: usize,
+    /// Meshes xatlas unwraps, and meshes that keep their own `TEXCOORD_1`.
+    unwrapping: usize,
+    keeping: usize,
+    /// Lights that reach a baked instance.
+    lights: usize,
+    emissive_instances: usize,
+    area_lights: bool,
+    sky: bool,
+    /// Something is lit: the lighting stages run.
+    work: bool,
+}
+
+fn stage(name: &str, run: bool, reason: String) -> PlannedStage {
+    PlannedStage {
+        name: name.into(),
+        run,
+        reason,
+    }
+}
+
+impl Facts<'_> {
+    /// Why the lighting stages are skipped when nothing is lit.
+    fn why_not(&self) -> String {
+        if self.baked == 0 {
+            "no instance is baked".to_string()
+        } else {
+            "nothing to bake: no light reaches the scene, nothing is emissive and the sky is black"
+                .to_string()
+        }
+    }
+
+    /// `reason` when the lighting stages run, else why they do not.
+    fn when_lit(&self, reason: String) -> String {
+        if self.work { reason } else { self.why_not() }
+    }
+
+    /// Unwrap, raster, BVH and validity.
+    fn geometry_stages(&self) -> Vec<PlannedStage> {
+        vec![
+            stage(
+                "unwrap",
+                self.unwrapping > 0 || self.keeping > 0,
+                match (self.unwrapping, self.keeping) {
+                    (0, 0) => "no instance is baked".to_string(),
+                    (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
+                    (0, k) => format!(
+                        "all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)"
+                    ),
+                    (u, k) => {
+                        format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1")
+                    }
+                },
+            ),
+            stage(
+                "raster",
+                self.work,
+                self.when_lit(format!("{} instance(s) into texel patches", self.baked)),
+            ),
+            stage(
+                "bvh",
+                self.work,
+                self.when_lit(format!(
+                    "{} triangles for shadow rays",
+                    self.scene.instanced_triangle_count()
+                )),
+            ),
+            stage(
+                "validity",
+                self.work,
+                self.when_lit("move texels out of geometry; mark those that cannot be".into()),
+            ),
+        ]
+    }
+
+    /// Direct lights, area lights and the sky.
+    fn light_stages(&self) -> Vec<PlannedStage> {
+        let scene = self.scene;
+        // Method vpl carries all light, direct included, by VPLs.
+        let vpl_only = self.settings.method == Method::Vpl;
+        let as_vpls = "method 'vpl': the light sources are the first generation of VPLs";
+        vec![
+            stage(
+                "direct lights",
+                self.lights > 0 && self.work && !vpl_only,
+                if scene.lights.is_empty() {
+                    "the scene has no punctual or directional lights".to_string()
+                } else if self.lights == 0 {
+                    "no light reaches a baked instance (range, cone or zero intensity)".to_string()
+                } else if vpl_only {
+                    as_vpls.to_string()
+                } else {
+                    format!(
+                        "{} of {} light(s) reach baked instances",
+                        self.lights,
+                        scene.lights.len()
+                    )
+                },
+            ),
+            stage(
+                "area lights",
+                self.area_lights && self.work && !vpl_only,
+                if !self.area_lights {
+                    "no emissive surfaces".to_string()
+                } else if vpl_only {
+                    as_vpls.to_string()
+                } else {
+                    format!("{} emissive instance(s)", self.emissive_instances)
+                },
+            ),
+            stage(
+                "sky",
+                self.sky && self.work && !vpl_only,
+                if !self.sky {
+                    "the sky is black".to_string()
+                } else if vpl_only {
+                    as_vpls.to_string()
+                } else {
+                    format!("sky luminance {:?} nits", scene.sky.to_array())
+                },
+            ),
+        ]
+    }
+
+    /// Indirect light: radiosity, instant radiosity, or why neither runs.
+    fn indirect_stage(&self) -> PlannedStage {
+        let (scene, settings) = (self.scene, self.settings);
+        let all_black = scene
+            .instances
+            .iter()
+            .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
+        let particles = settings.vpl_time_budget_s.map_or_else(
+            || format!("{} particles", settings.vpl_particles),
+            |t| format!("particles for a {t} s gather"),
+        );
+        let (run, why) = match settings.method {
+            Method::Direct if all_black => (
+                false,
+                "method 'direct' computes no interreflection (and every albedo is zero)"
+                    .to_string(),
+            ),
+            Method::Direct => (
+                false,
+                "method 'direct' computes no interreflection".to_string(),
+            ),
+            Method::Radiosity | Method::Hybrid if all_black => (
+                false,
+                "every surface has zero albedo: nothing is reflected".to_string(),
+            ),
+            _ if !self.work => (false, self.why_not()),
+            Method::Radiosity => (
+                true,
+                format!(
+                    "radiosity, {} basis, solver {}{}",
+                    match settings.basis {
+                        Basis::Linear => "piecewise-linear",
+                        Basis::Constant => "piecewise-constant",
+                    },
+                    settings.solver.name(),
+                    if settings.solver == SolverChoice::Auto {
+                        " (chosen once the texels are known)"
+                    } else {
+                        ""
+                    }
+                ),
+            ),
+            Method::Hybrid => (
+                true,
+                format!(
+                    "instant radiosity from the first reflection on: {particles}, {:?} walks",
+                    settings.vpl_sequence
+                ),
+            ),
+            Method::Vpl => (
+                true,
+                format!(
+                    "instant radiosity, all light from VPLs: {particles}, {:?} walks{}",
+                    settings.vpl_sequence,
+                    if all_black {
+                        " (every albedo is zero: no reflections)"
+                    } else {
+                        ""
+                    }
+                ),
+            ),
+        };
+        stage("indirect", run, why)
+    }
+
+    /// Dilation and writing.
+    fn output_stages(&self) -> Vec<PlannedStage> {
+        vec![
+            stage(
+                "dilate",
+                self.work,
+                self.when_lit(format!(
+                    "fill invalid texels and {} texels of padding",
+                    self.settings.padding
+                )),
+            ),
+            stage(
+                "write",
+                true,
+                "lightmaps, baked glTF, manifest and report".to_string(),
+            ),
+        ]
+    }
+}
+
+/// The largest diffuse albedo a mesh's material can have (a texture can at most keep the
+/// factor as it is).
+fn albedo_upper_bound(scene: &Scene, mesh: usize) -> glam::Vec3 {
+    let m = scene.material_of(mesh);
+    m.base_color.truncate() * (1.0 - m.metallic)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::testscenes::{CornellLight, cornell_box, plane};
-    use crate::scene::{Instance, Light};
-    use glam::Affine3A;
+    use crate::scene::{Instance, Light, LightKind};
+    use glam::{Affine3A, Vec3};
 
     #[test]
     fn cornell_area_plan() {

@@ -8,7 +8,51 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
-use crate::report::StageStats;
+use serde::Serialize;
+
+use crate::error_estimate::ErrorEstimate;
+
+/// Counters of one stage.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StageStats {
+    /// Stage name.
+    pub name: String,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Rays traced.
+    pub rays: u64,
+    /// What most of its rays are (for the ray-tracing floor).
+    pub ray_kind: RayKind,
+    /// The stage's estimate of its own error (Monte Carlo stages; see [`crate::error_estimate`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorEstimate>,
+    /// A short note (counts, sizes).
+    pub note: String,
+}
+
+/// The kind of ray a stage mostly traces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RayKind {
+    /// No rays.
+    #[default]
+    None,
+    /// Closest-hit rays (gathers, walks, validity probes).
+    Closest,
+    /// Any-hit shadow rays.
+    Shadow,
+}
+
+impl StageStats {
+    /// Million rays per second (0 when no rays).
+    pub fn mrays_per_second(&self) -> f64 {
+        if self.rays == 0 || self.seconds <= 0.0 {
+            0.0
+        } else {
+            self.rays as f64 / self.seconds / 1e6
+        }
+    }
+}
 
 /// Thread-safe bake progress.
 #[derive(Debug)]

@@ -1,45 +1,18 @@
 //! The bake report: settings, plan, per-stage wall time and ray counts, texel statistics and
 //! warnings. The CLI prints it as a table, writes it as `report.json`, and the Bevy plugin
-//! exposes it.
+//! exposes it. Every type the report holds is re-exported here.
 
 use serde::Serialize;
 
-use crate::bvh::workload::RayRates;
-use crate::estimate::ErrorEstimate;
-use crate::memory::MemoryEstimate;
-use crate::plan::BakePlan;
+pub use crate::bvh::workload::RayRates;
+pub use crate::error_estimate::ErrorEstimate;
+pub use crate::memory::MemoryEstimate;
+pub use crate::plan::{BakePlan, LightReach, PlannedStage};
+pub use crate::progress::{RayKind, StageStats};
+pub use crate::radiosity::{RadiosityReport, SolverPlan};
 use crate::settings::BakeSettings;
-
-/// Counters of one stage.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct StageStats {
-    /// Stage name.
-    pub name: String,
-    /// Wall time, seconds.
-    pub seconds: f64,
-    /// Rays traced.
-    pub rays: u64,
-    /// What most of its rays are (for the ray-tracing floor).
-    pub ray_kind: RayKind,
-    /// The stage's estimate of its own error (Monte Carlo stages; see [`crate::estimate`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub error: Option<ErrorEstimate>,
-    /// A short note (counts, sizes).
-    pub note: String,
-}
-
-/// The kind of ray a stage mostly traces.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RayKind {
-    /// No rays.
-    #[default]
-    None,
-    /// Closest-hit rays (gathers, walks, validity probes).
-    Closest,
-    /// Any-hit shadow rays.
-    Shadow,
-}
+pub use crate::solve::{HistoryEntry, Solution};
+pub use crate::vpl::VplReport;
 
 /// The ray-tracing floor: the shortest time the bake's rays can take at the rates the BVH
 /// measured on this scene and these threads, and how far the bake is above it.
@@ -85,17 +58,6 @@ impl Floor {
     }
 }
 
-impl StageStats {
-    /// Million rays per second (0 when no rays).
-    pub fn mrays_per_second(&self) -> f64 {
-        if self.rays == 0 || self.seconds <= 0.0 {
-            0.0
-        } else {
-            self.rays as f64 / self.seconds / 1e6
-        }
-    }
-}
-
 /// Texel counts.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TexelStats {
@@ -136,10 +98,10 @@ pub struct BakeReport {
     pub threads: usize,
     /// The radiosity pass, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub indirect: Option<crate::indirect::IndirectReport>,
+    pub radiosity: Option<RadiosityReport>,
     /// The instant-radiosity pass, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub vpl: Option<crate::vpl::VplReport>,
+    pub vpl: Option<VplReport>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// The bake's estimate of its own error: the stages' estimates added in quadrature,

@@ -121,6 +121,7 @@ pub fn permute(i: u32, n: u32, seed: u32) -> u32 {
 
 /// Which numbers drive a quasi-random walk, per Keller's comparison of random, jittered and
 /// Halton patterns.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Sequence {
@@ -613,7 +614,7 @@ mod tests {
             }
             let estimate = sum / n as f64 / std::f64::consts::PI;
             let exact =
-                crate::direct::polygon::point_to_polygon_form_factor(o, Vec3::Y, &tri) as f64;
+                crate::form_factor::point_to_polygon_form_factor(o, Vec3::Y, &tri) as f64;
             assert!(
                 (estimate - exact).abs() < 2e-3 * exact.max(1e-3),
                 "form factor {estimate} against {exact}"

@@ -4,29 +4,91 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{BakeError, Result};
-use crate::sampling::Sequence;
-use crate::solve::SolverChoice;
-use crate::transport::Basis;
+pub use crate::sampling::Sequence;
 
 /// How light is computed.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Direct light only: punctual lights, the sun, emissive surfaces and the sky, each with
     /// shadow rays. Interreflected light is not computed.
     Direct,
-    /// Direct light plus interreflection by radiosity over the texel nodes
-    /// ([`crate::indirect`]). The default.
+    /// Direct light plus interreflection by radiosity over the texels (the default).
     #[default]
     Radiosity,
     /// Instant radiosity: all light from virtual point lights, the light sources themselves
-    /// as the first generation ([`crate::vpl`]).
+    /// as the first generation.
     Vpl,
-    /// Direct light exact ([`crate::direct`]), indirect light from virtual point lights.
+    /// Direct light exact, indirect light from virtual point lights.
     Hybrid,
 }
 
+/// Which solver to use.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverChoice {
+    /// Chosen from the scene and stated in the plan: dense LU for small systems, BiCGStab
+    /// otherwise (Gauss-Seidel when BiCGStab's vectors do not fit beside the matrix),
+    /// stochastic Jacobi when the matrix does not fit its budget.
+    #[default]
+    Auto,
+    /// Jacobi gathering.
+    Jacobi,
+    /// Gauss-Seidel gathering.
+    GaussSeidel,
+    /// Progressive refinement (Southwell shooting).
+    Shooting,
+    /// Stochastic Jacobi: matrix-free, for scenes whose transport matrix does not fit.
+    StochasticJacobi,
+    /// BiCGStab on the unsymmetric system; for stiff scenes (albedo near 1).
+    Krylov,
+    /// Conjugate gradients on the reciprocity-symmetrised system.
+    KrylovCg,
+    /// Dense LU (small systems only, up to 4096 nodes).
+    Direct,
+}
+
+impl SolverChoice {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Jacobi => "jacobi",
+            Self::GaussSeidel => "gauss-seidel",
+            Self::Shooting => "shooting",
+            Self::StochasticJacobi => "stochastic-jacobi",
+            Self::Krylov => "krylov",
+            Self::KrylovCg => "krylov-cg",
+            Self::Direct => "direct",
+        }
+    }
+
+    /// Whether the solver needs the transport matrix.
+    pub fn needs_matrix(self) -> bool {
+        !matches!(self, Self::StochasticJacobi)
+    }
+}
+
+/// How radiosity is reconstructed between texel centres.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Basis {
+    /// Bilinear over the four surrounding texel centres (what the GPU shows).
+    #[default]
+    Linear,
+    /// Constant over each texel.
+    Constant,
+}
+
+/// Deepest reflection an instant-radiosity walk can follow: each reflection takes two of the
+/// 64 dimensions of a particle's number sequence, after the six of its start.
+pub const MAX_VPL_DEPTH: u32 = 29;
+
 /// Named quality presets (`--quality preview|medium|high`).
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Quality {
@@ -37,6 +99,19 @@ pub enum Quality {
     Medium,
     /// Final bakes.
     High,
+}
+
+/// An HDR lightmap file format.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImageFormat {
+    /// OpenEXR, RGB half float, ZIP compressed.
+    Exr,
+    /// Radiance RGBE.
+    Hdr,
+    /// KTX2, `R16G16B16A16_SFLOAT` (Bevy loads it as `Rgba16Float`).
+    Ktx2,
 }
 
 /// Which lightmap files are written per atlas page.
@@ -50,6 +125,18 @@ pub struct OutputFormats {
     pub ktx2: bool,
     /// A tonemapped sRGB PNG to look at (`lightmap_N.preview.png`). Default on.
     pub png_preview: bool,
+}
+
+impl OutputFormats {
+    /// The HDR formats in `hdr`, plus the PNG preview when `png_preview` is set.
+    pub fn of(hdr: &[ImageFormat], png_preview: bool) -> Self {
+        Self {
+            exr: hdr.contains(&ImageFormat::Exr),
+            hdr: hdr.contains(&ImageFormat::Hdr),
+            ktx2: hdr.contains(&ImageFormat::Ktx2),
+            png_preview,
+        }
+    }
 }
 
 impl Default for OutputFormats {
@@ -68,13 +155,18 @@ impl Default for OutputFormats {
 /// The glTF specification says `KHR_lights_punctual` colours are linear and a light without
 /// `range` reaches infinitely far. Bevy 0.19's glTF loader reads the colour as sRGB and gives
 /// such a light a range of 20 m. See `docs/units.md`.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LightConvention {
-    /// Follow the glTF specification (default for the CLI).
+    /// Follow the glTF specification (default for the CLI): linear light colours, no range =
+    /// infinite.
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "gltf"))]
     GltfSpec,
-    /// Match what Bevy 0.19's glTF loader does, so a baked light equals Bevy's real-time one.
+    /// Match what Bevy 0.19's glTF loader does, so a baked light equals Bevy's real-time one:
+    /// sRGB light colours, no range = 20 m.
+    #[cfg_attr(feature = "clap", value(name = "bevy"))]
     BevyGltfLoader,
 }
 
@@ -350,7 +442,7 @@ impl BakeSettings {
                 ));
             }
         }
-        if self.vpl_max_depth > crate::vpl::walk::MAX_DEPTH {
+        if self.vpl_max_depth > MAX_VPL_DEPTH {
             return Err(bad(
                 "vpl_max_depth",
                 self.vpl_max_depth,

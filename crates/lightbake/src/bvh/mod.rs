@@ -262,6 +262,13 @@ impl RayScene {
         self.extent * 1e-6 + p.abs().max_element() * (16.0 * f32::EPSILON)
     }
 
+    /// A ray length that leaves the scene from anywhere in it (4 extents and a metre): the end
+    /// of shadow rays towards the sun and the sky.
+    #[inline]
+    pub fn escape_distance(&self) -> f32 {
+        self.extent * 4.0 + 1.0
+    }
+
     /// `p` moved off its surface along unit geometric normal `n` (use −n to leave from the back).
     #[inline]
     pub fn offset(&self, p: Vec3, n: Vec3) -> Vec3 {

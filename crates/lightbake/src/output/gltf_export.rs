@@ -15,25 +15,12 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 use crate::error::{BakeError, Result};
-use crate::scene::Scene;
+use crate::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
+use crate::scene::glb::glb;
 use crate::scene::gltf_accessor::read_dense;
 use crate::scene::gltf_import::GltfSource;
-use crate::unwrap::Layout;
-
-/// One lightmap reference to put in a node's extras.
-#[derive(Clone, Debug, PartialEq)]
-pub struct NodeLightmap {
-    /// glTF node index.
-    pub node: usize,
-    /// Primitive index within the node's mesh.
-    pub primitive: usize,
-    /// Page index.
-    pub page: u32,
-    /// Page image, relative to the glTF file.
-    pub image: String,
-    /// Bevy's `Lightmap::uv_rect`: [min u, min v, max u, max v].
-    pub uv_rect: [f32; 4],
-}
+use crate::scene::{GltfPrimitiveRef, Scene};
+use crate::unwrap::{Layout, MeshUnwrap};
 
 /// The files of the baked glTF.
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -100,7 +87,8 @@ fn decode_uri(uri: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// Builds the baked glTF. `stem` is the output file name without extension.
+/// Builds the baked glTF. `lightmaps` lists (node, lightmap) for every baked primitive;
+/// `stem` is the output file name without extension.
 ///
 /// # Errors
 /// [`BakeError::BadAccessor`] / [`BakeError::BadGltf`] if the source cannot be re-read,
@@ -109,7 +97,7 @@ pub fn baked_gltf(
     source: &GltfSource,
     original: &Scene,
     layout: &Layout,
-    lightmaps: &[NodeLightmap],
+    lightmaps: &[(usize, NodeLightmap)],
     stem: &str,
 ) -> Result<BakedGltf> {
     let path = &source.path;
@@ -120,11 +108,65 @@ pub fn baked_gltf(
     for key in ["buffers", "bufferViews", "accessors"] {
         ensure_array(&mut json, key);
     }
+    // 1. Every buffer merged into one blob, the views pointed at it.
+    let mut blob = merge_buffers(&mut json, &source.buffers);
+    // 2. Unwrapped primitives rewritten.
+    for (m, unwrap) in layout.meshes.iter().enumerate() {
+        let (Some(unwrap), Some(src)) = (unwrap, original.meshes[m].source) else {
+            continue;
+        };
+        let Some(gprim) = document
+            .meshes()
+            .nth(src.mesh)
+            .and_then(|gmesh| gmesh.primitives().nth(src.primitive))
+        else {
+            continue;
+        };
+        let mut out = Out {
+            json: &mut json,
+            blob: &mut blob,
+        };
+        let context = |sem: &str| {
+            format!(
+                "mesh '{}' primitive {} {sem}",
+                original.meshes[m].name, src.primitive
+            )
+        };
+        rewrite_primitive(&mut out, source, &gprim, src, unwrap, &context)?;
+    }
+    // 3. Lightmap references in node extras; 4. punctual lights marked as baked.
+    write_node_lightmaps(&mut json, lightmaps);
+    mark_lights_baked(&mut json);
+    // 5. Images copied (gltf) or embedded (glb), then one buffer and the container.
+    let mut files = images(&mut json, &mut blob, source)?;
+    while blob.len() % 4 != 0 {
+        blob.push(0);
+    }
+    if source.is_glb {
+        json["buffers"] = json!([{ "byteLength": blob.len() }]);
+        let text = serde_json::to_vec(&json).map_err(|e| err(path, e.to_string()))?;
+        files.push((PathBuf::from(format!("{stem}.glb")), glb(text, &blob)));
+    } else {
+        let bin = format!("{stem}.bin");
+        json["buffers"] = json!([{ "byteLength": blob.len(), "uri": bin }]);
+        let text = serde_json::to_vec_pretty(&json).map_err(|e| err(path, e.to_string()))?;
+        files.push((PathBuf::from(format!("{stem}.gltf")), text));
+        files.push((PathBuf::from(bin), blob));
+    }
+    Ok(BakedGltf { files })
+}
 
-    // 1. Merge every buffer into one blob and point the views at it.
+/// The document and the merged buffer being written.
+struct Out<'a> {
+    json: &'a mut Value,
+    blob: &'a mut Vec<u8>,
+}
+
+/// Concatenates every buffer (16-byte aligned) and points the buffer views at the result.
+fn merge_buffers(json: &mut Value, buffers: &[Vec<u8>]) -> Vec<u8> {
     let mut blob = Vec::new();
-    let mut base = Vec::with_capacity(source.buffers.len());
-    for b in &source.buffers {
+    let mut base = Vec::with_capacity(buffers.len());
+    for b in buffers {
         while blob.len() % 16 != 0 {
             blob.push(0);
         }
@@ -141,142 +183,147 @@ pub fn baked_gltf(
         view["buffer"] = json!(0);
         view["byteOffset"] = json!(base.get(b).copied().unwrap_or(0) + offset);
     }
+    blob
+}
 
-    // 2. Rewrite unwrapped primitives.
-    for (m, unwrap) in layout.meshes.iter().enumerate() {
-        let (Some(unwrap), Some(src)) = (unwrap, original.meshes[m].source) else {
-            continue;
-        };
-        let Some(gmesh) = document.meshes().nth(src.mesh) else {
-            continue;
-        };
-        let Some(gprim) = gmesh.primitives().nth(src.primitive) else {
-            continue;
-        };
-        let prim_json_path = ("meshes", src.mesh, src.primitive);
-        let uv1_bytes: Vec<u8> = unwrap
-            .uv1
-            .iter()
-            .flat_map(|p| [p.x, p.y])
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let uv1_view = push_view(&mut json, &mut blob, &uv1_bytes, Some(34962));
-        let uv1_accessor = push_accessor(
-            &mut json,
-            json!({ "bufferView": uv1_view, "componentType": 5126, "count": unwrap.uv1.len(), "type": "VEC2" }),
-        );
-        let mut new_attributes = serde_json::Map::new();
-        let mut new_targets: Vec<serde_json::Map<String, Value>> = Vec::new();
-        if let Some(xref) = &unwrap.xref {
-            let ctx = |sem: &str| {
-                format!(
-                    "mesh '{}' primitive {} {sem}",
-                    original.meshes[m].name, src.primitive
-                )
-            };
-            let gather = |accessor: &gltf::Accessor<'_>,
-                          sem: &str,
-                          json: &mut Value,
-                          blob: &mut Vec<u8>|
-             -> Result<usize> {
-                let dense = read_dense(accessor, &source.buffers, &ctx(sem))?;
-                let es = dense.element_size;
-                let mut bytes = Vec::with_capacity(xref.len() * es);
-                for &i in xref {
-                    let i = i as usize;
-                    bytes.extend_from_slice(&dense.bytes[i * es..(i + 1) * es]);
-                }
-                let view = push_view(json, blob, &bytes, Some(34962));
-                let mut acc = json!({
-                    "bufferView": view,
-                    "componentType": accessor.data_type().as_gl_enum(),
-                    "count": xref.len(),
-                    "type": dimensions_name(accessor.dimensions()),
-                });
-                if accessor.normalized() {
-                    acc["normalized"] = json!(true);
-                }
-                if sem == "POSITION" && dense.data_type == gltf::accessor::DataType::F32 && es == 12
-                {
-                    let (lo, hi) = min_max3(&bytes);
-                    acc["min"] = json!(lo);
-                    acc["max"] = json!(hi);
-                }
-                Ok(push_accessor(json, acc))
-            };
-            for (semantic, accessor) in gprim.attributes() {
-                let name = semantic.to_string();
-                if name == "TEXCOORD_1" {
-                    continue;
-                }
-                let idx = gather(&accessor, &name, &mut json, &mut blob)?;
-                new_attributes.insert(name, json!(idx));
+/// Gives a primitive its `TEXCOORD_1` and, when xatlas split its vertices, gathers every
+/// other attribute (and morph target) through the split and writes new triangle indices.
+fn rewrite_primitive(
+    out: &mut Out<'_>,
+    source: &GltfSource,
+    gprim: &gltf::Primitive<'_>,
+    src: GltfPrimitiveRef,
+    unwrap: &MeshUnwrap,
+    context: &dyn Fn(&str) -> String,
+) -> Result<()> {
+    let uv1_bytes: Vec<u8> = unwrap
+        .uv1
+        .iter()
+        .flat_map(|p| [p.x, p.y])
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let uv1_view = push_view(out.json, out.blob, &uv1_bytes, Some(34962));
+    let uv1_accessor = push_accessor(
+        out.json,
+        json!({ "bufferView": uv1_view, "componentType": 5126, "count": unwrap.uv1.len(), "type": "VEC2" }),
+    );
+    let mut new_attributes = serde_json::Map::new();
+    let mut new_targets: Vec<serde_json::Map<String, Value>> = Vec::new();
+    if let Some(xref) = &unwrap.xref {
+        for (semantic, accessor) in gprim.attributes() {
+            let name = semantic.to_string();
+            if name == "TEXCOORD_1" {
+                continue;
             }
-            for target in gprim.morph_targets() {
-                let mut t = serde_json::Map::new();
-                for (name, acc) in [
-                    ("POSITION", target.positions()),
-                    ("NORMAL", target.normals()),
-                    ("TANGENT", target.tangents()),
-                ] {
-                    if let Some(acc) = acc {
-                        t.insert(
-                            name.into(),
-                            json!(gather(&acc, name, &mut json, &mut blob)?),
-                        );
-                    }
-                }
-                new_targets.push(t);
-            }
+            let idx = gather(out, source, &accessor, xref, &name, context)?;
+            new_attributes.insert(name, json!(idx));
         }
-        new_attributes.insert("TEXCOORD_1".into(), json!(uv1_accessor));
-        let prim = &mut json[prim_json_path.0][prim_json_path.1]["primitives"][prim_json_path.2];
-        if unwrap.xref.is_some() {
-            prim["attributes"] = Value::Object(new_attributes);
-            if !new_targets.is_empty() {
-                prim["targets"] = json!(new_targets);
+        for target in gprim.morph_targets() {
+            let mut t = serde_json::Map::new();
+            for (name, acc) in [
+                ("POSITION", target.positions()),
+                ("NORMAL", target.normals()),
+                ("TANGENT", target.tangents()),
+            ] {
+                if let Some(acc) = acc {
+                    t.insert(
+                        name.into(),
+                        json!(gather(out, source, &acc, xref, name, context)?),
+                    );
+                }
             }
-        } else {
-            prim["attributes"]["TEXCOORD_1"] = json!(uv1_accessor);
-        }
-        // Indices: always a triangle list after unwrapping (strips and fans are converted).
-        if unwrap.xref.is_some() || prim.get("mode").is_some_and(|m| m.as_u64() != Some(4)) {
-            let count = unwrap.indices.len();
-            let (bytes, component): (Vec<u8>, u32) = if unwrap.uv1.len() <= u16::MAX as usize {
-                (
-                    unwrap
-                        .indices
-                        .iter()
-                        .flat_map(|&i| (i as u16).to_le_bytes())
-                        .collect(),
-                    5123,
-                )
-            } else {
-                (
-                    unwrap
-                        .indices
-                        .iter()
-                        .flat_map(|&i| i.to_le_bytes())
-                        .collect(),
-                    5125,
-                )
-            };
-            let view = push_view(&mut json, &mut blob, &bytes, Some(34963));
-            let acc = push_accessor(
-                &mut json,
-                json!({ "bufferView": view, "componentType": component, "count": count, "type": "SCALAR" }),
-            );
-            let prim =
-                &mut json[prim_json_path.0][prim_json_path.1]["primitives"][prim_json_path.2];
-            prim["indices"] = json!(acc);
-            prim["mode"] = json!(4);
+            new_targets.push(t);
         }
     }
+    new_attributes.insert("TEXCOORD_1".into(), json!(uv1_accessor));
+    let prim = &mut out.json["meshes"][src.mesh]["primitives"][src.primitive];
+    if unwrap.xref.is_some() {
+        prim["attributes"] = Value::Object(new_attributes);
+        if !new_targets.is_empty() {
+            prim["targets"] = json!(new_targets);
+        }
+    } else {
+        prim["attributes"]["TEXCOORD_1"] = json!(uv1_accessor);
+    }
+    // Indices: always a triangle list after unwrapping (strips and fans are converted).
+    if unwrap.xref.is_some() || prim.get("mode").is_some_and(|m| m.as_u64() != Some(4)) {
+        let acc = write_indices(out, unwrap);
+        let prim = &mut out.json["meshes"][src.mesh]["primitives"][src.primitive];
+        prim["indices"] = json!(acc);
+        prim["mode"] = json!(4);
+    }
+    Ok(())
+}
 
-    // 3. Lightmap references in node extras.
-    let mut by_node: HashMap<usize, Vec<&NodeLightmap>> = HashMap::new();
-    for l in lightmaps {
-        by_node.entry(l.node).or_default().push(l);
+/// A new accessor holding `accessor`'s elements in the order of `xref` (new vertex k is old
+/// vertex `xref[k]`); `sem` names the attribute in messages.
+fn gather(
+    out: &mut Out<'_>,
+    source: &GltfSource,
+    accessor: &gltf::Accessor<'_>,
+    xref: &[u32],
+    sem: &str,
+    context: &dyn Fn(&str) -> String,
+) -> Result<usize> {
+    let dense = read_dense(accessor, &source.buffers, &context(sem))?;
+    let es = dense.element_size;
+    let mut bytes = Vec::with_capacity(xref.len() * es);
+    for &i in xref {
+        let i = i as usize;
+        bytes.extend_from_slice(&dense.bytes[i * es..(i + 1) * es]);
+    }
+    let view = push_view(out.json, out.blob, &bytes, Some(34962));
+    let mut acc = json!({
+        "bufferView": view,
+        "componentType": accessor.data_type().as_gl_enum(),
+        "count": xref.len(),
+        "type": dimensions_name(accessor.dimensions()),
+    });
+    if accessor.normalized() {
+        acc["normalized"] = json!(true);
+    }
+    if sem == "POSITION" && dense.data_type == gltf::accessor::DataType::F32 && es == 12 {
+        let (lo, hi) = min_max3(&bytes);
+        acc["min"] = json!(lo);
+        acc["max"] = json!(hi);
+    }
+    Ok(push_accessor(out.json, acc))
+}
+
+/// The unwrap's triangle list as a new index accessor (16-bit when the vertices allow).
+fn write_indices(out: &mut Out<'_>, unwrap: &MeshUnwrap) -> usize {
+    let count = unwrap.indices.len();
+    let (bytes, component): (Vec<u8>, u32) = if unwrap.uv1.len() <= u16::MAX as usize {
+        (
+            unwrap
+                .indices
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect(),
+            5123,
+        )
+    } else {
+        (
+            unwrap
+                .indices
+                .iter()
+                .flat_map(|&i| i.to_le_bytes())
+                .collect(),
+            5125,
+        )
+    };
+    let view = push_view(out.json, out.blob, &bytes, Some(34963));
+    push_accessor(
+        out.json,
+        json!({ "bufferView": view, "componentType": component, "count": count, "type": "SCALAR" }),
+    )
+}
+
+/// Writes every baked node's `extras.lightbake.lightmaps` (its other extras kept).
+fn write_node_lightmaps(json: &mut Value, lightmaps: &[(usize, NodeLightmap)]) {
+    let mut by_node: HashMap<usize, Vec<NodeLightmap>> = HashMap::new();
+    for (node, l) in lightmaps {
+        by_node.entry(*node).or_default().push(l.clone());
     }
     let mut nodes: Vec<_> = by_node.into_iter().collect();
     nodes.sort_by_key(|(n, _)| *n);
@@ -285,35 +332,44 @@ pub fn baked_gltf(
         if !node_json.is_object() {
             continue;
         }
-        if !node_json["extras"].is_object() {
-            node_json["extras"] = json!({});
-        }
-        let entries: Vec<Value> = list
-            .iter()
-            .map(|l| json!({ "primitive": l.primitive, "page": l.page, "image": l.image, "uv_rect": l.uv_rect }))
-            .collect();
-        node_json["extras"]["lightbake"] = json!({ "lightmaps": entries });
+        let mut lb: NodeExtras = extras::read_value(
+            node_json["extras"].get(extras::KEY),
+            "node",
+            &mut Vec::new(),
+        );
+        lb.lightmaps = list;
+        extras::write(node_json, &lb);
     }
+}
 
-    // 3b. Mark every punctual light as baked (`extras.lightbake.baked`), so an engine that
-    // loads the baked glTF can keep the light for specular and dynamic objects but stop it
-    // lighting lightmapped surfaces a second time (Bevy: `affects_lightmapped_mesh_diffuse`,
-    // which the `bevy_lightbake` plugin sets from this flag).
-    if let Some(lights) = json
+/// Marks every punctual light as baked (`extras.lightbake.baked`), so an engine that loads the
+/// baked glTF can keep the light for specular and dynamic objects but stop it lighting
+/// lightmapped surfaces a second time (Bevy: `affects_lightmapped_mesh_diffuse`, which the
+/// `bevy_lightbake` plugin sets from this flag).
+fn mark_lights_baked(json: &mut Value) {
+    let Some(lights) = json
         .pointer_mut("/extensions/KHR_lights_punctual/lights")
         .and_then(Value::as_array_mut)
-    {
-        for light in lights.iter_mut().filter(|l| l.is_object()) {
-            if !light["extras"].is_object() {
-                light["extras"] = json!({});
-            }
-            light["extras"]["lightbake"] = json!({ "baked": true });
-        }
+    else {
+        return;
+    };
+    for light in lights.iter_mut().filter(|l| l.is_object()) {
+        let mut lb: LightExtras =
+            extras::read_value(light["extras"].get(extras::KEY), "light", &mut Vec::new());
+        lb.baked = true;
+        extras::write(light, &lb);
     }
+}
 
-    // 4. Images: copy (gltf) or embed (glb) external files.
+/// External images: embedded in the blob for a `.glb`, or returned as files to copy next to
+/// a `.gltf` (paths leaving the folder go to `textures/`).
+fn images(
+    json: &mut Value,
+    blob: &mut Vec<u8>,
+    source: &GltfSource,
+) -> Result<Vec<(PathBuf, Vec<u8>)>> {
     let mut files = Vec::new();
-    let source_dir = path.parent().unwrap_or(Path::new("."));
+    let source_dir = source.path.parent().unwrap_or(Path::new("."));
     let image_count = json
         .get("images")
         .and_then(Value::as_array)
@@ -341,7 +397,7 @@ pub fn baked_gltf(
             } else {
                 "image/jpeg"
             };
-            let view = push_view(&mut json, &mut blob, &bytes, None);
+            let view = push_view(json, blob, &bytes, None);
             let image = json["images"][i]
                 .as_object_mut()
                 .expect("image is an object");
@@ -359,46 +415,7 @@ pub fn baked_gltf(
             files.push((dest, bytes));
         }
     }
-
-    // 5. One buffer, then the container.
-    while blob.len() % 4 != 0 {
-        blob.push(0);
-    }
-    if source.is_glb {
-        json["buffers"] = json!([{ "byteLength": blob.len() }]);
-        let text = serde_json::to_vec(&json).map_err(|e| err(path, e.to_string()))?;
-        files.push((PathBuf::from(format!("{stem}.glb")), glb(text, &blob)));
-    } else {
-        let bin = format!("{stem}.bin");
-        json["buffers"] = json!([{ "byteLength": blob.len(), "uri": bin }]);
-        let text = serde_json::to_vec_pretty(&json).map_err(|e| err(path, e.to_string()))?;
-        files.push((PathBuf::from(format!("{stem}.gltf")), text));
-        files.push((PathBuf::from(bin), blob));
-    }
-    Ok(BakedGltf { files })
-}
-
-/// A binary glTF container: header, JSON chunk (space padded), BIN chunk (zero padded).
-pub fn glb(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
-    while json.len() % 4 != 0 {
-        json.push(b' ');
-    }
-    let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    Ok(files)
 }
 
 fn dimensions_name(d: gltf::accessor::Dimensions) -> &'static str {

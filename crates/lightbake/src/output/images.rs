@@ -5,25 +5,13 @@
 //! Half floats top out at 65504: larger values are clamped (and reported by the caller),
 //! never written as infinity. NaN never reaches here (the bake checks its results).
 
-use glam::Vec3;
 use half::f16;
 
-use crate::lightmap::LightmapPage;
-
-/// Largest finite half-float value.
-pub const HALF_MAX: f32 = 65504.0;
+use crate::lightmap::{HALF_MAX, LightmapPage};
 
 /// Converts to half, clamping to [0, 65504].
 fn to_half(v: f32) -> f16 {
     f16::from_f32(v.clamp(0.0, HALF_MAX))
-}
-
-/// Number of texel channels above the half-float range (they are clamped).
-pub fn count_over_half_range(page: &LightmapPage) -> usize {
-    page.texels
-        .iter()
-        .map(|t| t.to_array().iter().filter(|&&c| c > HALF_MAX).count())
-        .sum()
 }
 
 /// OpenEXR, RGB channels of 16-bit floats, ZIP compressed, scan lines top to bottom.
@@ -148,7 +136,7 @@ pub fn encode_ktx2(page: &LightmapPage) -> Vec<u8> {
 /// # Errors
 /// The encoder's message.
 pub fn encode_preview_png(page: &LightmapPage) -> Result<Vec<u8>, String> {
-    let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+    let lum = crate::color::luminance;
     let mut covered: Vec<f32> = page
         .texels
         .iter()
@@ -188,6 +176,7 @@ pub fn encode_preview_png(page: &LightmapPage) -> Result<Vec<u8>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn page() -> LightmapPage {
         let mut p = LightmapPage::black(5, 3);
@@ -212,7 +201,7 @@ mod tests {
             assert_eq!(px[1], 1.0);
             assert!(px[2].is_finite() && px[2] <= HALF_MAX);
         }
-        assert_eq!(count_over_half_range(&p), 7);
+        assert_eq!(p.channels_over_half(), 7);
     }
 
     #[test]

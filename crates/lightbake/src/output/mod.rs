@@ -13,111 +13,26 @@
 //!   report.json                                      settings, plan, timings, rays, warnings
 //! ```
 
-pub mod atomic;
 pub mod gltf_export;
 pub mod images;
+pub mod manifest;
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
+use crate::atomic::StagedFiles;
 use crate::bake::BakeOutput;
 use crate::error::{BakeError, Result};
 use crate::scene::Scene;
+use crate::scene::extras::NodeLightmap;
+use crate::scene::gltf_import::GltfSource;
 use crate::settings::BakeSettings;
-use atomic::StagedFiles;
-
-/// Version of the manifest format.
-pub const MANIFEST_VERSION: u32 = 1;
-
-/// Files of one atlas page, relative to the output directory.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct PageFiles {
-    /// Page index.
-    pub index: u32,
-    /// Texels across.
-    pub width: u32,
-    /// Texels down.
-    pub height: u32,
-    /// OpenEXR file, if written.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub exr: Option<String>,
-    /// Radiance HDR file, if written.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub hdr: Option<String>,
-    /// KTX2 file, if written.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ktx2: Option<String>,
-    /// Tonemapped PNG preview, if written.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub preview: Option<String>,
-}
-
-impl PageFiles {
-    /// The file a game should load (EXR, else KTX2, else HDR).
-    pub fn primary(&self) -> Option<&str> {
-        self.exr
-            .as_deref()
-            .or(self.ktx2.as_deref())
-            .or(self.hdr.as_deref())
-    }
-}
-
-/// One baked instance in the manifest.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct ManifestInstance {
-    /// Instance name (glTF node name, `#primitive` appended when the mesh has several).
-    pub name: String,
-    /// glTF node index.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub node: Option<usize>,
-    /// glTF mesh index.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mesh: Option<usize>,
-    /// glTF primitive index.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub primitive: Option<usize>,
-    /// Page index.
-    pub page: u32,
-    /// The page's primary image, relative to the output directory.
-    pub image: String,
-    /// Bevy's `Lightmap::uv_rect`: [min u, min v, max u, max v] on the page.
-    pub uv_rect: [f32; 4],
-    /// The rectangle in texels: [x, y, width, height].
-    pub rect: [u32; 4],
-    /// Texels per metre achieved on the mesh's largest instance.
-    pub texel_density: f32,
-    /// `xatlas` or `existing` (the mesh's own TEXCOORD_1).
-    pub uv_source: crate::unwrap::UvOrigin,
-}
-
-/// `manifest.json`: what a game needs to attach the lightmaps.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Manifest {
-    /// Always `lightbake-manifest`.
-    pub format: &'static str,
-    /// [`MANIFEST_VERSION`].
-    pub version: u32,
-    /// The source scene file name.
-    pub scene: String,
-    /// The baked glTF, relative to the output directory.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub baked_gltf: Option<String>,
-    /// What the texels hold.
-    pub stored_quantity: &'static str,
-    /// Pages.
-    pub pages: Vec<PageFiles>,
-    /// Baked instances.
-    pub instances: Vec<ManifestInstance>,
-}
+pub use manifest::{MANIFEST_VERSION, Manifest, ManifestInstance, PageFiles, manifest};
 
 /// What [`write_outputs`] wrote.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Written {
     /// Every file, absolute or relative to where the output directory was given.
     pub files: Vec<PathBuf>,
-    /// Texel channels clamped to the half-float range (65504).
-    pub clamped_channels: usize,
 }
 
 fn encode_err(path: &Path) -> impl FnOnce(String) -> BakeError + '_ {
@@ -148,49 +63,6 @@ pub fn page_files(output: &BakeOutput, settings: &BakeSettings) -> Vec<PageFiles
         .collect()
 }
 
-/// The manifest of a bake.
-pub fn manifest(
-    output: &BakeOutput,
-    original: &Scene,
-    pages: &[PageFiles],
-    baked_gltf: Option<String>,
-) -> Manifest {
-    let mut instances = Vec::new();
-    for (i, inst) in original.instances.iter().enumerate() {
-        let Some(rect) = output.layout.instances[i] else {
-            continue;
-        };
-        let unwrap = output.layout.meshes[inst.mesh]
-            .as_ref()
-            .expect("rect implies unwrap");
-        let source = original.meshes[inst.mesh].source;
-        instances.push(ManifestInstance {
-            name: inst.name.clone(),
-            node: inst.gltf_node,
-            mesh: source.map(|s| s.mesh),
-            primitive: source.map(|s| s.primitive),
-            page: rect.page,
-            image: pages[rect.page as usize]
-                .primary()
-                .unwrap_or_default()
-                .to_string(),
-            uv_rect: rect.uv_rect(output.layout.pages[rect.page as usize]),
-            rect: [rect.x, rect.y, rect.width, rect.height],
-            texel_density: unwrap.texels_per_metre,
-            uv_source: unwrap.origin,
-        });
-    }
-    Manifest {
-        format: "lightbake-manifest",
-        version: MANIFEST_VERSION,
-        scene: original.name.clone(),
-        baked_gltf,
-        stored_quantity: "irradiance / pi (lux / pi), linear RGB; Bevy: Lightmap with lightmap_exposure = 1",
-        pages: pages.to_vec(),
-        instances,
-    }
-}
-
 /// Writes every output of a bake into `dir` (created if needed). `source` is the glTF the
 /// scene came from; without it no baked glTF is written. Nothing in `dir` changes unless all
 /// files were encoded and staged successfully.
@@ -201,14 +73,51 @@ pub fn write_outputs(
     dir: &Path,
     output: &BakeOutput,
     original: &Scene,
-    source: Option<&crate::scene::gltf_import::GltfSource>,
+    source: Option<&GltfSource>,
     settings: &BakeSettings,
 ) -> Result<Written> {
     let mut staged = StagedFiles::new();
-    let mut clamped = 0;
     let pages = page_files(output, settings);
-    for (page, files) in output.pages.iter().zip(&pages) {
-        clamped += images::count_over_half_range(page);
+    stage_pages(&mut staged, dir, output, &pages)?;
+    let baked_gltf = match source {
+        Some(source) => Some(stage_baked_gltf(
+            &mut staged,
+            dir,
+            output,
+            original,
+            source,
+            &pages,
+        )?),
+        None => None,
+    };
+    let manifest = manifest(output, original, &pages, baked_gltf);
+    stage_json(&mut staged, &dir.join("manifest.json"), &manifest)?;
+    let mut report = output.report.clone();
+    let report_path = dir.join("report.json");
+    report.outputs = staged
+        .destinations()
+        .chain(std::iter::once(report_path.as_path()))
+        .map(|p| {
+            p.strip_prefix(dir)
+                .unwrap_or(p)
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    stage_json(&mut staged, &report_path, &report)?;
+    Ok(Written {
+        files: staged.commit()?,
+    })
+}
+
+/// Stages every page in every format asked for.
+fn stage_pages(
+    staged: &mut StagedFiles,
+    dir: &Path,
+    output: &BakeOutput,
+    pages: &[PageFiles],
+) -> Result<()> {
+    for (page, files) in output.pages.iter().zip(pages) {
         if let Some(f) = &files.exr {
             let path = dir.join(f);
             let bytes = images::encode_exr(page).map_err(encode_err(&path))?;
@@ -228,72 +137,56 @@ pub fn write_outputs(
             staged.stage(&path, &bytes)?;
         }
     }
-    let mut baked_gltf = None;
-    if let Some(source) = source {
-        let stem = source
-            .path
-            .file_stem()
-            .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
-        let mut node_lightmaps = Vec::new();
-        for (i, inst) in original.instances.iter().enumerate() {
-            let (Some(rect), Some(node), Some(src)) = (
-                output.layout.instances[i],
-                inst.gltf_node,
-                original.meshes[inst.mesh].source,
-            ) else {
-                continue;
-            };
-            node_lightmaps.push(gltf_export::NodeLightmap {
-                node,
-                primitive: src.primitive,
-                page: rect.page,
-                image: pages[rect.page as usize]
-                    .primary()
-                    .unwrap_or_default()
-                    .to_string(),
-                uv_rect: rect.uv_rect(output.layout.pages[rect.page as usize]),
-            });
-        }
-        let baked =
-            gltf_export::baked_gltf(source, original, &output.layout, &node_lightmaps, &stem)?;
-        for (rel, bytes) in &baked.files {
-            staged.stage(&dir.join(rel), bytes)?;
-        }
-        baked_gltf = baked
-            .files
-            .iter()
-            .map(|(p, _)| p.to_string_lossy().into_owned())
-            .find(|p| p.ends_with(".gltf") || p.ends_with(".glb"));
-    }
-    let manifest = manifest(output, original, &pages, baked_gltf);
-    let manifest_path = dir.join("manifest.json");
-    let text = serde_json::to_vec_pretty(&manifest)
-        .map_err(|e| encode_err(&manifest_path)(e.to_string()))?;
-    staged.stage(&manifest_path, &text)?;
+    Ok(())
+}
 
-    let mut report = output.report.clone();
-    report.outputs = staged
-        .destinations()
-        .chain(std::iter::once(dir.join("report.json").as_path()))
-        .map(|p| {
-            p.strip_prefix(dir)
-                .unwrap_or(p)
-                .to_string_lossy()
-                .into_owned()
-        })
-        .collect();
-    if clamped > 0 {
-        report.warnings.push(format!(
-            "{clamped} texel channels exceed the half-float maximum 65504 and were clamped in EXR/KTX2 output"
-        ));
+/// Stages the baked glTF (and its buffer and images); returns its file name.
+fn stage_baked_gltf(
+    staged: &mut StagedFiles,
+    dir: &Path,
+    output: &BakeOutput,
+    original: &Scene,
+    source: &GltfSource,
+    pages: &[PageFiles],
+) -> Result<String> {
+    let stem = source
+        .path
+        .file_stem()
+        .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+    let mut node_lightmaps = Vec::new();
+    for (i, inst) in original.instances.iter().enumerate() {
+        let (Some(rect), Some(node), Some(src)) = (
+            output.layout.instances[i],
+            inst.gltf_node,
+            original.meshes[inst.mesh].source,
+        ) else {
+            continue;
+        };
+        let lightmap = NodeLightmap {
+            primitive: src.primitive,
+            page: rect.page,
+            image: pages[rect.page as usize]
+                .primary()
+                .unwrap_or_default()
+                .to_string(),
+            uv_rect: rect.uv_rect(output.layout.pages[rect.page as usize]),
+        };
+        node_lightmaps.push((node, lightmap));
     }
-    let report_path = dir.join("report.json");
-    let text =
-        serde_json::to_vec_pretty(&report).map_err(|e| encode_err(&report_path)(e.to_string()))?;
-    staged.stage(&report_path, &text)?;
-    let files = staged.commit()?;
-    Ok(Written {
-        files,
-        clamped_channels: clamped,
-    })
+    let baked = gltf_export::baked_gltf(source, original, &output.layout, &node_lightmaps, &stem)?;
+    for (rel, bytes) in &baked.files {
+        staged.stage(&dir.join(rel), bytes)?;
+    }
+    Ok(baked
+        .files
+        .iter()
+        .map(|(p, _)| p.to_string_lossy().into_owned())
+        .find(|p| p.ends_with(".gltf") || p.ends_with(".glb"))
+        .unwrap_or_default())
+}
+
+/// Stages `value` as pretty-printed JSON at `path`.
+fn stage_json(staged: &mut StagedFiles, path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_vec_pretty(value).map_err(|e| encode_err(path)(e.to_string()))?;
+    staged.stage(path, &text)
 }

@@ -1,14 +1,7 @@
 //! glTF 2.0 import: meshes (with `TEXCOORD_0/1`), the node hierarchy, metallic-roughness
 //! materials with `KHR_materials_emissive_strength`, `KHR_lights_punctual` lights, and
-//! lightbake's own `extras`:
-//!
-//! | where | key | meaning |
-//! |---|---|---|
-//! | scene | `extras.lightbake.texel_density` | suggested texels per metre |
-//! | scene | `extras.lightbake.sky` | `[r, g, b]` sky luminance, nits |
-//! | node | `extras.lightbake.texel_density_scale` | density multiplier for this node's meshes |
-//! | node | `extras.lightbake.bake` | `false`: cast shadows and reflect, but get no lightmap |
-//! | light | `extras.lightbake.angular_radius` | sun disc radius, radians |
+//! lightbake's own `extras` ([`super::extras`]: the scene's texel density and sky, a node's
+//! density scale and whether it is baked, a sun's angular radius).
 //!
 //! Repairs are reported in [`Scene::warnings`]: missing normals are computed; unloadable
 //! textures fall back to their material's factors; non-triangle primitives are skipped.
@@ -20,6 +13,7 @@ use glam::{Affine3A, Mat4, Vec2, Vec3, Vec4};
 use gltf::Semantic;
 use gltf::mesh::Mode;
 
+use super::extras::{self, LightExtras, NodeExtras, SceneExtras};
 use super::gltf_accessor::{read_indices, read_uv, read_vec3};
 use super::{
     GltfPrimitiveRef, Instance, Light, LightKind, Material, Mesh, Scene, Texture, TextureRef, Wrap,
@@ -186,11 +180,9 @@ struct Importer<'a> {
     texture_map: HashMap<usize, Option<usize>>,
 }
 
-/// `extras.lightbake` as JSON, if present.
-fn lightbake_extras(extras: &gltf::json::Extras) -> Option<serde_json::Value> {
-    let raw = extras.as_ref()?;
-    let v: serde_json::Value = serde_json::from_str(raw.get()).ok()?;
-    v.get("lightbake").cloned()
+/// The raw `extras` JSON text of a glTF object.
+fn extras_text(extras: &gltf::json::Extras) -> Option<&str> {
+    extras.as_ref().map(|raw| raw.get())
 }
 
 fn wrap_mode(w: gltf::texture::WrappingMode) -> Wrap {
@@ -201,36 +193,14 @@ fn wrap_mode(w: gltf::texture::WrappingMode) -> Wrap {
     }
 }
 
-/// glTF colours in Bevy's loader are read as sRGB-encoded floats.
-fn srgb_float_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 impl Importer<'_> {
-    fn scene_extras(&mut self, extras: &gltf::json::Extras) {
-        let Some(lb) = lightbake_extras(extras) else {
-            return;
-        };
-        if let Some(d) = lb.get("texel_density").and_then(|v| v.as_f64()) {
-            self.scene.texel_density_hint = Some(d as f32);
+    fn scene_extras(&mut self, raw: &gltf::json::Extras) {
+        let lb: SceneExtras = extras::read(extras_text(raw), "scene", &mut self.scene.warnings);
+        if let Some(d) = lb.texel_density {
+            self.scene.texel_density_hint = Some(d);
         }
-        if let Some(sky) = lb.get("sky").and_then(|v| v.as_array()) {
-            let c: Vec<f32> = sky
-                .iter()
-                .filter_map(|x| x.as_f64())
-                .map(|x| x as f32)
-                .collect();
-            if c.len() == 3 {
-                self.scene.sky = Vec3::new(c[0], c[1], c[2]);
-            } else {
-                self.scene
-                    .warnings
-                    .push("scene extras.lightbake.sky must be [r, g, b]; ignored".into());
-            }
+        if let Some([r, g, b]) = lb.sky {
+            self.scene.sky = Vec3::new(r, g, b);
         }
     }
 
@@ -330,7 +300,11 @@ impl Importer<'_> {
         }
         let local = Mat4::from_cols_array_2d(&node.transform().matrix());
         let world = parent * local;
-        let extras = lightbake_extras(node.extras());
+        let lb: NodeExtras = extras::read(
+            extras_text(node.extras()),
+            &format!("node '{name}'"),
+            &mut self.scene.warnings,
+        );
         if let Some(mesh) = node.mesh() {
             let affine = Affine3A::from_mat4(world);
             let primitive_count = mesh.primitives().len();
@@ -348,13 +322,11 @@ impl Importer<'_> {
                     affine,
                 );
                 inst.gltf_node = Some(node.index());
-                if let Some(lb) = &extras {
-                    if let Some(s) = lb.get("texel_density_scale").and_then(|v| v.as_f64()) {
-                        inst.texel_density_scale = s as f32;
-                    }
-                    if let Some(b) = lb.get("bake").and_then(|v| v.as_bool()) {
-                        inst.bake = b;
-                    }
+                if let Some(s) = lb.texel_density_scale {
+                    inst.texel_density_scale = s;
+                }
+                if let Some(b) = lb.bake {
+                    inst.bake = b;
                 }
                 // A transform that collapses space is bad input for a lightmapped mesh.
                 inst.validate()?;
@@ -375,14 +347,18 @@ impl Importer<'_> {
         let name = light
             .name()
             .map_or_else(|| node.to_string(), str::to_string);
-        let extras = lightbake_extras(light.extras());
+        let lb: LightExtras = extras::read(
+            extras_text(light.extras()),
+            &format!("light '{name}'"),
+            &mut self.scene.warnings,
+        );
         let bevy = self.convention == LightConvention::BevyGltfLoader;
         let mut color = Vec3::from_array(light.color());
         if bevy {
             color = Vec3::new(
-                srgb_float_to_linear(color.x),
-                srgb_float_to_linear(color.y),
-                srgb_float_to_linear(color.z),
+                crate::color::srgb_to_linear(color.x),
+                crate::color::srgb_to_linear(color.y),
+                crate::color::srgb_to_linear(color.z),
             );
         }
         let kind = match light.kind() {
@@ -395,11 +371,7 @@ impl Importer<'_> {
                 outer_cone_angle,
             },
             Kind::Directional => LightKind::Directional {
-                angular_radius: extras
-                    .as_ref()
-                    .and_then(|e| e.get("angular_radius"))
-                    .and_then(|v| v.as_f64())
-                    .unwrap_or(0.0) as f32,
+                angular_radius: lb.angular_radius.unwrap_or(0.0),
             },
         };
         let range = match (light.range(), bevy, kind) {

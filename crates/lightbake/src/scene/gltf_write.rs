@@ -9,6 +9,7 @@
 use glam::{Quat, Vec3};
 use serde_json::{Value, json};
 
+use super::extras::{self, LightExtras, NodeExtras, SceneExtras};
 use super::{LightKind, Scene, Wrap};
 
 fn pad4(bin: &mut Vec<u8>) {
@@ -189,19 +190,13 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
         if scale != Vec3::ONE {
             n["scale"] = json!(scale.to_array());
         }
-        let mut lb = serde_json::Map::new();
-        if inst.texel_density_scale != 1.0 {
-            lb.insert(
-                "texel_density_scale".into(),
-                json!(inst.texel_density_scale),
-            );
-        }
-        if !inst.bake {
-            lb.insert("bake".into(), json!(false));
-        }
-        if !lb.is_empty() {
-            n["extras"] = json!({ "lightbake": lb });
-        }
+        let lb = NodeExtras {
+            texel_density_scale: (inst.texel_density_scale != 1.0)
+                .then_some(inst.texel_density_scale),
+            bake: (!inst.bake).then_some(false),
+            ..NodeExtras::default()
+        };
+        extras::write(&mut n, &lb);
         nodes.push(n);
     }
     let mut lights = Vec::new();
@@ -219,9 +214,11 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
             }
             LightKind::Directional { angular_radius } => {
                 light["type"] = json!("directional");
-                if angular_radius > 0.0 {
-                    light["extras"] = json!({ "lightbake": { "angular_radius": angular_radius } });
-                }
+                let lb = LightExtras {
+                    angular_radius: (angular_radius > 0.0).then_some(angular_radius),
+                    ..LightExtras::default()
+                };
+                extras::write(&mut light, &lb);
             }
         }
         if let Some(r) = l.range {
@@ -239,18 +236,13 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
         }
         nodes.push(n);
     }
-    let mut scene_extras = serde_json::Map::new();
-    if let Some(d) = scene.texel_density_hint {
-        scene_extras.insert("texel_density".into(), json!(d));
-    }
-    if scene.sky != Vec3::ZERO {
-        scene_extras.insert("sky".into(), json!(scene.sky.to_array()));
-    }
     let mut gltf_scene =
         json!({ "name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>() });
-    if !scene_extras.is_empty() {
-        gltf_scene["extras"] = json!({ "lightbake": scene_extras });
-    }
+    let lb = SceneExtras {
+        texel_density: scene.texel_density_hint,
+        sky: (scene.sky != Vec3::ZERO).then(|| scene.sky.to_array()),
+    };
+    extras::write(&mut gltf_scene, &lb);
     pad4(&mut w.bin);
     let mut doc = json!({
         "asset": { "version": "2.0", "generator": "lightbake scene writer" },
@@ -293,7 +285,7 @@ pub fn scene_to_glb(scene: &Scene) -> Vec<u8> {
         .expect("buffer object")
         .remove("uri");
     let text = serde_json::to_vec(&doc).expect("JSON values serialise");
-    crate::output::gltf_export::glb(text, &bin)
+    super::glb::glb(text, &bin)
 }
 
 /// Writes `scene` to `path` (`.gltf`) and its buffer next to it (`.bin`), atomically.
@@ -306,7 +298,7 @@ pub fn write_scene_gltf(scene: &Scene, path: &std::path::Path) -> crate::Result<
         .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
     let bin_name = format!("{stem}.bin");
     let (json, bin) = scene_to_gltf(scene, &bin_name);
-    let mut staged = crate::output::atomic::StagedFiles::new();
+    let mut staged = crate::atomic::StagedFiles::new();
     staged.stage(path, &json)?;
     staged.stage(&path.with_file_name(bin_name), &bin)?;
     staged.commit()?;

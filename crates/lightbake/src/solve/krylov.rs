@@ -5,7 +5,7 @@
 //! * [`conjugate_gradient`]: conjugate gradients (Hestenes & Stiefel 1952) with a Jacobi
 //!   preconditioner on the symmetrised system
 //!   (diag(A/ρ) − diag(A)·F̃)·B = diag(A/ρ)·S, with F̃ the reciprocity-symmetrised F
-//!   ([`crate::transport::Transport::symmetrized`]); diag(A)·F̃ is symmetric and the matrix is
+//!   ([`super::transport::Transport::symmetrized`]); diag(A)·F̃ is symmetric and the matrix is
 //!   diagonally dominant for ρ < 1, hence positive definite. Nodes (channels) with ρ = 0 are
 //!   known (B = S) and moved to the right-hand side. It solves the symmetrised system, which
 //!   differs from the Monte Carlo F by its sampling noise.

@@ -1,6 +1,6 @@
 //! Solvers of the radiosity system (I − diag(ρ)·F)·B = S over the texel nodes, RGB.
 //!
-//! In lightbake's split formulation (see [`crate::indirect`]) S = ρ·H_direct, so B is the
+//! In lightbake's split formulation (see [`crate::radiosity`]) S = ρ·H_direct, so B is the
 //! exitance of *reflected* light and H = H_direct + F·B the total irradiance a texel stores
 //! (over π). Every solver records a [`History`] of (time, iteration, relative residual
 //! ‖S + ρFB − B‖ / ‖S‖, error bound) with ‖·‖ the area-weighted RMS over nodes and channels.
@@ -10,19 +10,19 @@
 //! | Jacobi | [`jacobi`] | gathering, B ← S + ρFB |
 //! | Gauss–Seidel | [`gauss_seidel`] | gathering in place |
 //! | progressive refinement (Southwell) | [`shooting`] | Cohen, Chen, Wallace & Greenberg 1988 |
-//! | stochastic Jacobi (matrix-free) | [`stochastic_jacobi`] | Bekaert; Dutré et al. ch. 6.3 |
+//! | stochastic Jacobi (matrix-free) | [`crate::radiosity::stochastic_jacobi`] (it traces rays) | Bekaert; Dutré et al. ch. 6.3 |
 //! | BiCGStab, conjugate gradients | [`krylov`] | van der Vorst 1992; Hestenes & Stiefel 1952 |
-//! | dense LU | [`direct`] | partial pivoting; the reference |
+//! | dense LU | [`lu`] | partial pivoting; the reference |
 //!
 //! For the contracting iterations (Jacobi, Gauss–Seidel) the a-posteriori bound
 //! ‖B − Bₖ‖∞ ≤ ρ_max/(1 − ρ_max)·‖Bₖ − Bₖ₋₁‖∞ is recorded (F's rows sum to at most 1).
 
-pub mod direct;
 pub mod gauss_seidel;
 pub mod jacobi;
 pub mod krylov;
+pub mod lu;
 pub mod shooting;
-pub mod stochastic_jacobi;
+pub mod transport;
 
 use std::time::Instant;
 
@@ -30,53 +30,10 @@ use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::progress::Progress;
-use crate::transport::{Nodes, Transport};
-
-/// Which solver to use.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SolverChoice {
-    /// Chosen from the scene ([`choose`]): LU for small systems (≤ [`AUTO_DIRECT_NODES`]
-    /// nodes), BiCGStab otherwise (Gauss–Seidel when BiCGStab's vectors do not fit beside the
-    /// matrix), stochastic Jacobi when the matrix does not fit its budget.
-    #[default]
-    Auto,
-    /// Jacobi gathering.
-    Jacobi,
-    /// Gauss–Seidel gathering.
-    GaussSeidel,
-    /// Progressive refinement (Southwell shooting).
-    Shooting,
-    /// Stochastic Jacobi, matrix-free.
-    StochasticJacobi,
-    /// BiCGStab on the unsymmetric system.
-    Krylov,
-    /// Conjugate gradients on the reciprocity-symmetrised system.
-    KrylovCg,
-    /// Dense LU (small systems only).
-    Direct,
-}
+use crate::settings::SolverChoice;
+pub use transport::Transport;
 
 impl SolverChoice {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Auto => "auto",
-            Self::Jacobi => "jacobi",
-            Self::GaussSeidel => "gauss-seidel",
-            Self::Shooting => "shooting",
-            Self::StochasticJacobi => "stochastic-jacobi",
-            Self::Krylov => "krylov",
-            Self::KrylovCg => "krylov-cg",
-            Self::Direct => "direct",
-        }
-    }
-
-    /// Whether the solver needs the transport matrix.
-    pub fn needs_matrix(self) -> bool {
-        !matches!(self, Self::StochasticJacobi)
-    }
-
     /// Bytes a matrix solver allocates beside a transport matrix of `matrix_bytes` for `n`
     /// nodes: its double-precision RGB vectors (24 bytes per node each, counted from the
     /// solvers' code, with the final residual and F·B products), plus the copies of the
@@ -111,20 +68,6 @@ pub struct System<'a> {
     /// Where to publish the error estimate after every sweep (see
     /// [`crate::progress::ProgressSnapshot::error_estimate`]), if anywhere.
     pub progress: Option<&'a Progress>,
-}
-
-impl<'a> System<'a> {
-    /// The system of `nodes` (their albedos and areas) with matrix `transport` and source
-    /// `source`, publishing nowhere.
-    pub fn for_nodes(transport: &'a Transport, nodes: &'a Nodes, source: &'a [Vec3]) -> Self {
-        Self {
-            transport,
-            albedo: &nodes.albedo,
-            source,
-            area: &nodes.area,
-            progress: None,
-        }
-    }
 }
 
 /// Stopping rules.
@@ -214,6 +157,7 @@ impl System<'_> {
         self.source.len()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.source.is_empty()
@@ -312,7 +256,7 @@ pub fn finish(system: &System<'_>, mut solution: Solution) -> Solution {
 ///
 /// # Panics
 /// For [`SolverChoice::Auto`] and [`SolverChoice::StochasticJacobi`] (resolve `Auto` with
-/// [`choose`]; stochastic Jacobi needs the scene, see [`stochastic_jacobi::solve`]).
+/// [`choose`]; stochastic Jacobi needs the scene, see [`crate::radiosity::stochastic_jacobi::solve`]).
 pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOptions) -> Solution {
     let s = match choice {
         SolverChoice::Jacobi => jacobi::solve(system, options),
@@ -320,7 +264,7 @@ pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOp
         SolverChoice::Shooting => shooting::solve(system, options),
         SolverChoice::Krylov => krylov::bicgstab(system, options),
         SolverChoice::KrylovCg => krylov::conjugate_gradient(system, options),
-        SolverChoice::Direct => direct::solve(system),
+        SolverChoice::Direct => lu::solve(system),
         SolverChoice::Auto | SolverChoice::StochasticJacobi => {
             panic!("solve_matrix called with {}", choice.name())
         }

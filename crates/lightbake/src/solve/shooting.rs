@@ -11,11 +11,11 @@
 //! ambient = Σ_j ΔB_j·A_j / Σ A_j · 1/(1 − ρ̄), ρ̄ the area-weighted mean albedo, and a
 //! partial solution is shown as Bᵢ + ρᵢ·ambient ([`display`]).
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
 use super::{Recorder, Solution, SolveOptions, System, norm, to_f32, to_f64};
-use crate::direct::luminance;
-use crate::transport::Transport;
+use crate::color::luminance;
+use super::transport::Transport;
 
 /// A max-heap of node powers with one entry per node and O(log n) key updates (an indexed
 /// binary heap), so a shot's updates do not pile up stale entries.
@@ -97,6 +97,7 @@ impl PowerHeap {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// The ambient term of a partial solution with unshot radiosity `unshot`.
 pub fn ambient(system: &System<'_>, unshot: &[DVec3]) -> DVec3 {
     let (mut power, mut area, mut rho_area) = (DVec3::ZERO, 0.0f64, DVec3::ZERO);
@@ -113,8 +114,9 @@ pub fn ambient(system: &System<'_>, unshot: &[DVec3]) -> DVec3 {
     power / area / (DVec3::ONE - rho_mean).max(DVec3::splat(1e-9))
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// What to show for a partial solution: Bᵢ + ρᵢ·ambient.
-pub fn display(system: &System<'_>, b: &[DVec3], unshot: &[DVec3]) -> Vec<Vec3> {
+pub fn display(system: &System<'_>, b: &[DVec3], unshot: &[DVec3]) -> Vec<glam::Vec3> {
     let amb = ambient(system, unshot);
     b.iter()
         .enumerate()
@@ -127,6 +129,7 @@ pub struct ShootingState {
     /// Radiosity shot so far.
     pub b: Vec<DVec3>,
     /// Unshot radiosity (the residual).
+    #[cfg_attr(not(any(test, feature = "internals")), allow(dead_code))]
     pub unshot: Vec<DVec3>,
     /// Shots done.
     pub shots: u64,

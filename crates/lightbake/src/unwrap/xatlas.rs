@@ -244,10 +244,6 @@ pub struct Output {
     pub width: u32,
     /// Atlas height in texels.
     pub height: u32,
-    /// Number of sub-atlases (0 when `resolution` was 0 and a single atlas was sized to fit).
-    pub atlas_count: u32,
-    /// The texel density xatlas used (texels per mesh unit).
-    pub texels_per_unit: f32,
     /// Output vertices (input vertices split along chart seams).
     pub vertices: Vec<OutputVertex>,
     /// Output triangle list; triangle `t` corresponds to input triangle `t`.
@@ -416,8 +412,6 @@ pub fn generate(
     let mut out = Output {
         width: atlas.width,
         height: atlas.height,
-        atlas_count: atlas.atlas_count,
-        texels_per_unit: atlas.texels_per_unit,
         chart_count: 0,
         ..Output::default()
     };

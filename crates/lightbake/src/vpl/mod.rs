@@ -12,6 +12,7 @@
 //! The number of particles is set directly (`vpl_particles`) or from a time budget
 //! (`vpl_time_budget_s`, measured against a pilot of shadow rays).
 
+pub mod compensation;
 pub mod gather;
 pub mod walk;
 
@@ -20,13 +21,13 @@ use std::time::Instant;
 use glam::Vec3;
 use serde::Serialize;
 
-use crate::bake::BakeContext;
-use crate::direct::{Emitters, luminance};
-use crate::estimate::{ErrorEstimate, rms_luminance};
+use crate::color::luminance;
+use crate::context::BakeContext;
+use crate::error_estimate::{ErrorEstimate, rms_luminance};
+use crate::lights::Emitters;
 use crate::progress::Progress;
 use crate::sampling::Sequence;
-use crate::transport::{Basis, HitMapper, Nodes};
-pub use walk::{Vpl, VplKind, VplSet, WalkSettings};
+pub use walk::WalkSettings;
 
 /// Counters of the instant-radiosity pass, for the report.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -133,13 +134,6 @@ fn particle_count(
     )
 }
 
-/// Most fixed-point iterations of the bias compensation.
-const COMPENSATION_MAX_ITERATIONS: u32 = 100;
-
-/// The compensation stops when an iteration changes it by less than this share (luminance,
-/// summed over texels).
-const COMPENSATION_TOLERANCE: f64 = 1e-4;
-
 /// Runs the walk, the gather and (optionally) the compensation. `first_generation`: method
 /// `vpl` (true) or `hybrid` (false). `direct`: per-patch direct irradiance already computed
 /// (hybrid), used as the exitance source of the compensation. Returns per-patch irradiance
@@ -183,85 +177,11 @@ pub fn instant_radiosity(
     let mut compensation_iterations = 0u32;
     let mut compensation_note = None;
     if compensated {
-        // Exitance at the nodes: reflection of what has been gathered (plus direct light in
-        // hybrid), and emission (its near field was clamped too in method vpl).
-        let nodes = Nodes::new(ctx, Basis::Linear);
-        // Per node: what it emits and what it reflects of the light gathered so far.
-        let base: Vec<(Vec3, Vec3, usize)> = nodes
-            .patch
-            .iter()
-            .zip(&nodes.albedo)
-            .map(|(&pi, rho)| {
-                let p = &ctx.patches.patches[pi as usize];
-                let emitted = if first_generation {
-                    let mesh = ctx.scene.instances[p.instance as usize].mesh;
-                    ctx.scene.material_of(mesh).emissive * std::f32::consts::PI
-                } else {
-                    Vec3::ZERO
-                };
-                let i = pi as usize;
-                let gathered = irradiance[i] + direct.map_or(Vec3::ZERO, |d| d[i]);
-                (*rho * gathered + emitted, *rho, i)
-            })
-            .collect();
-        let mapper = HitMapper::new(*ctx, &nodes, Basis::Linear);
-        let exitance_with = |extra: &[Vec3]| -> Vec<Vec3> {
-            base.iter()
-                .map(|&(b0, rho, i)| b0 + rho * extra[i])
-                .collect()
-        };
-        let mut extra = vec![Vec3::ZERO; irradiance.len()];
-        // The near-field operator may take half the memory budget.
-        let max_bytes = s.memory_budget_mib.saturating_mul(1 << 20) / 2;
-        match gather::NearField::trace(
-            ctx,
-            &mapper,
-            bound,
-            s.vpl_compensation_rays,
-            max_bytes,
-            progress,
-        ) {
-            Ok((near, traced)) => {
-                rays += traced;
-                // The fixed point E_comp = C·(B₀ + ρ·E_comp): the near field's exitance lacks
-                // what the clamp removed near it too. C's rows sum to at most 1, so this
-                // contracts by ρ̄ or faster.
-                let norm = |v: &[Vec3]| v.iter().map(|e| luminance(*e) as f64).sum::<f64>();
-                for _ in 0..COMPENSATION_MAX_ITERATIONS {
-                    let next = near.apply(&exitance_with(&extra));
-                    let change: f64 = next
-                        .iter()
-                        .zip(&extra)
-                        .map(|(a, b)| luminance((*a - *b).abs()) as f64)
-                        .sum();
-                    extra = next;
-                    compensation_iterations += 1;
-                    if change <= COMPENSATION_TOLERANCE * norm(&extra) {
-                        break;
-                    }
-                }
-            }
-            Err((projected, partial)) => {
-                rays += partial;
-                let (one_bounce, traced) = gather::NearField::trace_and_apply(
-                    ctx,
-                    &mapper,
-                    bound,
-                    s.vpl_compensation_rays,
-                    &exitance_with(&extra),
-                    progress,
-                );
-                rays += traced;
-                extra = one_bounce;
-                compensation_iterations = 1;
-                compensation_note = Some(format!(
-                    "the bias compensation's near field would take {} MiB, over half the memory budget ({} MiB): it was compensated one bounce deep, which leaves light missing in sharp creases",
-                    projected >> 20,
-                    s.memory_budget_mib
-                ));
-            }
-        }
-        for (e, x) in irradiance.iter_mut().zip(extra) {
+        let c = compensation::compensate(ctx, &irradiance, direct, first_generation, bound, progress);
+        rays += c.rays;
+        compensation_iterations = c.iterations;
+        compensation_note = c.note;
+        for (e, x) in irradiance.iter_mut().zip(c.irradiance) {
             *e += x;
         }
     }

@@ -15,11 +15,11 @@
 use glam::{Vec2, Vec3};
 
 use crate::bvh::{Hit, RayScene};
-use crate::direct::{Emitters, luminance};
-use crate::sampling::{
-    Sequence, basis, concentric_disc, cosine_hemisphere, uniform_cone, uniform_triangle,
-};
-use crate::scene::{LightKind, Scene};
+use crate::color::luminance;
+use crate::lights::{Emission, Emitters, LightSource, SceneDisc, Start, sky};
+use crate::sampling::{Sequence, cosine_hemisphere};
+use crate::scene::Scene;
+pub use crate::settings::MAX_VPL_DEPTH as MAX_DEPTH;
 
 /// What kind of light a VPL is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -82,9 +82,6 @@ pub struct VplSet {
     pub rays: u64,
 }
 
-/// Highest depth the sequence's 64 dimensions allow.
-pub const MAX_DEPTH: u32 = 29;
-
 /// One emitting thing the particles start from, with its power (lumens, RGB).
 #[derive(Clone, Copy, Debug)]
 enum Source {
@@ -127,20 +124,6 @@ pub fn mean_reflectivity(scene: &Scene, rays: &RayScene) -> f32 {
     if den > 0.0 { (num / den) as f32 } else { 0.0 }
 }
 
-/// Total power of the cone falloff of a spot light per candela: ∫ S(θ) dω over the cone.
-fn spot_solid_angle(inner: f32, outer: f32) -> f32 {
-    let (ci, co) = (inner.cos(), outer.cos());
-    let scale = 1.0 / (ci - co).max(1e-4);
-    let steps = 512;
-    let mut sum = 0.0f32;
-    for k in 0..steps {
-        let theta = outer * (k as f32 + 0.5) / steps as f32;
-        let a = ((theta.cos() - co) * scale).clamp(0.0, 1.0);
-        sum += a * a * theta.sin() * outer / steps as f32;
-    }
-    std::f32::consts::TAU * sum
-}
-
 /// What drives the walk.
 #[derive(Clone, Copy, Debug)]
 pub struct WalkSettings {
@@ -167,36 +150,21 @@ pub fn walk(
     let n = settings.particles.max(1);
     let seq = settings.sequence;
     let sample = |i: u32, dim: usize| seq.sample(i, n, dim, settings.seed);
-    let centre = 0.5 * (rays.bounds.0 + rays.bounds.1);
-    let radius = 0.5 * (rays.bounds.1 - rays.bounds.0).length().max(1e-6);
-    let disc_area = std::f32::consts::PI * radius * radius;
+    let disc = SceneDisc::covering(rays);
 
     // Sources and their power (lumens, RGB).
     let mut sources: Vec<(Source, Vec3)> = Vec::new();
     for (li, l) in scene.lights.iter().enumerate() {
-        let power = match l.kind {
-            LightKind::Point => l.color * l.intensity * 4.0 * std::f32::consts::PI,
-            LightKind::Spot {
-                inner_cone_angle,
-                outer_cone_angle,
-            } => l.color * l.intensity * spot_solid_angle(inner_cone_angle, outer_cone_angle),
-            LightKind::Directional { .. } => l.color * l.intensity * disc_area,
-        };
+        let power = l.power(&disc);
         if luminance(power) > 0.0 {
             sources.push((Source::Light(li as u32), power));
         }
     }
     if !emitters.is_empty() {
-        let p = emitters.list.iter().fold(Vec3::ZERO, |s, e| {
-            s + e.radiance * (std::f32::consts::PI * e.area * if e.two_sided { 2.0 } else { 1.0 })
-        });
-        sources.push((Source::Emitters, p));
+        sources.push((Source::Emitters, emitters.power()));
     }
     if scene.sky.max_element() > 0.0 {
-        sources.push((
-            Source::Sky,
-            scene.sky * (4.0 * std::f32::consts::PI * disc_area),
-        ));
+        sources.push((Source::Sky, sky::power(scene.sky, &disc)));
     }
     let total_lum: f32 = sources.iter().map(|s| luminance(s.1)).sum();
     let rho_bar = mean_reflectivity(scene, rays).clamp(0.0, 0.99);
@@ -219,7 +187,7 @@ pub fn walk(
     // Punctual lights enter once each, exactly (N identical point VPLs would be the same).
     if settings.first_generation {
         for (li, l) in scene.lights.iter().enumerate() {
-            if matches!(l.kind, LightKind::Point | LightKind::Spot { .. }) && l.intensity > 0.0 {
+            if l.is_punctual() && l.intensity > 0.0 {
                 push(
                     &mut set,
                     Vpl {
@@ -252,8 +220,7 @@ pub fn walk(
                 i,
                 reflections.min(max_depth),
                 rho_bar,
-                centre,
-                radius,
+                &disc,
                 &sample,
                 &mut set,
             );
@@ -276,34 +243,6 @@ fn push(set: &mut VplSet, v: Vpl) {
     set.vpls.push(v);
 }
 
-/// A directional particle (sun or sky) entering along `d` through the disc of `radius` around
-/// `centre` that covers the scene: its start outside the scene, its direction, and the
-/// depth-0 VPL carrying `power` spread over the disc as irradiance.
-fn disc_start(
-    d: Vec3,
-    u: Vec2,
-    centre: Vec3,
-    radius: f32,
-    power: Vec3,
-    path: u32,
-) -> (Vec3, Vec3, Option<Vpl>) {
-    let (t, b) = basis(d);
-    let disc = concentric_disc(u) * radius;
-    let o = centre + t * disc.x + b * disc.y - d * (2.0 * radius);
-    let irradiance = power / (std::f32::consts::PI * radius * radius);
-    let vpl = Vpl {
-        position: o,
-        power: Vec3::ZERO,
-        kind: VplKind::Directional {
-            direction: d,
-            irradiance,
-        },
-        depth: 0,
-        path,
-    };
-    (o, d, Some(vpl))
-}
-
 /// One particle's path: the start on its light, then `reflections` diffuse bounces.
 #[allow(clippy::too_many_arguments)]
 fn walk_one(
@@ -316,8 +255,7 @@ fn walk_one(
     i: u32,
     reflections: u32,
     rho_bar: f32,
-    centre: Vec3,
-    radius: f32,
+    disc: &SceneDisc,
     sample: &dyn Fn(u32, usize) -> f32,
     set: &mut VplSet,
 ) {
@@ -335,76 +273,32 @@ fn walk_one(
         Vec2::new(sample(i, 3), sample(i, 4)),
     );
     // Start point and direction, and the depth-0 VPL.
-    let (origin, dir, first): (Vec3, Vec3, Option<Vpl>) = match source {
-        Source::Light(li) => {
-            let l = &scene.lights[li as usize];
-            match l.kind {
-                LightKind::Point => {
-                    let d = uniform_cone(Vec3::Z, -1.0, u2);
-                    (l.position, d, None)
-                }
-                LightKind::Spot {
-                    inner_cone_angle,
-                    outer_cone_angle,
-                } => {
-                    // Uniform in the outer cone, weighted by the falloff.
-                    let d = uniform_cone(l.direction, outer_cone_angle.cos(), u2);
-                    let (ci, co) = (inner_cone_angle.cos(), outer_cone_angle.cos());
-                    let a = ((d.dot(l.direction) - co) / (ci - co).max(1e-4)).clamp(0.0, 1.0);
-                    let solid = std::f32::consts::TAU * (1.0 - co);
-                    let falloff_mean = spot_solid_angle(inner_cone_angle, outer_cone_angle) / solid;
-                    power *= a * a / falloff_mean.max(1e-12);
-                    (l.position, d, None)
-                }
-                LightKind::Directional { angular_radius } => {
-                    let d = if angular_radius > 0.0 {
-                        uniform_cone(l.direction, angular_radius.cos(), u2)
-                    } else {
-                        l.direction
-                    };
-                    disc_start(d, u1, centre, radius, power, i)
-                }
-            }
-        }
-        Source::Emitters => {
-            // The triangle by power, from the rest of dimension 0; the point from 1–2.
-            let (e, _) = emitters.pick(u_rest);
-            let em = &emitters.list[e];
-            let b = uniform_triangle(u1);
-            let y =
-                em.vertices[0] * (1.0 - b.x - b.y) + em.vertices[1] * b.x + em.vertices[2] * b.y;
-            let mut normal = em.normal;
-            if em.two_sided && u2.x < 0.5 {
-                normal = -normal;
-            }
-            let d = cosine_hemisphere(
-                normal,
-                Vec2::new(
-                    if em.two_sided {
-                        (u2.x * 2.0).fract()
-                    } else {
-                        u2.x
-                    },
-                    u2.y,
-                ),
-            );
-            let o = rays.offset(y, normal);
-            (
-                o,
-                d,
-                Some(Vpl {
-                    position: o,
-                    power,
-                    kind: VplKind::Diffuse { normal },
-                    depth: 0,
-                    path: i,
-                }),
-            )
-        }
-        Source::Sky => {
-            let d = uniform_cone(Vec3::Z, -1.0, u2);
-            disc_start(d, u1, centre, radius, power, i)
-        }
+    let emission: Emission = match source {
+        Source::Light(li) => scene.lights[li as usize].emit(u1, u2, disc),
+        Source::Emitters => emitters.emit(rays, u_rest, u1, u2),
+        Source::Sky => sky::emit(u1, u2, disc),
+    };
+    power *= emission.weight;
+    let (origin, dir) = (emission.origin, emission.direction);
+    let first = match emission.start {
+        Start::Point => None,
+        Start::Disc => Some(Vpl {
+            position: origin,
+            power: Vec3::ZERO,
+            kind: VplKind::Directional {
+                direction: dir,
+                irradiance: power / disc.area(),
+            },
+            depth: 0,
+            path: i,
+        }),
+        Start::Surface { normal } => Some(Vpl {
+            position: origin,
+            power,
+            kind: VplKind::Diffuse { normal },
+            depth: 0,
+            path: i,
+        }),
     };
     if settings.first_generation {
         if let Some(v) = first {
@@ -493,13 +387,5 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    fn spot_solid_angle_matches_hard_cone() {
-        // Inner = outer: a hard cone of solid angle 2π(1 − cos θ).
-        let s = spot_solid_angle(0.5, 0.5 + 1e-4);
-        let hard = std::f32::consts::TAU * (1.0 - 0.5f32.cos());
-        assert!((s - hard).abs() / hard < 0.01, "{s} {hard}");
     }
 }

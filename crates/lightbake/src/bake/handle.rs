@@ -1,0 +1,141 @@
+//! A bake on a thread of its own, watched through its progress and cancelled on request: what
+//! the `bake` command and the Bevy plugin both run. The thread has its own rayon pool of
+//! `settings.threads` workers, so a game's task pools stay free for rendering.
+
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use super::{BakeOutput, bake};
+use crate::error::{BakeError, Result};
+use crate::progress::{Progress, ProgressSnapshot};
+use crate::scene::Scene;
+use crate::settings::BakeSettings;
+
+/// A running bake (and whatever follows it on the same thread, such as writing its files).
+#[derive(Debug)]
+pub struct BakeHandle<T = BakeOutput> {
+    thread: Option<JoinHandle<Result<T>>>,
+    progress: Arc<Progress>,
+}
+
+impl BakeHandle<BakeOutput> {
+    /// Starts [`bake`] of `scene` with `settings` on a new thread.
+    ///
+    /// # Errors
+    /// [`BakeError::Thread`] when the thread cannot be started.
+    pub fn spawn(scene: Scene, settings: BakeSettings) -> Result<Self> {
+        Self::spawn_then(scene, settings, |output, _, _| Ok(output))
+    }
+}
+
+impl<T: Send + 'static> BakeHandle<T> {
+    /// Starts [`bake`] of `scene` with `settings` on a new thread named `lightbake`, then runs
+    /// `then(output, &scene, &settings)` there (writing the outputs, say).
+    ///
+    /// # Errors
+    /// [`BakeError::Thread`] when the thread cannot be started.
+    pub fn spawn_then(
+        scene: Scene,
+        settings: BakeSettings,
+        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
+    ) -> Result<Self> {
+        let progress = Arc::new(Progress::new());
+        let watched = Arc::clone(&progress);
+        let thread = std::thread::Builder::new()
+            .name("lightbake".into())
+            .spawn(move || {
+                let output = bake(&scene, &settings, &watched)?;
+                then(output, &scene, &settings)
+            })
+            .map_err(|source| BakeError::Thread { source })?;
+        Ok(Self {
+            thread: Some(thread),
+            progress,
+        })
+    }
+
+    /// The bake's progress (stage, fraction, error estimate, finished stages).
+    pub fn progress(&self) -> &Progress {
+        &self.progress
+    }
+
+    /// A copy of the progress now.
+    pub fn snapshot(&self) -> ProgressSnapshot {
+        self.progress.snapshot()
+    }
+
+    /// Asks the bake to stop at its next check; it then ends with [`BakeError::Cancelled`].
+    pub fn cancel(&self) {
+        self.progress.cancel();
+    }
+
+    /// Whether the thread has finished (so [`Self::join`] will not wait).
+    pub fn is_finished(&self) -> bool {
+        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
+    }
+
+    /// Waits for the end and returns the result.
+    ///
+    /// # Errors
+    /// The bake's error, or [`BakeError::Internal`] when the thread panicked (a bug).
+    pub fn join(mut self) -> Result<T> {
+        self.take_result()
+    }
+
+    /// The result when the thread has finished, without waiting; `None` while it runs, and
+    /// after the result has been taken.
+    pub fn try_join(&mut self) -> Option<Result<T>> {
+        (self.thread.is_some() && self.is_finished()).then(|| self.take_result())
+    }
+
+    fn take_result(&mut self) -> Result<T> {
+        let Some(thread) = self.thread.take() else {
+            return Err(BakeError::Internal {
+                message: "the bake's result was already taken".into(),
+            });
+        };
+        thread.join().unwrap_or_else(|payload| {
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(BakeError::Internal {
+                message: format!("the bake thread panicked: {message}"),
+            })
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::testscenes::{CornellLight, cornell_box};
+
+    #[test]
+    fn a_handle_bakes_and_reports_panics() {
+        let settings = BakeSettings {
+            texel_density: 4.0,
+            texel_density_from_scene: false,
+            samples_per_texel: 2,
+            method: crate::settings::Method::Direct,
+            ..BakeSettings::preview()
+        };
+        let scene = cornell_box(CornellLight::Point);
+        let handle = BakeHandle::spawn(scene.clone(), settings.clone()).unwrap();
+        let output = handle.join().unwrap();
+        assert!(!output.pages.is_empty());
+
+        let mut handle: BakeHandle<()> =
+            BakeHandle::spawn_then(scene, settings, |_, _, _| panic!("on purpose")).unwrap();
+        let result = loop {
+            if let Some(r) = handle.try_join() {
+                break r;
+            }
+            std::thread::yield_now();
+        };
+        let message = result.unwrap_err().to_string();
+        assert!(message.contains("panicked: on purpose"), "{message}");
+        assert!(handle.try_join().is_none(), "the result is taken once");
+    }
+}

@@ -1,0 +1,327 @@
+//! The driver: plan → memory check → unwrap → BVH → texel patches → validity → direct light
+//! → indirect light (radiosity or instant radiosity) → pages (fill, dilate). Each stage runs
+//! only when the plan says the scene needs it, and is timed, counted and recorded in the
+//! report ([`stages`]); the lighting passes are [`passes`].
+//!
+//! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
+//! writes it; [`BakeHandle`] runs both on a thread of their own. Work runs on a rayon pool of
+//! `settings.threads` threads; the result does not depend on the thread count.
+
+pub mod handle;
+mod passes;
+mod stages;
+
+use std::time::Instant;
+
+use crate::bvh::RayScene;
+use crate::bvh::workload::{RayRates, calibrate};
+use crate::context::BakeContext;
+use crate::error::{BakeError, Result};
+use crate::error_estimate::{ErrorEstimate, rms_luminance};
+use crate::lightmap::{HALF_MAX, LightmapPage, assemble};
+use crate::lights::Emitters;
+use crate::memory;
+use crate::plan::BakePlan;
+use crate::progress::{Progress, RayKind};
+use crate::raster::Patches;
+use crate::report::{BakeReport, Floor, TexelStats};
+use crate::scene::Scene;
+use crate::settings::{BakeSettings, Method};
+use crate::unwrap::{Layout, unwrap_scene};
+pub use handle::BakeHandle;
+use stages::Stages;
+
+/// Rays of each kind the floor calibration traces.
+const CALIBRATION_RAYS: usize = 65_536;
+
+/// Everything a bake produces, in memory.
+#[derive(Clone, Debug)]
+pub struct BakeOutput {
+    /// The lightmap layout: per-mesh UVs and per-instance rectangles.
+    pub layout: Layout,
+    /// The scene as baked: meshes split along seams, `uv1` set.
+    pub baked_scene: Scene,
+    /// Lightmap pages (E/π, linear RGB).
+    pub pages: Vec<LightmapPage>,
+    /// Timings, counts, plan and warnings.
+    pub report: BakeReport,
+}
+
+/// Bakes `scene` with `settings`, reporting progress to (and obeying cancellation from)
+/// `progress`.
+///
+/// # Errors
+/// Invalid settings or scene ([`BakeError::BadSetting`] and the scene errors),
+/// [`BakeError::OverMemoryBudget`], [`BakeError::Unwrap`], [`BakeError::Cancelled`].
+pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<BakeOutput> {
+    settings.validate()?;
+    scene.validate()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| BakeError::BadSetting {
+            name: "threads",
+            value: settings.threads.to_string(),
+            message: e.to_string(),
+        })?;
+    pool.install(|| bake_in_pool(scene, settings, progress, pool.current_num_threads()))
+}
+
+/// Values of the valid patches only.
+fn valid<T: Copy>(patches: &Patches, values: &[T]) -> Vec<T> {
+    patches
+        .patches
+        .iter()
+        .zip(values)
+        .filter(|(p, _)| p.is_valid())
+        .map(|(_, v)| *v)
+        .collect()
+}
+
+/// What lighting the scene produced, for the report.
+#[derive(Default)]
+struct Lit {
+    pages: Vec<LightmapPage>,
+    texels: TexelStats,
+    radiosity: Option<crate::radiosity::RadiosityReport>,
+    vpl: Option<crate::vpl::VplReport>,
+    /// How the indirect light was computed, for the plan.
+    indirect_reason: Option<String>,
+    error: Option<ErrorEstimate>,
+    rates: RayRates,
+}
+
+fn bake_in_pool(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    threads: usize,
+) -> Result<BakeOutput> {
+    let start = Instant::now();
+    let mut stages = Stages::new(progress);
+    let mut warnings = scene.warnings.clone();
+
+    // Plan, and refuse early when the texel count alone would not fit.
+    let mut plan = stages.run("plan", 1, || {
+        let plan = BakePlan::new(scene, settings);
+        let note = format!("{} texels/m", plan.texel_density);
+        Ok((plan, 0, note))
+    })?;
+    memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;
+
+    let layout = stages.run("unwrap", scene.meshes.len() as u64, || {
+        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        let note = format!(
+            "{} mesh(es) xatlas, {} kept, {} page(s)",
+            plan.meshes_to_unwrap,
+            plan.meshes_keeping_uv1,
+            layout.pages.len()
+        );
+        Ok((layout, 0, note))
+    })?;
+    warnings.extend(layout.warnings.iter().cloned());
+    let estimate = memory::estimate_from_layout(scene, &layout);
+    estimate.check(settings.memory_budget_mib)?;
+    let baked_scene = layout.apply(scene);
+
+    let mut lit = if plan.nothing_to_bake {
+        Lit {
+            pages: layout
+                .pages
+                .iter()
+                .map(|p| LightmapPage::black(p.width, p.height))
+                .collect(),
+            ..Lit::default()
+        }
+    } else {
+        light_scene(
+            &baked_scene,
+            &layout,
+            settings,
+            &plan,
+            &mut stages,
+            &mut warnings,
+        )?
+    };
+    lit.texels.pages = layout.pages.len();
+    lit.texels.page_texels = layout.page_texels();
+    warnings.extend(half_float_warning(&lit.pages));
+    if let Some(reason) = lit.indirect_reason.take() {
+        plan.set_reason("indirect", reason);
+    }
+    let total_seconds = start.elapsed().as_secs_f64();
+    let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
+        .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
+    let report = BakeReport {
+        lightbake_version: env!("CARGO_PKG_VERSION"),
+        scene: scene.name.clone(),
+        settings: settings.clone(),
+        plan,
+        stages: stages.list,
+        radiosity: lit.radiosity,
+        vpl: lit.vpl,
+        texels: lit.texels,
+        triangles: scene.instanced_triangle_count(),
+        threads,
+        memory: estimate,
+        warnings,
+        error: lit.error,
+        floor,
+        total_seconds,
+        outputs: Vec::new(),
+    };
+    Ok(BakeOutput {
+        layout,
+        baked_scene,
+        pages: lit.pages,
+        report,
+    })
+}
+
+/// The warning about texels beyond the half-float range, which every output format and
+/// Bevy's `Rgba16Float` images clamp to 65504.
+fn half_float_warning(pages: &[LightmapPage]) -> Option<String> {
+    let over: usize = pages.iter().map(LightmapPage::channels_over_half).sum();
+    let max = pages
+        .iter()
+        .flat_map(|p| p.texels.iter())
+        .fold(0.0f32, |m, t| m.max(t.max_element()));
+    (over > 0).then(|| {
+        format!(
+            "the brightest texel ({max:.3e}) exceeds the half-float range: {over} texel channels are clamped to {HALF_MAX} in EXR and KTX2 outputs and in Bevy's images"
+        )
+    })
+}
+
+/// Everything after the unwrap for a scene with something to bake: the ray-tracing
+/// structure, the texel patches, the lighting passes, the floor calibration and the pages.
+fn light_scene(
+    scene: &Scene,
+    layout: &Layout,
+    settings: &BakeSettings,
+    plan: &BakePlan,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<Lit> {
+    let mut lit = Lit::default();
+    let rays = stages.run("bvh", 1, || {
+        let rays = RayScene::build(scene);
+        let (nodes, packets, bytes) = rays.bvh_size();
+        let note = format!(
+            "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB",
+            rays.bvh_triangle_count(),
+            bytes as f64 / 1048576.0
+        );
+        Ok((rays, 0, note))
+    })?;
+    let mut patches = stages.run("raster", 1, || {
+        let p = Patches::build(scene, layout, &rays);
+        let note = format!("{} texel patches", p.patches.len());
+        Ok((p, 0, note))
+    })?;
+    stages.run("validity", patches.patches.len() as u64, || {
+        patches.fix_validity(scene, layout, &rays);
+        let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
+        Ok(((), patches.rays, note))
+    })?;
+    stages.annotate(RayKind::Shadow, None);
+    lit.texels.patches = patches.patches.len();
+    lit.texels.moved = patches.moved;
+    lit.texels.invalid = patches.invalid;
+    let emitters = Emitters::collect(scene, &rays);
+    warnings.extend(emitter_warnings(&emitters, &rays, scene));
+    let ctx = BakeContext {
+        scene,
+        layout,
+        rays: &rays,
+        patches: &patches,
+        settings,
+        plan,
+    };
+    let light = passes::lighting(&ctx, &emitters, stages, warnings)?;
+    lit.radiosity = light.radiosity;
+    lit.vpl = light.vpl;
+    lit.indirect_reason = light.indirect_reason;
+    if !light.errors.is_empty() {
+        let value = rms_luminance(&valid(&patches, &light.irradiance));
+        lit.error = Some(ErrorEstimate::combine(&light.errors, value));
+    }
+    // The rates the floor is measured at: a short calibration on the same pool.
+    lit.rates = stages.run("calibrate", 1, || {
+        let r = calibrate(&rays, CALIBRATION_RAYS, settings.seed);
+        let note = format!(
+            "BVH rates for the floor: {:.2} Mrays/s closest, {:.2} shadow",
+            r.closest_per_second / 1e6,
+            r.shadow_per_second / 1e6
+        );
+        Ok((r, 0, note))
+    })?;
+    let irradiance = light.irradiance;
+    if let Some(bad) = irradiance.iter().position(|e| !e.is_finite()) {
+        // An internal error: report it rather than write garbage.
+        return Err(BakeError::BadSetting {
+            name: "scene",
+            value: format!("patch {bad}"),
+            message: format!(
+                "direct light produced a non-finite value {:?}",
+                irradiance[bad]
+            ),
+        });
+    }
+    lit.pages = stages.run("dilate", 1, || {
+        let (pages, st) = assemble(layout, &patches, &irradiance, settings.padding + 2);
+        lit.texels.filled = st.filled;
+        lit.texels.dilated = st.dilated;
+        if st.unfilled > 0 {
+            warnings.push(format!(
+                "{} texels inside geometry had no valid neighbour in their chart and were left black",
+                st.unfilled
+            ));
+        }
+        let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
+        Ok((pages, 0, note))
+    })?;
+    Ok(lit)
+}
+
+/// Warnings about emissive triangles that lie on each other.
+fn emitter_warnings(emitters: &Emitters, rays: &RayScene, scene: &Scene) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if emitters.coincident > 0 {
+        warnings.push(format!(
+            "{} emissive triangles lie exactly on another emissive triangle (a duplicated mesh or face); each pair is sampled as one light",
+            emitters.coincident
+        ));
+    }
+    if emitters.overlapping_count > 0 {
+        let name = |t: u32| {
+            let info = rays.triangles[t as usize];
+            format!(
+                "'{}' triangle {}",
+                scene.instances[info.instance as usize].name, info.local
+            )
+        };
+        let listed: Vec<String> = emitters
+            .overlapping
+            .iter()
+            .map(|&(a, b)| format!("{} and {}", name(a), name(b)))
+            .collect();
+        warnings.push(format!(
+            "{} pair(s) of emissive triangles overlap in the same plane ({}{}); their light adds up where they overlap: remove one of each pair",
+            emitters.overlapping_count,
+            listed.join(", "),
+            if emitters.overlapping_count > listed.len() {
+                ", …"
+            } else {
+                ""
+            }
+        ));
+    }
+    warnings
+}
+
+/// Whether `method` computes direct light with [`crate::direct`] (method `vpl` carries it by
+/// VPLs instead).
+fn direct_pass_runs(method: Method) -> bool {
+    method != Method::Vpl
+}

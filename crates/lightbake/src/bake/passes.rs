@@ -1,0 +1,411 @@
+//! The lighting passes of a bake as stages: direct light, then the indirect light of the
+//! method (instant radiosity, or radiosity's nodes, transport, solve and error estimate).
+//! With a target error each sampling stage gets an equal share of it (they add in
+//! quadrature) and takes rounds until its estimate reaches the share ([`until_target`]).
+
+use glam::Vec3;
+
+use super::stages::{Stages, scaled, until_target};
+use super::{direct_pass_runs, valid};
+use crate::context::BakeContext;
+use crate::direct::{direct_light, error_method};
+use crate::error::Result;
+use crate::error_estimate::{ErrorEstimate, rms_luminance};
+use crate::lights::Emitters;
+use crate::progress::RayKind;
+use crate::radiosity::{self, Nodes, RadiosityReport};
+use crate::settings::{MAX_VPL_DEPTH, Method};
+use crate::solve::Transport;
+use crate::vpl::{VplReport, instant_radiosity};
+
+/// What the lighting passes produced.
+pub(super) struct Light {
+    /// Irradiance per patch, lux: direct plus indirect.
+    pub(super) irradiance: Vec<Vec3>,
+    /// The sampling stages' error estimates.
+    pub(super) errors: Vec<ErrorEstimate>,
+    pub(super) radiosity: Option<RadiosityReport>,
+    pub(super) vpl: Option<VplReport>,
+    /// How the indirect light was computed, for the plan.
+    pub(super) indirect_reason: Option<String>,
+}
+
+/// Runs the direct pass and the method's indirect pass.
+pub(super) fn lighting(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<Light> {
+    let settings = ctx.settings;
+    let direct_runs = direct_pass_runs(settings.method);
+    let indirect_runs = ctx.plan.runs("indirect");
+    let sampling_stages = u32::from(direct_runs) + u32::from(indirect_runs);
+    let share = settings
+        .target_error
+        .map(|t| t as f64 / (sampling_stages.max(1) as f64).sqrt());
+    let mut light = Light {
+        irradiance: vec![Vec3::ZERO; ctx.patches.patches.len()],
+        errors: Vec::new(),
+        radiosity: None,
+        vpl: None,
+        indirect_reason: None,
+    };
+    if direct_runs {
+        let (irradiance, error) = direct(ctx, emitters, share, stages, warnings)?;
+        light.irradiance = irradiance;
+        light.errors.extend(error);
+    }
+    if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
+        let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
+        for (e, v) in light.irradiance.iter_mut().zip(&from_vpls) {
+            *e += *v;
+        }
+        light.errors.push(report.error.clone());
+        light.indirect_reason = Some(format!(
+            "instant radiosity: {} particles ({}), {} VPLs, clamp distance {:.3e} m",
+            report.particles, report.particles_reason, report.vpls, report.clamp_distance
+        ));
+        light.vpl = Some(report);
+    } else if indirect_runs {
+        let (reflected, report, error) =
+            radiosity(ctx, &light.irradiance, share, stages, warnings)?;
+        for (e, r) in light.irradiance.iter_mut().zip(&reflected) {
+            *e += *r;
+        }
+        light.errors.extend(error);
+        light.indirect_reason = Some(format!(
+            "radiosity, solver {}: {}",
+            report.solver, report.solver_reason
+        ));
+        light.radiosity = Some(report);
+    }
+    Ok(light)
+}
+
+/// The direct stage: irradiance per patch and its error estimate.
+fn direct(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    share: Option<f64>,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Vec3>, Option<ErrorEstimate>)> {
+    let patches = ctx.patches;
+    let progress = stages.progress();
+    let mut pilot = ctx.settings.clone();
+    if share.is_some() {
+        // A variance needs samples to spread: the pilot takes at least 4.
+        pilot.samples_per_texel = pilot.samples_per_texel.max(4);
+    }
+    let rounds = stages.run("direct", patches.patches.len() as u64, || {
+        let mut rays = 0;
+        let rounds = until_target(
+            share,
+            pilot,
+            |s, round| {
+                if round > 1 {
+                    progress.begin(
+                        &format!("direct (round {round})"),
+                        patches.patches.len() as u64,
+                    );
+                }
+                let c = BakeContext {
+                    settings: s,
+                    ..*ctx
+                };
+                let r = direct_light(&c, emitters, progress);
+                rays += r.rays;
+                // One sample has no spread: no estimate then.
+                let est = (s.samples_per_texel >= 2).then(|| {
+                    ErrorEstimate::from_standard_errors(
+                        &valid(patches, &r.standard_error),
+                        rms_luminance(&valid(patches, &r.irradiance)),
+                        error_method(s, ctx.plan.sky),
+                    )
+                });
+                let relative = est.as_ref().map(|e| e.relative_rms);
+                Ok(((r.irradiance, est, s.clone()), relative))
+            },
+            |s, _, factor| {
+                let next = (
+                    scaled(s.samples_per_texel, factor, 4096),
+                    scaled(s.sky_samples, factor, 65_536),
+                );
+                let changed = next != (s.samples_per_texel, s.sky_samples);
+                (s.samples_per_texel, s.sky_samples) = next;
+                changed
+            },
+        )?;
+        let s = &rounds.value.2;
+        let note = format!(
+            "{} spp, {} light(s), {} emitter triangle(s){}{}",
+            s.samples_per_texel,
+            ctx.plan.lights.iter().filter(|l| l.instances > 0).count(),
+            emitters.list.len(),
+            if ctx.plan.sky {
+                format!(", {} sky rays/texel", s.sky_samples)
+            } else {
+                String::new()
+            },
+            if rounds.round > 1 {
+                format!(", {} rounds", rounds.round)
+            } else {
+                String::new()
+            }
+        );
+        Ok((rounds, rays, note))
+    })?;
+    let (irradiance, error, _) = rounds.value;
+    if let Some(e) = error.as_ref().filter(|_| rounds.missed) {
+        warnings.push(format!(
+            "direct light stopped at an estimated {:.2}% error, above its share {:.2}% of the target (sample counts capped or rounds used up)",
+            100.0 * e.relative_rms,
+            100.0 * share.unwrap_or(0.0)
+        ));
+    }
+    stages.annotate(RayKind::Shadow, error.clone());
+    Ok((irradiance, error))
+}
+
+/// The instant-radiosity stage: irradiance per patch from the VPLs (all of it for method
+/// `vpl`, the indirect part for `hybrid`) and the report.
+fn vpl(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    direct: &[Vec3],
+    share: Option<f64>,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Vec3>, VplReport)> {
+    let settings = ctx.settings;
+    let vpl_only = settings.method == Method::Vpl;
+    let progress = stages.progress();
+    let (from_vpls, report) = stages.run("vpl", ctx.patches.patches.len() as u64, || {
+        let direct = (!vpl_only).then_some(direct);
+        let mut rays = 0;
+        let rounds = until_target(
+            share,
+            settings.clone(),
+            |s, _| {
+                let c = BakeContext {
+                    settings: s,
+                    ..*ctx
+                };
+                let (e, report, r) = instant_radiosity(&c, emitters, vpl_only, direct, progress);
+                rays += r;
+                let relative = report.error.relative_rms;
+                Ok(((e, report), Some(relative)))
+            },
+            |s, (_, report), factor| {
+                let next = scaled(report.particles, factor, 10_000_000);
+                s.vpl_particles = next;
+                s.vpl_time_budget_s = None;
+                next != report.particles
+            },
+        )?;
+        let (e, report) = rounds.value;
+        let note = format!(
+            "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}{}",
+            report.particles,
+            report.vpls,
+            report.mean_reflectivity,
+            100.0 * report.clamped_fraction,
+            if report.compensated {
+                format!(
+                    ", compensated ({} iterations)",
+                    report.compensation_iterations
+                )
+            } else {
+                String::new()
+            },
+            if rounds.round > 1 {
+                format!(", {} rounds", rounds.round)
+            } else {
+                String::new()
+            }
+        );
+        Ok(((e, report), rays, note))
+    })?;
+    if let Some(note) = &report.compensation_note {
+        warnings.push(note.clone());
+    }
+    // Keller's walk follows at most `vpl_max_depth` reflections: in a closed scene the light
+    // beyond them is ρ̄^(d+1) of the total, and it is not baked.
+    let depth = settings.vpl_max_depth.min(MAX_VPL_DEPTH);
+    let lost = (report.mean_reflectivity as f64).powi(depth as i32 + 1);
+    if lost > 0.01 {
+        warnings.push(format!(
+            "instant radiosity follows at most {depth} reflections; with mean reflectivity {:.3} the light beyond them, up to {:.1}% of the total in a closed scene, is not baked (raise vpl_max_depth, at most {MAX_VPL_DEPTH}, or use the radiosity method)",
+            report.mean_reflectivity,
+            100.0 * lost,
+        ));
+    }
+    if let Some(t) = share.filter(|&t| report.error.relative_rms > t) {
+        warnings.push(format!(
+            "instant radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
+            100.0 * report.error.relative_rms,
+            100.0 * t
+        ));
+    }
+    stages.annotate(RayKind::Shadow, Some(report.error.clone()));
+    Ok((from_vpls, report))
+}
+
+/// One radiosity round's result.
+struct Solved {
+    plan: radiosity::SolverPlan,
+    transport: Option<Transport>,
+    solution: crate::solve::Solution,
+    error: ErrorEstimate,
+}
+
+/// The radiosity stages (nodes, transport, solve, error estimate): reflected irradiance per
+/// patch, the report and the error estimate.
+fn radiosity(
+    ctx: &BakeContext<'_>,
+    direct: &[Vec3],
+    share: Option<f64>,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Vec3>, RadiosityReport, Option<ErrorEstimate>)> {
+    let settings = ctx.settings;
+    let nodes = stages.run("nodes", 1, || {
+        let nodes = Nodes::new(ctx, settings.basis);
+        let note = format!(
+            "{} nodes, max albedo {:.3}",
+            nodes.len(),
+            nodes.max_albedo()
+        );
+        Ok((nodes, 0, note))
+    })?;
+    let source = radiosity::source(&nodes, direct);
+    let mut s = settings.clone();
+    if let Some(t) = settings.target_error {
+        s.solver_tolerance = s.solver_tolerance.min(t as f64 / 4.0);
+    }
+    let tolerance = s.solver_tolerance;
+    let rounds = until_target(
+        share,
+        s,
+        |s, round| {
+            let c = BakeContext {
+                settings: s,
+                ..*ctx
+            };
+            let solved = radiosity_round(&c, &nodes, &source, direct, round, stages)?;
+            let relative = solved.error.relative_rms;
+            Ok((solved, Some(relative)))
+        },
+        |s, solved, factor| {
+            // The count that sets the noise: form-factor rays, or the shooting's rays.
+            let count = if solved.transport.is_some() {
+                &mut s.transport_rays
+            } else {
+                &mut s.stochastic_rays_per_node
+            };
+            let next = scaled(*count, factor, 65_536);
+            let changed = next != *count;
+            *count = next;
+            changed
+        },
+    )?;
+    let Solved {
+        plan,
+        transport,
+        solution,
+        error,
+    } = rounds.value;
+    if rounds.missed {
+        warnings.push(format!(
+            "radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
+            100.0 * error.relative_rms,
+            100.0 * share.unwrap_or(0.0)
+        ));
+    }
+    if !solution.converged {
+        warnings.push(format!(
+            "the {} solver did not reach the tolerance {tolerance:.1e}: {}",
+            solution.solver, solution.stop_reason
+        ));
+    }
+    let reflected = radiosity::per_patch(&nodes, &solution.indirect, ctx.patches.patches.len());
+    let report = RadiosityReport {
+        solver: solution.solver,
+        solver_reason: plan.reason.clone(),
+        basis: settings.basis,
+        nodes: nodes.len(),
+        max_albedo: nodes.max_albedo(),
+        transport_nnz: transport.as_ref().map_or(0, Transport::nnz),
+        transport_bytes: transport.as_ref().map_or(0, Transport::bytes),
+        transport_estimate_bytes: plan.transport_estimate_bytes,
+        solver_working_bytes: plan.solver_working_bytes,
+        solution,
+    };
+    Ok((reflected, report, Some(error)))
+}
+
+/// One round of radiosity at `ctx`'s counts: the solver plan, the transport matrix (when the
+/// solver needs one), the solve and the error estimate, each a stage (`#round` appended
+/// after the first round).
+fn radiosity_round(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    source: &[Vec3],
+    direct: &[Vec3],
+    round: u32,
+    stages: &mut Stages<'_>,
+) -> Result<Solved> {
+    let s = ctx.settings;
+    let progress = stages.progress();
+    let suffix = if round > 1 {
+        format!(" #{round}")
+    } else {
+        String::new()
+    };
+    let plan = radiosity::plan_solver(ctx, nodes)?;
+    let transport = if plan.choice.needs_matrix() {
+        Some(
+            stages.run(&format!("transport{suffix}"), nodes.len() as u64, || {
+                let t = radiosity::build_transport(ctx, nodes, progress);
+                let note = format!(
+                    "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
+                    s.transport_rays,
+                    t.nnz(),
+                    t.bytes() as f64 / 1048576.0,
+                    plan.transport_estimate_bytes as f64 / 1048576.0
+                );
+                let rays = t.rays;
+                Ok((t, rays, note))
+            })?,
+        )
+    } else {
+        None
+    };
+    let solution = stages.run(&format!("solve{suffix}"), 0, || {
+        let sol = radiosity::solve_system(ctx, nodes, &plan, transport.as_ref(), source, progress);
+        let note = format!("{}: {}", sol.solver, sol.stop_reason);
+        let rays = sol.rays;
+        Ok((sol, rays, note))
+    })?;
+    // The Monte Carlo error of the matrix rows, or of stochastic Jacobi's shooting.
+    let error = stages.run(&format!("error estimate{suffix}"), 1, || {
+        let (e, rays) = radiosity::gather_error(
+            ctx,
+            nodes,
+            &solution.b,
+            &solution.indirect,
+            direct,
+            s.transport_rays,
+        );
+        let note = format!("{:.2}% from {}", 100.0 * e.relative_rms, e.method);
+        Ok((e, rays, note))
+    })?;
+    stages.annotate(RayKind::Closest, Some(error.clone()));
+    Ok(Solved {
+        plan,
+        transport,
+        solution,
+        error,
+    })
+}

@@ -1,0 +1,193 @@
+//! Running stages: each one is timed, counted and recorded (and published to the progress),
+//! and a cancel is seen between them; and the rounds a sampling stage takes to reach its share
+//! of a target error ([`until_target`]).
+
+use std::time::Instant;
+
+use crate::error::{BakeError, Result};
+use crate::error_estimate::ErrorEstimate;
+use crate::progress::{Progress, RayKind, StageStats};
+use crate::settings::BakeSettings;
+
+/// The finished stages of one bake, in order.
+pub(super) struct Stages<'p> {
+    pub(super) list: Vec<StageStats>,
+    progress: &'p Progress,
+}
+
+impl<'p> Stages<'p> {
+    pub(super) fn new(progress: &'p Progress) -> Self {
+        Self {
+            list: Vec::new(),
+            progress,
+        }
+    }
+
+    /// The progress the stages report to.
+    pub(super) fn progress(&self) -> &'p Progress {
+        self.progress
+    }
+
+    /// Runs stage `name` of `total` work units: `f` returns its value, rays traced and note.
+    ///
+    /// # Errors
+    /// What `f` returns, or [`BakeError::Cancelled`] when the bake was cancelled meanwhile.
+    pub(super) fn run<T>(
+        &mut self,
+        name: &str,
+        total: u64,
+        f: impl FnOnce() -> Result<(T, u64, String)>,
+    ) -> Result<T> {
+        self.progress.begin(name, total);
+        let start = Instant::now();
+        let (value, rays, note) = f()?;
+        self.list.push(StageStats {
+            name: name.to_string(),
+            seconds: start.elapsed().as_secs_f64(),
+            rays,
+            ray_kind: if rays > 0 {
+                RayKind::Closest
+            } else {
+                RayKind::None
+            },
+            error: None,
+            note,
+        });
+        self.progress
+            .record_stage(self.list.len() - 1, &self.list[self.list.len() - 1]);
+        if self.progress.is_cancelled() {
+            return Err(BakeError::Cancelled);
+        }
+        Ok(value)
+    }
+
+    /// Sets the last stage's ray kind and error estimate (and publishes the estimate).
+    pub(super) fn annotate(&mut self, kind: RayKind, error: Option<ErrorEstimate>) {
+        let index = self.list.len().saturating_sub(1);
+        if let Some(last) = self.list.last_mut() {
+            if last.rays > 0 {
+                last.ray_kind = kind;
+            }
+            if let Some(e) = &error {
+                self.progress.set_error_estimate(e.relative_rms);
+            }
+            last.error = error;
+            self.progress.record_stage(index, last);
+        }
+    }
+}
+
+/// Rounds a sampling stage may take to reach its share of `target_error`.
+pub(super) const TARGET_ROUNDS: u32 = 3;
+
+/// The factor on a sample count that brings `error` down to `target` (error ∝ 1/√count),
+/// with a 20% margin; 1 when already there.
+fn count_factor(error: f64, target: f64) -> f64 {
+    if error <= target || target <= 0.0 {
+        1.0
+    } else {
+        (error / target).powi(2) * 1.2
+    }
+}
+
+/// `count` × `factor`, rounded up and capped at `max`.
+pub(super) fn scaled(count: u32, factor: f64, max: u32) -> u32 {
+    ((count as f64 * factor).ceil()).min(max as f64) as u32
+}
+
+/// The last round of a sampling stage.
+pub(super) struct Rounds<T> {
+    /// Its result.
+    pub(super) value: T,
+    /// Its number (1 for the first).
+    pub(super) round: u32,
+    /// Its estimate was still above the share (counts capped, or rounds used up).
+    pub(super) missed: bool,
+}
+
+/// The target-error rounds of one sampling stage (see `BakeSettings::target_error`):
+/// `attempt(settings, round)` runs the stage with the current counts and returns its result
+/// and relative error estimate; `raise(settings, result, factor)` multiplies the counts that
+/// set its noise by `factor` and says whether they changed. The rounds stop when the
+/// estimate reaches `share`, when the counts no longer change, or after [`TARGET_ROUNDS`].
+/// Without a share (or an estimate) the stage runs once.
+///
+/// # Errors
+/// What `attempt` returns.
+pub(super) fn until_target<T>(
+    share: Option<f64>,
+    mut settings: BakeSettings,
+    mut attempt: impl FnMut(&BakeSettings, u32) -> Result<(T, Option<f64>)>,
+    raise: impl Fn(&mut BakeSettings, &T, f64) -> bool,
+) -> Result<Rounds<T>> {
+    let mut round = 1;
+    loop {
+        let (value, error) = attempt(&settings, round)?;
+        let factor = match (share, error) {
+            (Some(t), Some(e)) => count_factor(e, t),
+            _ => 1.0,
+        };
+        if factor <= 1.0 || round == TARGET_ROUNDS || !raise(&mut settings, &value, factor) {
+            return Ok(Rounds {
+                value,
+                round,
+                missed: factor > 1.0,
+            });
+        }
+        round += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stage whose error is 1/√count: from a pilot of 10 at 8% towards 2%, the count goes
+    /// to 10·4²·1.2 = 192 (error 1.8%), where it stops.
+    #[test]
+    fn rounds_raise_the_count_until_the_share_is_reached() {
+        let settings = BakeSettings {
+            samples_per_texel: 10,
+            ..BakeSettings::default()
+        };
+        let mut seen = Vec::new();
+        let rounds = until_target(
+            Some(0.02),
+            settings,
+            |s, round| {
+                seen.push((round, s.samples_per_texel));
+                let error = 0.08 * (10.0 / s.samples_per_texel as f64).sqrt();
+                Ok((s.samples_per_texel, Some(error)))
+            },
+            |s, _, factor| {
+                let next = scaled(s.samples_per_texel, factor, 4096);
+                let changed = next != s.samples_per_texel;
+                s.samples_per_texel = next;
+                changed
+            },
+        )
+        .unwrap();
+        assert_eq!(seen, vec![(1, 10), (2, 192)]);
+        assert_eq!((rounds.value, rounds.round, rounds.missed), (192, 2, false));
+    }
+
+    #[test]
+    fn a_capped_count_stops_and_reports_the_miss() {
+        let rounds = until_target(
+            Some(0.01),
+            BakeSettings::default(),
+            |_, _| Ok(((), Some(0.5))),
+            |_, _, _| false,
+        )
+        .unwrap();
+        assert_eq!((rounds.round, rounds.missed), (1, true));
+        let once = until_target(
+            None,
+            BakeSettings::default(),
+            |_, _| Ok(((), Some(0.5))),
+            |_, _, _| true,
+        )
+        .unwrap();
+        assert_eq!((once.round, once.missed), (1, false));
+    }
+}

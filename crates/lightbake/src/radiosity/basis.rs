@@ -1,0 +1,162 @@
+//! The area of each node's basis function, ∫φᵢ dA: split from the texels' open areas by the
+//! basis weights, in closed form inside a chart ([`exact_split`]) and by stratified footprint
+//! samples elsewhere.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::hit_mapper::HitMapper;
+use super::nodes::Nodes;
+use super::support::SUPPORT_MARGIN;
+use crate::context::BakeContext;
+use crate::raster::Patch;
+use crate::sampling::sobol_02;
+use crate::settings::Basis;
+use crate::unwrap::InstanceRect;
+
+/// One chunk of [`basis_areas`]' work: (node, area share) entries, and the sliver nodes.
+type AreaChunk = (Vec<(u32, f32)>, Vec<u32>);
+
+/// Footprint samples per texel for the basis areas.
+const AREA_SAMPLES: u32 = 16;
+
+/// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];
+/// invalid texels contribute their open rim), split over stratified points of its footprint,
+/// given to the nodes by the basis weights at those points.
+///
+/// Also returns, per node, whether none of its texel's footprint points is open (see
+/// [`Nodes::sliver`]).
+pub(super) fn basis_areas(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    mapper: &HitMapper<'_>,
+) -> (Vec<f32>, Vec<bool>) {
+    let patches = &ctx.patches.patches;
+    let chunks: Vec<AreaChunk> = patches
+        .par_chunks(512)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut out = Vec::new();
+            let mut slivers = Vec::new();
+            let mut w = [(0u32, 0f32); 4];
+            for (k, p) in chunk.iter().enumerate() {
+                let Some(rect) = ctx.layout.instances[p.instance as usize] else {
+                    continue;
+                };
+                if exact_split(mapper, p, rect, &mut out) {
+                    continue;
+                }
+                let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+                let footprint = ctx.patches.footprint_of(p);
+                // Full-texel world area per sample; a valid texel's samples share its
+                // (already visibility-reduced) area instead.
+                let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> =
+                    Vec::with_capacity(AREA_SAMPLES as usize);
+                let mut on_surface = 0;
+                for s in 0..AREA_SAMPLES {
+                    let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
+                    let Some(sp) = footprint
+                        .iter()
+                        .find_map(|&t| mapper.surface.point(t, q, 0.0))
+                    else {
+                        continue;
+                    };
+                    on_surface += 1;
+                    let from = (sp.position, sp.geometric_normal);
+                    let n = mapper.weights_at(sp.triangle, q, from, &mut w);
+                    let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
+                    else {
+                        continue;
+                    };
+                    let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
+                    if ctx.patches.open_point(p, &sp, anchor_patch, ctx.rays) {
+                        points.push((sp.triangle, q, from));
+                    }
+                }
+                if p.is_valid() && points.is_empty() {
+                    // A sliver: its representative point stands for it.
+                    slivers.push(nodes.of_patch[c * 512 + k]);
+                    points.push((
+                        p.triangle,
+                        texel + Vec2::splat(0.5),
+                        (p.position, p.geometric_normal),
+                    ));
+                }
+                if points.is_empty() {
+                    continue;
+                }
+                let share = if p.is_valid() {
+                    p.area / points.len() as f32
+                } else {
+                    p.area / on_surface.max(1) as f32
+                };
+                for (t, q, from) in points {
+                    let n = mapper.weights_at(t, q, from, &mut w);
+                    out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
+                }
+            }
+            (out, slivers)
+        })
+        .collect();
+    let mut area = vec![0.0f32; nodes.len()];
+    let mut sliver = vec![false; nodes.len()];
+    for (chunk, slivers) in chunks {
+        for (j, a) in chunk {
+            area[j as usize] += a;
+        }
+        for j in slivers {
+            sliver[j as usize] = true;
+        }
+    }
+    // Every node keeps at least a sliver of its own area.
+    for (i, a) in area.iter_mut().enumerate() {
+        *a = a.max(1e-3 * patches[nodes.patch[i] as usize].area);
+    }
+    (area, sliver)
+}
+
+/// A texel's area split over the nodes in closed form, where the sampled split of
+/// [`basis_areas`] can only approximate it: the texel is valid, away from other geometry and
+/// its square lies inside its triangle (every point of it is open surface), and each texel of
+/// the 3 × 3 block around it carries an unsplit node of its chart. The bilinear weight of the
+/// node `d` texels away then integrates over the texel square to g(dx)·g(dy), with
+/// g(0) = 3/4 and g(±1) = 1/8 (the texel's own node under the constant basis takes it all).
+/// Appends the shares to `out` and returns whether it applied.
+fn exact_split(
+    mapper: &HitMapper<'_>,
+    p: &Patch,
+    rect: InstanceRect,
+    out: &mut Vec<(u32, f32)>,
+) -> bool {
+    if !p.is_valid() || p.flags & (Patch::NEAR_GEOMETRY | Patch::MOVED) != 0 {
+        return false;
+    }
+    let (x, y) = ((p.x - rect.x) as i64, (p.y - rect.y) as i64);
+    let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+    let Some(frame) = mapper.surface.frame(p.triangle, centre) else {
+        return false;
+    };
+    if !frame.covers(0.5, SUPPORT_MARGIN) {
+        return false;
+    }
+    let grid = mapper.grid_lookup(rect, p.instance, p.chart);
+    if mapper.basis == Basis::Constant {
+        let Some((node, false)) = grid.at(x, y) else {
+            return false;
+        };
+        out.push((node, p.area));
+        return true;
+    }
+    let mut block = [(0u32, 0f32); 9];
+    const G: [f32; 3] = [0.125, 0.75, 0.125];
+    for (k, entry) in block.iter_mut().enumerate() {
+        let (dx, dy) = (k as i64 % 3 - 1, k as i64 / 3 - 1);
+        let Some((node, false)) = grid.at(x + dx, y + dy) else {
+            return false;
+        };
+        *entry = (node, p.area * G[(dx + 1) as usize] * G[(dy + 1) as usize]);
+    }
+    out.extend(block);
+    true
+}
+

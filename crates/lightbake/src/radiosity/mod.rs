@@ -1,0 +1,240 @@
+//! Interreflected light by radiosity over the texel nodes (Cohen & Wallace 1993; Dutré et
+//! al., *Advanced Global Illumination*, ch. 6).
+//!
+//! lightbake splits the light at every node into the direct irradiance H_d (from the direct
+//! pass, which treats lights, the sun, the sky and emitters exactly) and the irradiance from
+//! reflected light H_r = F·B, where B is the exitance of reflected light:
+//!
+//! B = ρ∘(H_d + F·B)  ⇔  (I − diag(ρ)·F)·B = S,  S = ρ∘H_d,
+//!
+//! and the lightmap stores (H_d + F·B)/π. In a closed room of uniform emission E = π·L_e and
+//! albedo ρ this gives H = E/(1 − ρ), the classic B = E/(1 − ρ) with the emission counted in
+//! H_d. Emitters are not counted twice: their emission is direct light, and B carries only
+//! reflection.
+
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`nodes`] | the unknowns: one node per valid texel, its albedo and basis area |
+//! | [`basis`] | ∫φᵢ dA of every node's basis function |
+//! | [`hit_mapper`] | a ray hit → the nodes and basis weights there |
+//! | [`support`] | transport-ray start points on a node's basis support |
+//! | [`monte_carlo`] | form factors by Monte Carlo (Galerkin rows of F) |
+//! | [`hemicube`] | form factors by Cohen & Greenberg's hemicube, for comparison |
+//! | [`stochastic_jacobi`] | the matrix-free solver (it traces rays, so it lives here) |
+//! | [`error_estimate`] | the pass's estimate of its own error |
+//!
+//! The linear algebra (the matrix F and the matrix solvers) is [`crate::solve`].
+
+pub mod basis;
+pub mod error_estimate;
+pub mod hemicube;
+pub mod hit_mapper;
+pub mod monte_carlo;
+pub mod nodes;
+pub mod stochastic_jacobi;
+pub mod support;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::context::BakeContext;
+use crate::error::{BakeError, Result};
+use crate::progress::Progress;
+use crate::settings::{Basis, SolverChoice};
+use crate::solve::transport::Transport;
+use crate::solve::{self, DIRECT_MAX_NODES, Solution, SolveOptions, System};
+pub use error_estimate::gather_error;
+pub use hit_mapper::HitMapper;
+pub use nodes::Nodes;
+use stochastic_jacobi::StochasticOptions;
+
+/// Which solver runs, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SolverPlan {
+    /// The solver (never `Auto`).
+    pub choice: SolverChoice,
+    /// Why.
+    pub reason: String,
+    /// Estimated bytes of the transport matrix (0 when not estimated).
+    pub transport_estimate_bytes: u64,
+    /// Bytes the solver allocates beside the matrix ([`SolverChoice::working_bytes`]).
+    pub solver_working_bytes: u64,
+}
+
+/// Counters of the radiosity pass, for the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RadiosityReport {
+    /// Solver name.
+    pub solver: &'static str,
+    /// Why it was chosen.
+    pub solver_reason: String,
+    /// Basis.
+    pub basis: Basis,
+    /// Unknowns (valid texels).
+    pub nodes: usize,
+    /// Largest albedo component.
+    pub max_albedo: f32,
+    /// Transport matrix: stored entries (0 when matrix-free).
+    pub transport_nnz: usize,
+    /// Transport matrix: bytes (0 when matrix-free).
+    pub transport_bytes: u64,
+    /// Transport matrix: estimate made before building it.
+    pub transport_estimate_bytes: u64,
+    /// Bytes planned for the solver beside the matrix.
+    pub solver_working_bytes: u64,
+    /// The solver's result (history, iterations, stop reason).
+    pub solution: Solution,
+}
+
+/// Decides the solver for these nodes (resolving `Auto`) and checks the matrix budget.
+///
+/// # Errors
+/// [`BakeError::OverMemoryBudget`] when a matrix solver was asked for and the matrix does not
+/// fit; [`BakeError::BadSetting`] when `direct` is asked for too many nodes.
+pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
+    let s = ctx.settings;
+    // The matrix and the solver share the memory budget with the rest of the bake (patches,
+    // pages, ray tracing; see `crate::memory`), and the transport budget caps them on their
+    // own: the smaller room applies.
+    const MIB: u64 = 1024 * 1024;
+    let rest = crate::memory::estimate_from_layout(ctx.scene, ctx.layout).total;
+    let memory_room = (s.memory_budget_mib * MIB).saturating_sub(rest);
+    let budget = (s.transport_budget_mib * MIB).min(memory_room);
+    let limit = if memory_room < s.transport_budget_mib * MIB {
+        format!(
+            "the memory budget ({} MiB) leaves {:.0} MiB beside the rest of the bake ({:.0} MiB); raise --memory-budget",
+            s.memory_budget_mib,
+            memory_room as f64 / MIB as f64,
+            rest as f64 / MIB as f64
+        )
+    } else {
+        "raise the transport budget".to_string()
+    };
+    let estimate = if s.solver.needs_matrix() {
+        monte_carlo::estimate_bytes(ctx, nodes, s.transport_rays, s.basis)
+    } else {
+        0
+    };
+    // The budget holds the matrix and the solver's own vectors and matrix copies.
+    let n = nodes.len();
+    let fits_with = |c: SolverChoice| estimate + c.working_bytes(n, estimate) <= budget;
+    let (choice, reason) = match s.solver {
+        SolverChoice::Auto => solve::choose(n, nodes.max_albedo(), fits_with),
+        c => (c, "chosen in the settings".to_string()),
+    };
+    let working = choice.working_bytes(n, estimate);
+    if choice.needs_matrix() && !fits_with(choice) {
+        return Err(BakeError::OverMemoryBudget {
+            needed_mib: (estimate + working) as f64 / MIB as f64,
+            budget_mib: budget as f64 / MIB as f64,
+            breakdown: format!(
+                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver stochastic-jacobi (matrix-free), or {limit}",
+                choice.name(),
+                nodes.len(),
+                s.transport_rays,
+                estimate as f64 / MIB as f64,
+                working as f64 / MIB as f64
+            ),
+        });
+    }
+    if choice == SolverChoice::Direct && nodes.len() > DIRECT_MAX_NODES {
+        return Err(BakeError::BadSetting {
+            name: "solver",
+            value: "direct".into(),
+            message: format!(
+                "the dense LU solve is limited to {DIRECT_MAX_NODES} nodes and this bake has {}; use auto or krylov",
+                nodes.len()
+            ),
+        });
+    }
+    Ok(SolverPlan {
+        choice,
+        reason,
+        transport_estimate_bytes: estimate,
+        solver_working_bytes: working,
+    })
+}
+
+/// S = ρ∘H_d per node, from per-patch direct irradiance.
+pub fn source(nodes: &Nodes, direct: &[Vec3]) -> Vec<Vec3> {
+    nodes
+        .patch
+        .iter()
+        .zip(&nodes.albedo)
+        .map(|(&p, rho)| *rho * direct[p as usize])
+        .collect()
+}
+
+/// Builds the transport matrix (Monte Carlo, `settings.transport_rays` per node).
+pub fn build_transport(ctx: &BakeContext<'_>, nodes: &Nodes, progress: &Progress) -> Transport {
+    monte_carlo::build(
+        ctx,
+        nodes,
+        ctx.settings.transport_rays,
+        ctx.settings.basis,
+        progress,
+    )
+}
+
+/// Solves for B and returns the solution (with `indirect` = F·B per node).
+pub fn solve_system(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    plan: &SolverPlan,
+    transport: Option<&Transport>,
+    source: &[Vec3],
+    progress: &Progress,
+) -> Solution {
+    let s = ctx.settings;
+    let residual_tolerance = residual_tolerance(s.solver_tolerance, nodes.max_albedo());
+    match (plan.choice, transport) {
+        (SolverChoice::StochasticJacobi, _) | (_, None) => {
+            let mapper = HitMapper::new(*ctx, nodes, s.basis);
+            let options = StochasticOptions {
+                first_iteration_rays: nodes.len() as u64 * s.stochastic_rays_per_node as u64,
+                tolerance: residual_tolerance,
+                max_iterations: s.max_solver_iterations,
+            };
+            stochastic_jacobi::solve(ctx, nodes, &mapper, source, &options, progress)
+        }
+        (choice, Some(transport)) => {
+            let system = System {
+                progress: Some(progress),
+                ..system(transport, nodes, source)
+            };
+            let options = SolveOptions {
+                tolerance: residual_tolerance,
+                max_iterations: s.max_solver_iterations,
+            };
+            solve::solve_matrix(choice, &system, &options)
+        }
+    }
+}
+
+/// The linear system of `nodes` (their albedos and areas) with matrix `transport` and source
+/// `source`, publishing nowhere.
+pub fn system<'a>(transport: &'a Transport, nodes: &'a Nodes, source: &'a [Vec3]) -> System<'a> {
+    System {
+        transport,
+        albedo: &nodes.albedo,
+        source,
+        area: &nodes.area,
+        progress: None,
+    }
+}
+
+/// The relative residual that guarantees relative error `target`:
+/// target·(1 − ρ_max), at least 10⁻¹².
+pub fn residual_tolerance(target: f64, max_albedo: f32) -> f64 {
+    (target * (1.0 - max_albedo as f64)).max(1e-12)
+}
+
+/// Per-patch irradiance from reflected light (zero for invalid patches).
+pub fn per_patch(nodes: &Nodes, indirect: &[Vec3], patches: usize) -> Vec<Vec3> {
+    let mut out = vec![Vec3::ZERO; patches];
+    for (n, &p) in nodes.patch.iter().enumerate() {
+        out[p as usize] = indirect[n];
+    }
+    out
+}

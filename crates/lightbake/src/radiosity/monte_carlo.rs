@@ -1,0 +1,267 @@
+//! Form factors by Monte Carlo (Galerkin): row i of F from `rays` rays per node, started at
+//! points of the node's basis support ([`super::support`]) and cosine-distributed about the
+//! surface there, stratified by Owen-scrambled (0,2)-sequences. Row i holds, for every node j,
+//! the importance-weighted mean basis weight of node j at the rays' hits, so the irradiance at
+//! node i from reflected light is H_i = Σ_j F_ij·B_j. Duplicate targets are merged; weights are
+//! f32 and columns u32. [`estimate_bytes`] traces a pilot sample of rows first so the memory
+//! can be checked against a budget before the matrix is built.
+//!
+//! Rays that leave the scene escape (the sky is direct light, not part of F); rays that hit
+//! the back of a single-sided surface see the inside of a solid, which is black.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::hit_mapper::{HitMapper, RayFate, trace_to_nodes};
+use super::nodes::Nodes;
+use super::support::{SupportFrame, support_point};
+use crate::color::luminance;
+use crate::context::BakeContext;
+use crate::progress::Progress;
+use crate::raster::SurfacePoint;
+use crate::sampling::{Sobol02, cosine_hemisphere};
+use crate::settings::Basis;
+use crate::solve::transport::{RowBlock, Transport};
+
+/// Random-number stream of the transport rays (mixed into a texel's key).
+const STREAM_TRANSPORT: u32 = 200;
+
+/// Rows the Monte Carlo build makes before packing them into the matrix.
+const BUILD_BLOCK_ROWS: usize = 16_384;
+
+/// The samples of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
+/// basis support (from its representative point when it is a [`Nodes::sliver`], or when
+/// no support point is open), cosine-distributed about the surface there. Calls
+/// `f(weight, hit)` for every start point, with `hit` the nodes and bilinear weights the
+/// ray reached (empty when it escaped, was absorbed or pointed below the surface); returns
+/// the escaped weight.
+fn for_each_sample(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    mut f: impl FnMut(f32, &[(u32, f32)]),
+) -> f32 {
+    let p = &ctx.patches.patches[nodes.patch[i] as usize];
+    let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
+    let mut escaped = 0.0f32;
+    let mut out = [(0u32, 0f32); 4];
+    let (starts, directions) = (Sobol02::new(key), Sobol02::new(key ^ 0x6a09_e667));
+    let mut trace = |sp: &SurfacePoint, weight: f32, k: u32| {
+        let dir = cosine_hemisphere(sp.normal, directions.point(k));
+        if dir.dot(sp.geometric_normal) <= 0.0 {
+            f(weight, &[]); // below the surface: no light arrives from there
+            return;
+        }
+        let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
+        match trace_to_nodes(mapper, origin, dir, &mut out) {
+            RayFate::Escaped => {
+                escaped += weight;
+                f(weight, &[]);
+            }
+            RayFate::Absorbed => f(weight, &[]),
+            RayFate::Nodes(n) => f(weight, &out[..n]),
+        }
+    };
+    let mut started = 0u32;
+    if !nodes.sliver.get(i).copied().unwrap_or(false) {
+        let fast = SupportFrame::new(ctx, mapper, i, p);
+        for k in 0..rays {
+            let start = match &fast {
+                Some(frame) => frame.point(starts.point(k)),
+                None => support_point(ctx, mapper, i, p, k, key),
+            };
+            if let Some((sp, weight)) = start {
+                started += 1;
+                trace(&sp, weight, k);
+            }
+        }
+    }
+    if started == 0 {
+        let sp = p.representative();
+        for k in 0..rays {
+            trace(&sp, 1.0, k);
+        }
+    }
+    escaped
+}
+
+/// One row of Monte Carlo transport (see [`for_each_sample`]), self-normalised by
+/// the sample weights. Returns the row and its escaped fraction.
+fn mc_row(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+) -> (Vec<(u32, f32)>, f32) {
+    let mut rows = RowBlock::default();
+    let escaped = mc_row_into(ctx, mapper, nodes, i, rays, &mut Vec::new(), &mut rows);
+    (rows.cols.into_iter().zip(rows.vals).collect(), escaped)
+}
+
+/// [`mc_row`] appended to `out` (its columns, weights and length), with `scratch`
+/// as the row's sort buffer (both reused across rows). Returns the escaped fraction.
+fn mc_row_into(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    scratch: &mut Vec<u64>,
+    out: &mut RowBlock,
+) -> f32 {
+    // Entries packed as (node << 32 | weight bits): one integer sort orders them by node
+    // (weights are non-negative, so their bits order like their values).
+    scratch.clear();
+    let mut total = 0.0f32;
+    let escaped = for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
+        total += weight;
+        scratch.extend(
+            hit.iter()
+                .map(|&(j, wj)| (j as u64) << 32 | (wj * weight).to_bits() as u64),
+        );
+    });
+    let start = out.cols.len();
+    if total > 0.0 {
+        scratch.sort_unstable();
+        for &e in scratch.iter() {
+            let (j, v) = ((e >> 32) as u32, f32::from_bits(e as u32));
+            if out.cols.len() > start && out.cols.last() == Some(&j) {
+                *out.vals.last_mut().expect("a value per column") += v;
+            } else {
+                out.cols.push(j);
+                out.vals.push(v);
+            }
+        }
+        for v in &mut out.vals[start..] {
+            *v /= total;
+        }
+    }
+    out.lens.push((out.cols.len() - start) as u32);
+    if total > 0.0 { escaped / total } else { 0.0 }
+}
+
+/// Node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row estimated by
+/// `rays` rays as [`build`] does, without storing the matrix (lux).
+pub fn gather_row(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    b: &[Vec3],
+) -> Vec3 {
+    let (row, _) = mc_row(ctx, mapper, nodes, i, rays);
+    row.iter()
+        .fold(Vec3::ZERO, |s, &(j, w)| s + b[j as usize] * w)
+}
+
+/// Luminance of node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row
+/// estimated by `rays` rays as [`build`] does: the self-normalised
+/// mean Σw·v / Σw of the luminance v of B at each ray's hit, without forming the row (lux).
+pub fn gather_luminance(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    b: &[Vec3],
+) -> f64 {
+    let (mut total, mut weighted) = (0.0f64, 0.0f64);
+    for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
+        let v: f32 = hit
+            .iter()
+            .map(|&(j, wj)| wj * luminance(b[j as usize]))
+            .sum();
+        total += weight as f64;
+        weighted += weight as f64 * v as f64;
+    });
+    if total <= 0.0 { 0.0 } else { weighted / total }
+}
+
+/// Estimated bytes of the Monte Carlo matrix: up to 512 evenly spaced rows are traced and
+/// their merged lengths extrapolated, × 1.1: the build reserves 1.1× its first block's
+/// mean row length.
+pub fn estimate_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, rays: u32, basis: Basis) -> u64 {
+    let n = nodes.len();
+    if n == 0 {
+        return 0;
+    }
+    let mapper = HitMapper::new(*ctx, nodes, basis);
+    let pilot = n.min(512);
+    let entries: usize = (0..pilot)
+        .into_par_iter()
+        .map(|k| {
+            mc_row(ctx, &mapper, nodes, k * n / pilot, rays)
+                .0
+                .len()
+        })
+        .sum();
+    let per_row = entries as f64 / pilot as f64;
+    (n as f64 * (per_row * 8.0 * 1.1 + 12.0)) as u64
+}
+
+/// Builds F by Monte Carlo with `rays` rays per node (see the module docs).
+pub fn build(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    rays: u32,
+    basis: Basis,
+    progress: &Progress,
+) -> Transport {
+    let mapper = HitMapper::new(*ctx, nodes, basis);
+    let traced = AtomicU64::new(0);
+    let n = nodes.len();
+    let mut t = Transport::empty(n, basis);
+    // Rows are made in blocks and packed as they come, so the per-row vectors of only one
+    // block exist next to the packed matrix (all of them at once doubled the peak). The
+    // first block's mean row length sizes the packed arrays.
+    for start in (0..n).step_by(BUILD_BLOCK_ROWS) {
+        let end = (start + BUILD_BLOCK_ROWS).min(n);
+        // Each task makes a run of rows into flat arrays, reusing its sort buffer.
+        let runs: Vec<(RowBlock, Vec<f32>)> = (start..end)
+            .into_par_iter()
+            .with_min_len(64)
+            .fold(
+                || (RowBlock::default(), Vec::new(), Vec::new()),
+                |(mut rows, mut escaped, mut scratch), i| {
+                    if progress.is_cancelled() {
+                        rows.lens.push(0);
+                        escaped.push(0.0);
+                    } else {
+                        escaped.push(mc_row_into(
+                            ctx,
+                            &mapper,
+                            nodes,
+                            i,
+                            rays,
+                            &mut scratch,
+                            &mut rows,
+                        ));
+                        traced.fetch_add(rays as u64, Ordering::Relaxed);
+                        progress.advance(1);
+                    }
+                    (rows, escaped, scratch)
+                },
+            )
+            .map(|(rows, escaped, _)| (rows, escaped))
+            .collect();
+        if start == 0 {
+            let block: usize = runs.iter().map(|r| r.0.cols.len()).sum();
+            let expected = (block as f64 / (end - start) as f64 * n as f64 * 1.1) as usize;
+            t.cols.reserve_exact(expected);
+            t.vals.reserve_exact(expected);
+        }
+        for (rows, escaped) in runs {
+            t.push_block(rows, escaped);
+        }
+    }
+    t.cols.shrink_to_fit();
+    t.vals.shrink_to_fit();
+    t.rays = traced.into_inner();
+    t
+}

@@ -1,0 +1,135 @@
+//! The unknowns of the radiosity system: one node per valid texel patch, with its diffuse
+//! albedo (averaged over the texel's footprint), the area of its basis function and the flags
+//! that say where geometry cuts its support.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::basis::basis_areas;
+use super::hit_mapper::HitMapper;
+use crate::context::BakeContext;
+use crate::raster::{Footprint, Patch, Surface};
+use crate::settings::Basis;
+
+/// Footprint samples averaged for a texel's albedo.
+const ALBEDO_SAMPLES: u32 = 16;
+
+/// The unknowns: one node per valid patch.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Nodes {
+    /// Node → patch index.
+    pub patch: Vec<u32>,
+    /// Patch → node index (`u32::MAX` for invalid patches).
+    pub of_patch: Vec<u32>,
+    /// Area of each node's basis function, ∫φᵢ dA, m²: for the constant basis the texel's
+    /// covered area; for the linear basis the surface its bilinear weight spreads over (the
+    /// texel area inside a chart, different at chart borders). Reciprocity (A_i·F_ij =
+    /// A_j·F_ji) and power (B·A) are in these areas.
+    pub area: Vec<f32>,
+    /// Diffuse albedo of each node: base colour × (1 − metallic) × the base-colour texture
+    /// averaged over the texel's footprint.
+    pub albedo: Vec<Vec3>,
+    /// Per node: whether geometry cuts its basis support (its anchor cannot see the anchor of
+    /// a neighbouring node of its chart; see [`HitMapper`]). Traced once here, for every
+    /// mapper made for these nodes.
+    pub split: Vec<bool>,
+    /// Per node: none of its texel's footprint points is open surface (the texel lies under
+    /// geometry, and validity moved its point to the open side of it, possibly past the
+    /// texel). Its representative point then stands for it: in its basis area, and as the
+    /// start of its transport rays, as in the hemicube and the VPL gather. Sampling its
+    /// support instead would find no start point (an empty row: no reflected light) or, at
+    /// high ray counts, a few from a sliver of surface, so the row would depend on the ray
+    /// count.
+    pub sliver: Vec<bool>,
+}
+
+impl Nodes {
+    /// One node per valid patch, with its albedo and basis area.
+    pub fn new(ctx: &BakeContext<'_>, basis: Basis) -> Self {
+        let patches = &ctx.patches.patches;
+        let mut of_patch = vec![u32::MAX; patches.len()];
+        let mut patch = Vec::new();
+        for (i, p) in patches.iter().enumerate() {
+            if p.is_valid() {
+                of_patch[i] = patch.len() as u32;
+                patch.push(i as u32);
+            }
+        }
+        let surface = Surface::new(ctx.scene, ctx.layout, ctx.rays);
+        let albedo = patch
+            .par_iter()
+            .map(|&pi| texel_albedo(ctx, &surface, &patches[pi as usize]))
+            .collect();
+        let mut nodes = Self {
+            patch,
+            of_patch,
+            area: Vec::new(),
+            albedo,
+            split: Vec::new(),
+            sliver: Vec::new(),
+        };
+        let mapper = HitMapper::new(*ctx, &nodes, basis);
+        let split = mapper.split_flags();
+        let (area, sliver) = basis_areas(ctx, &nodes, &mapper);
+        drop(mapper);
+        nodes.area = area;
+        nodes.split = split;
+        nodes.sliver = sliver;
+        nodes
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.patch.len()
+    }
+
+    #[cfg(any(test, feature = "internals"))]
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.patch.is_empty()
+    }
+
+    /// Largest albedo component (the contraction factor bound of Jacobi-type iterations).
+    pub fn max_albedo(&self) -> f32 {
+        self.albedo
+            .iter()
+            .fold(0.0f32, |m, a| m.max(a.max_element()))
+    }
+}
+
+/// Albedo of one texel: the material's factor times its texture averaged over the footprint.
+fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3 {
+    let inst = &ctx.scene.instances[p.instance as usize];
+    let material = ctx.scene.material_of(inst.mesh);
+    let factor = material.base_color.truncate() * (1.0 - material.metallic);
+    let (Some(tref), Some(uv0)) = (
+        material.base_color_texture,
+        ctx.scene.meshes[inst.mesh].uv0.as_ref(),
+    ) else {
+        return factor;
+    };
+    let texture = &ctx.scene.textures[tref.texture];
+    if tref.tex_coord != 0 {
+        return factor * texture.mean_srgb().truncate();
+    }
+    let mesh = &ctx.scene.meshes[inst.mesh];
+    let mut sum = Vec3::ZERO;
+    let mut rays = 0;
+    let footprint = Footprint::new(
+        ctx.layout,
+        ctx.patches,
+        surface,
+        ctx.rays,
+        p,
+        ctx.settings.seed,
+    );
+    for s in 0..ALBEDO_SAMPLES {
+        let sp = footprint.point(s, &mut rays);
+        let info = ctx.rays.triangles[sp.triangle as usize];
+        let [a, b, c] = mesh.triangle(info.local as usize);
+        let uv = uv0[a] * (1.0 - sp.bary.x - sp.bary.y) + uv0[b] * sp.bary.x + uv0[c] * sp.bary.y;
+        sum += texture.sample_srgb(uv).truncate();
+    }
+    factor * sum / ALBEDO_SAMPLES as f32
+}
+

@@ -1,0 +1,129 @@
+//! The points of a texel's footprint that the lighting passes sample (direct light, texel
+//! albedo): stratified by an Owen-scrambled (0,2)-sequence over the texel square, each mapped
+//! onto the surface, and kept only where that surface is open (not hidden under geometry from
+//! the texel's representative point).
+
+use glam::Vec2;
+
+use super::{Patch, Patches, Surface, SurfaceFrame, SurfacePoint};
+use crate::bvh::RayScene;
+use crate::sampling::{hash, sobol_02, unit_float};
+use crate::unwrap::Layout;
+
+/// Random-number streams of a texel's footprint points (mixed into its key).
+mod stream {
+    pub const FOOTPRINT: u32 = 1;
+    pub const FOOTPRINT_RETRY: u32 = 2;
+}
+
+/// The points of one patch's texel footprint: point `s` is a point of the texel square on one
+/// of its triangles, or the representative point when the square point misses them (partly
+/// covered texel) or cannot see the representative point (geometry in between). Shared by the
+/// passes that sample texel footprints.
+pub struct Footprint<'a> {
+    layout: &'a Layout,
+    patches: &'a Patches,
+    surface: &'a Surface<'a>,
+    rays: &'a RayScene,
+    p: &'a Patch,
+    seed: u32,
+    /// The surface over the whole texel square as one affine map, when the square lies inside
+    /// the patch's triangle and no other geometry is near: every first-attempt point then
+    /// comes from it without a search of the footprint triangles, as [`Surface::point`] would
+    /// give it.
+    frame: Option<SurfaceFrame>,
+}
+
+/// Barycentric margin a texel square must keep inside its triangle for [`Footprint`]'s affine
+/// map (so rounding cannot put a point where the search would pick another triangle).
+const FRAME_MARGIN: f32 = 1e-4;
+
+impl<'a> Footprint<'a> {
+    /// The footprint of patch `p`, with random streams keyed by `seed`.
+    pub fn new(
+        layout: &'a Layout,
+        patches: &'a Patches,
+        surface: &'a Surface<'a>,
+        rays: &'a RayScene,
+        p: &'a Patch,
+        seed: u32,
+    ) -> Self {
+        let frame = (p.flags & (Patch::NEAR_GEOMETRY | Patch::MOVED) == 0
+            && patches.footprint_of(p).contains(&p.triangle))
+        .then(|| layout.instances[p.instance as usize])
+        .flatten()
+        .and_then(|rect| {
+            let centre = Vec2::new((p.x - rect.x) as f32 + 0.5, (p.y - rect.y) as f32 + 0.5);
+            surface.frame(p.triangle, centre)
+        })
+        .filter(|frame| frame.covers(0.5, FRAME_MARGIN));
+        Self {
+            layout,
+            patches,
+            surface,
+            rays,
+            p,
+            seed,
+            frame,
+        }
+    }
+
+    #[cfg(any(test, feature = "internals"))]
+    /// Whether the points come from the affine map of the texel square (see the field docs).
+    pub fn is_affine(&self) -> bool {
+        self.frame.is_some()
+    }
+
+    /// Point `s` (see the type docs); shadow rays traced to check it are added to `rays`.
+    pub fn point(&self, s: u32, rays: &mut u64) -> SurfacePoint {
+        match &self.frame {
+            Some(frame) => frame.point(self.first(s) - Vec2::splat(0.5)),
+            None => self.searched_point(s, rays),
+        }
+    }
+
+    /// The first-attempt offset of point `s` in the texel square, in [0, 1)².
+    fn first(&self, s: u32) -> Vec2 {
+        sobol_02(s, self.p.rng(self.seed, stream::FOOTPRINT))
+    }
+
+    /// Point `s` found by the general search of the footprint triangles, which
+    /// [`Self::point`] skips when the texel has an affine map (the same point up to rounding).
+    pub fn searched_point(&self, s: u32, rays: &mut u64) -> SurfacePoint {
+        let p = self.p;
+        let rep = p.representative();
+        let footprint = self.patches.footprint_of(p);
+        let Some(rect) = self.layout.instances[p.instance as usize] else {
+            return rep;
+        };
+        let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+        for attempt in 0..4u32 {
+            let u = if attempt == 0 {
+                self.first(s)
+            } else {
+                let k = p.rng(self.seed, stream::FOOTPRINT_RETRY);
+                Vec2::new(
+                    unit_float(hash(k ^ (s * 8 + attempt))),
+                    unit_float(hash(k.wrapping_add(0x9e37_79b9) ^ (s * 8 + attempt))),
+                )
+            };
+            let q = texel + u;
+            let Some(sp) = footprint
+                .iter()
+                .find_map(|&t| self.surface.point(t, q, 0.0))
+            else {
+                continue;
+            };
+            if p.flags & Patch::NEAR_GEOMETRY != 0 {
+                // Only open surface on the representative point's side of any wall.
+                *rays += 2;
+                if !self.patches.sees(p, &sp, self.rays) {
+                    return rep;
+                }
+            }
+            return sp;
+        }
+        rep
+    }
+}
+

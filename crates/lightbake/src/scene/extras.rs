@@ -1,0 +1,239 @@
+//! lightbake's glTF `extras`: one schema for every reader and writer. The importer and the
+//! Bevy plugin read it; the scene writer and the baked-glTF export write it. Everything lives
+//! under the `lightbake` key of an object's `extras`, so other tools' extras are left alone.
+//!
+//! | object | key | type | meaning |
+//! |---|---|---|---|
+//! | scene | `texel_density` | number | suggested texels per metre |
+//! | scene | `sky` | `[r, g, b]` | uniform sky luminance, nits, linear RGB |
+//! | node | `texel_density_scale` | number | density multiplier for this node's meshes |
+//! | node | `bake` | bool | `false`: cast shadows and reflect, but get no lightmap |
+//! | node | `lightmaps` | list | written by the bake: per primitive, its page image and `uv_rect` |
+//! | light | `angular_radius` | number | sun disc radius, radians |
+//! | light | `baked` | bool | written by the bake: the light's diffuse light is in the lightmaps |
+//!
+//! Reading is lenient per key ([`read`]): a key of the wrong type or an unknown key is
+//! reported and left out, and the other keys still apply.
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Deserializer, Serialize};
+use serde_json::{Map, Value};
+
+/// The key under an object's `extras` that holds lightbake's own data.
+pub const KEY: &str = "lightbake";
+
+/// A glTF scene's `extras.lightbake`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneExtras {
+    /// Suggested texel density, texels per metre.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texel_density: Option<f32>,
+    /// Uniform sky luminance, nits, linear RGB.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky: Option<[f32; 3]>,
+}
+
+/// A glTF node's `extras.lightbake`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeExtras {
+    /// Multiplier of the texel density for this node's meshes (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texel_density_scale: Option<f32>,
+    /// `Some(false)`: the node's meshes cast shadows and reflect light but get no lightmap.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bake: Option<bool>,
+    /// The lightmap of each baked primitive (written by the bake). Malformed entries are
+    /// skipped when read.
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "well_formed_entries"
+    )]
+    pub lightmaps: Vec<NodeLightmap>,
+}
+
+/// One primitive's lightmap in a node's `extras.lightbake.lightmaps`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeLightmap {
+    /// Primitive index within the node's mesh.
+    pub primitive: usize,
+    /// Atlas page.
+    pub page: u32,
+    /// The page image, relative to the glTF file.
+    pub image: String,
+    /// Bevy's `Lightmap::uv_rect`: [min u, min v, max u, max v] on the page.
+    pub uv_rect: [f32; 4],
+}
+
+/// A `KHR_lights_punctual` light's `extras.lightbake`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightExtras {
+    /// Angular radius of a directional light's disc, radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angular_radius: Option<f32>,
+    /// The light's diffuse light is in the lightmaps (written by the bake), so an engine
+    /// should stop it lighting lightmapped surfaces a second time.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub baked: bool,
+}
+
+/// Deserialises a list, keeping the entries that parse.
+fn well_formed_entries<'de, D, T>(deserializer: D) -> Result<Vec<T>, D::Error>
+where
+    D: Deserializer<'de>,
+    T: DeserializeOwned,
+{
+    let values = Vec::<Value>::deserialize(deserializer)?;
+    Ok(values
+        .into_iter()
+        .filter_map(|v| serde_json::from_value(v).ok())
+        .collect())
+}
+
+/// Reads `extras.lightbake` from an object's whole `extras` JSON text (`None` when the object
+/// has none). Keys that do not fit the schema are reported in `warnings` as
+/// "`place` extras.lightbake.KEY ignored: WHY" and left at their defaults; the rest apply.
+pub fn read<T: DeserializeOwned + Default>(
+    extras: Option<&str>,
+    place: &str,
+    warnings: &mut Vec<String>,
+) -> T {
+    let Some(text) = extras else {
+        return T::default();
+    };
+    let Ok(value) = serde_json::from_str::<Value>(text) else {
+        warnings.push(format!("{place}: extras are not valid JSON; ignored"));
+        return T::default();
+    };
+    read_value(value.get(KEY), place, warnings)
+}
+
+/// [`read`] from the `extras.lightbake` value itself.
+pub fn read_value<T: DeserializeOwned + Default>(
+    value: Option<&Value>,
+    place: &str,
+    warnings: &mut Vec<String>,
+) -> T {
+    let Some(value) = value else {
+        return T::default();
+    };
+    let Some(object) = value.as_object() else {
+        warnings.push(format!("{place}: extras.{KEY} is not an object; ignored"));
+        return T::default();
+    };
+    if let Ok(parsed) = serde_json::from_value(value.clone()) {
+        return parsed;
+    }
+    // Some key does not fit: keep the keys that do, one at a time.
+    let mut kept = Map::new();
+    for (key, v) in object {
+        let mut trial = kept.clone();
+        trial.insert(key.clone(), v.clone());
+        match serde_json::from_value::<T>(Value::Object(trial)) {
+            Ok(_) => {
+                kept.insert(key.clone(), v.clone());
+            }
+            Err(e) => warnings.push(format!("{place}: extras.{KEY}.{key} ignored: {e}")),
+        }
+    }
+    serde_json::from_value(Value::Object(kept)).unwrap_or_default()
+}
+
+/// Sets `extras.lightbake` of a glTF object (a JSON object) to `data`, keeping its other
+/// extras; an empty `data` removes the key (and an `extras` left empty).
+pub fn write<T: Serialize>(object: &mut Value, data: &T) {
+    let value = serde_json::to_value(data).expect("the extras schema serialises");
+    let empty = value.as_object().is_some_and(Map::is_empty);
+    let Some(object) = object.as_object_mut() else {
+        return;
+    };
+    if empty {
+        if let Some(extras) = object.get_mut("extras").and_then(Value::as_object_mut) {
+            extras.remove(KEY);
+            if extras.is_empty() {
+                object.remove("extras");
+            }
+        }
+        return;
+    }
+    let extras = object
+        .entry("extras")
+        .or_insert_with(|| Value::Object(Map::new()));
+    if !extras.is_object() {
+        *extras = Value::Object(Map::new());
+    }
+    extras
+        .as_object_mut()
+        .expect("an object")
+        .insert(KEY.into(), value);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_keys_are_reported_and_the_rest_kept() {
+        let mut warnings = Vec::new();
+        let s: SceneExtras = read(
+            Some(
+                r#"{"other": 1, "lightbake": {"texel_density": 64, "sky": [1, 2], "texel_densty": 3}}"#,
+            ),
+            "scene",
+            &mut warnings,
+        );
+        assert_eq!(s.texel_density, Some(64.0));
+        assert_eq!(s.sky, None);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[0].contains("extras.lightbake.sky ignored"),
+            "{warnings:?}"
+        );
+        assert!(warnings[1].contains("texel_densty"), "{warnings:?}");
+        let mut none = Vec::new();
+        assert_eq!(
+            read::<NodeExtras>(None, "node", &mut none),
+            NodeExtras::default()
+        );
+        assert!(none.is_empty());
+    }
+
+    #[test]
+    fn malformed_lightmap_entries_are_skipped() {
+        let mut warnings = Vec::new();
+        let n: NodeExtras = read(
+            Some(
+                r#"{"lightbake": {"lightmaps": [
+                {"primitive": 1, "page": 0, "image": "lightmaps/lightmap_0.exr", "uv_rect": [0.0, 0.5, 0.25, 1.0]},
+                {"primitive": "bad"}]}}"#,
+            ),
+            "node",
+            &mut warnings,
+        );
+        assert!(warnings.is_empty());
+        assert_eq!(n.lightmaps.len(), 1);
+        assert_eq!(n.lightmaps[0].uv_rect, [0.0, 0.5, 0.25, 1.0]);
+    }
+
+    #[test]
+    fn writing_keeps_other_extras_and_round_trips() {
+        let mut node = serde_json::json!({ "name": "n", "extras": { "other": true } });
+        let data = NodeExtras {
+            texel_density_scale: Some(0.5),
+            ..NodeExtras::default()
+        };
+        write(&mut node, &data);
+        assert_eq!(node["extras"]["other"], Value::Bool(true));
+        let text = node["extras"].to_string();
+        let back: NodeExtras = read(Some(&text), "node", &mut Vec::new());
+        assert_eq!(back, data);
+        write(&mut node, &NodeExtras::default());
+        assert_eq!(node["extras"], serde_json::json!({ "other": true }));
+        let mut bare = serde_json::json!({});
+        write(&mut bare, &LightExtras::default());
+        assert_eq!(bare, serde_json::json!({}));
+    }
+}

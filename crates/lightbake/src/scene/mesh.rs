@@ -1,0 +1,148 @@
+//! Triangle meshes in their own space, shared by the instances that place them.
+
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+
+use crate::error::{BakeError, Result};
+
+/// A triangle mesh in its own (local) space. Shared by every [`Instance`] that places it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Name used in messages (glTF: `mesh name / primitive index`).
+    pub name: String,
+    /// Vertex positions, metres in mesh space.
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals (computed by [`Mesh::compute_normals`] when the source has none).
+    pub normals: Vec<Vec3>,
+    /// Texture coordinates set 0 (material textures), if any.
+    pub uv0: Option<Vec<Vec2>>,
+    /// Lightmap coordinates (set 1) in [0, 1]², if the source has them.
+    pub uv1: Option<Vec<Vec2>>,
+    /// Triangle list, three indices per triangle.
+    pub indices: Vec<u32>,
+    /// Index into [`Scene::materials`]; `None` means the glTF default material (white).
+    pub material: Option<usize>,
+    /// Where it came from in the source glTF, for the baked-glTF export.
+    pub source: Option<GltfPrimitiveRef>,
+}
+
+/// A glTF `meshes[mesh].primitives[primitive]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct GltfPrimitiveRef {
+    /// Mesh index in the glTF document.
+    pub mesh: usize,
+    /// Primitive index within that mesh.
+    pub primitive: usize,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// The vertex indices of triangle `t`.
+    ///
+    /// # Panics
+    /// If `t` is out of range.
+    pub fn triangle(&self, t: usize) -> [usize; 3] {
+        let i = &self.indices[3 * t..3 * t + 3];
+        [i[0] as usize, i[1] as usize, i[2] as usize]
+    }
+
+    /// Area-weighted vertex normals from the triangles (for sources without normals).
+    /// Vertices of degenerate triangles only get +Y.
+    pub fn compute_normals(&mut self) {
+        let mut n = vec![Vec3::ZERO; self.positions.len()];
+        for t in 0..self.triangle_count() {
+            let [a, b, c] = self.triangle(t);
+            let (pa, pb, pc) = (self.positions[a], self.positions[b], self.positions[c]);
+            let face = (pb - pa).cross(pc - pa); // length = 2 × area
+            n[a] += face;
+            n[b] += face;
+            n[c] += face;
+        }
+        self.normals = n.into_iter().map(|v| v.normalize_or(Vec3::Y)).collect();
+    }
+
+    /// Checks that indices are in range and vertex data is finite.
+    ///
+    /// # Errors
+    /// [`BakeError::PartialTriangle`], [`BakeError::IndexOutOfRange`],
+    /// [`BakeError::NonFiniteVertex`] naming the mesh and the vertex or triangle.
+    pub fn validate(&self) -> Result<()> {
+        if self.indices.len() % 3 != 0 {
+            return Err(BakeError::PartialTriangle {
+                mesh: self.name.clone(),
+                count: self.indices.len(),
+            });
+        }
+        let n = self.positions.len();
+        if let Some((k, &index)) = self
+            .indices
+            .iter()
+            .enumerate()
+            .find(|(_, i)| **i as usize >= n)
+        {
+            return Err(BakeError::IndexOutOfRange {
+                mesh: self.name.clone(),
+                triangle: k / 3,
+                index,
+                vertex_count: n,
+            });
+        }
+        let finite3 = |attribute: &'static str, values: &[Vec3]| -> Result<()> {
+            match values.iter().position(|v| !v.is_finite()) {
+                Some(vertex) => Err(BakeError::NonFiniteVertex {
+                    mesh: self.name.clone(),
+                    vertex,
+                    attribute,
+                    value: format!("{:?}", values[vertex]),
+                }),
+                None => Ok(()),
+            }
+        };
+        let finite2 = |attribute: &'static str, values: &[Vec2]| -> Result<()> {
+            match values.iter().position(|v| !v.is_finite()) {
+                Some(vertex) => Err(BakeError::NonFiniteVertex {
+                    mesh: self.name.clone(),
+                    vertex,
+                    attribute,
+                    value: format!("{:?}", values[vertex]),
+                }),
+                None => Ok(()),
+            }
+        };
+        finite3("position", &self.positions)?;
+        if self.normals.len() != n {
+            return Err(BakeError::BadAccessor {
+                context: format!("mesh '{}' NORMAL", self.name),
+                message: format!("{} normals for {} positions", self.normals.len(), n),
+            });
+        }
+        finite3("normal", &self.normals)?;
+        for (attribute, uv) in [("TEXCOORD_0", &self.uv0), ("TEXCOORD_1", &self.uv1)] {
+            if let Some(uv) = uv {
+                if uv.len() != n {
+                    return Err(BakeError::BadAccessor {
+                        context: format!("mesh '{}' {attribute}", self.name),
+                        message: format!("{} coordinates for {} positions", uv.len(), n),
+                    });
+                }
+                finite2(attribute, uv)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Total surface area in mesh units².
+    pub fn area(&self) -> f32 {
+        (0..self.triangle_count())
+            .map(|t| {
+                let [a, b, c] = self.triangle(t);
+                let (pa, pb, pc) = (self.positions[a], self.positions[b], self.positions[c]);
+                0.5 * (pb - pa).cross(pc - pa).length()
+            })
+            .sum()
+    }
+}
