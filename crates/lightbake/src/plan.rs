@@ -374,7 +374,7 @@ impl Facts<'_> {
         let all_black = scene
             .instances
             .iter()
-            .all(|inst| albedo_upper_bound(scene, inst.mesh).max_element() <= 0.0);
+            .all(|inst| scene.material_of(inst.mesh).albedo_factor().max_element() <= 0.0);
         let particles = settings.vpl_time_budget_s.map_or_else(
             || format!("{} particles", settings.vpl_particles),
             |t| format!("particles for a {t} s gather"),
@@ -451,13 +451,6 @@ impl Facts<'_> {
             ),
         ]
     }
-}
-
-/// The largest diffuse albedo a mesh's material can have (a texture can at most keep the
-/// factor as it is).
-fn albedo_upper_bound(scene: &Scene, mesh: usize) -> glam::Vec3 {
-    let m = scene.material_of(mesh);
-    m.base_color.truncate() * (1.0 - m.metallic)
 }
 
 #[cfg(test)]

@@ -156,18 +156,18 @@ impl Emitters {
                 continue;
             }
             let mesh = &scene.meshes[inst.mesh];
-            let [a, b, c] = mesh.triangle(info.local as usize);
-            let mut radiance = material.emissive;
-            if let (Some(t), Some(uv0)) = (material.emissive_texture, mesh.uv0.as_ref()) {
-                let tex = &scene.textures[t.texture];
-                let centroid = (uv0[a] + uv0[b] + uv0[c]) / 3.0;
-                let mean = [uv0[a], uv0[b], uv0[c], centroid]
+            let t = info.local as usize;
+            let [a, b, c] = mesh.triangle(t);
+            // A textured emitter's luminance: the mean at its corners and centroid.
+            let radiance = if material.emissive_texture.is_some() {
+                [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::splat(1.0 / 3.0)]
                     .iter()
-                    .map(|&uv| tex.sample_srgb(uv).truncate())
+                    .map(|&bary| material.emission(&scene.textures, mesh.texcoords(t, bary)))
                     .sum::<Vec3>()
-                    / 4.0;
-                radiance *= mean;
-            }
+                    / 4.0
+            } else {
+                material.emissive
+            };
             if radiance.max_element() <= 0.0 {
                 continue;
             }

@@ -97,22 +97,13 @@ impl Nodes {
     }
 }
 
-/// Albedo of one texel: the material's factor times its texture averaged over the footprint.
+/// Albedo of one texel: the material's diffuse albedo averaged over the texel's footprint.
 fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3 {
     let inst = &ctx.scene.instances[p.instance as usize];
     let material = ctx.scene.material_of(inst.mesh);
-    let factor = material.base_color.truncate() * (1.0 - material.metallic);
-    let (Some(tref), Some(uv0)) = (
-        material.base_color_texture,
-        ctx.scene.meshes[inst.mesh].uv0.as_ref(),
-    ) else {
-        return factor;
-    };
-    let texture = &ctx.scene.textures[tref.texture];
-    if tref.tex_coord != 0 {
-        return factor * texture.mean_srgb().truncate();
+    if material.base_color_texture.is_none() {
+        return material.albedo_factor();
     }
-    let mesh = &ctx.scene.meshes[inst.mesh];
     let mut sum = Vec3::ZERO;
     let mut rays = 0;
     let footprint = Footprint::new(
@@ -126,10 +117,9 @@ fn texel_albedo(ctx: &BakeContext<'_>, surface: &Surface<'_>, p: &Patch) -> Vec3
     for s in 0..ALBEDO_SAMPLES {
         let sp = footprint.point(s, &mut rays);
         let info = ctx.rays.triangles[sp.triangle as usize];
-        let [a, b, c] = mesh.triangle(info.local as usize);
-        let uv = uv0[a] * (1.0 - sp.bary.x - sp.bary.y) + uv0[b] * sp.bary.x + uv0[c] * sp.bary.y;
-        sum += texture.sample_srgb(uv).truncate();
+        sum += ctx
+            .scene
+            .albedo_at(info.instance as usize, info.local as usize, sp.bary);
     }
-    factor * sum / ALBEDO_SAMPLES as f32
+    sum / ALBEDO_SAMPLES as f32
 }
-

@@ -1,17 +1,22 @@
 //! Materials: what a lightmap baker needs of glTF's metallic-roughness model, and the one
 //! place the diffuse albedo of a surface point is computed.
 
-use glam::{Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
+use super::Texture;
 use crate::error::{BakeError, Result};
+
+/// The texture coordinates of a surface point: `TEXCOORD_0` and `TEXCOORD_1` (`None` where the
+/// mesh has no such set).
+pub type TexCoords = [Option<Vec2>; 2];
 
 /// Reference from a material to a texture and the UV set it uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TextureRef {
     /// Index into [`Scene::textures`].
     pub texture: usize,
-    /// Which `TEXCOORD_n` the texture uses (only 0 is supported for sampling; others fall back
-    /// to the texture's mean colour).
+    /// Which `TEXCOORD_n` the texture uses (0 or 1; a point without that set, or a higher set,
+    /// takes the texture's mean colour).
     pub tex_coord: u32,
 }
 
@@ -72,6 +77,41 @@ impl Material {
         }
     }
 
+    /// The diffuse albedo factor before the texture: base colour × (1 − metallic). No texture
+    /// can raise the albedo above it.
+    pub fn albedo_factor(&self) -> Vec3 {
+        self.base_color.truncate() * (1.0 - self.metallic)
+    }
+
+    /// The diffuse albedo at a surface point with texture coordinates `uv`: the factor times
+    /// the base-colour texture sampled at the set the material names (the texture's mean
+    /// colour when the point has no such set). Every stage's albedo comes from here.
+    pub fn diffuse_albedo(&self, textures: &[Texture], uv: TexCoords) -> Vec3 {
+        let factor = self.albedo_factor();
+        match self.base_color_texture {
+            None => factor,
+            Some(t) => factor * texture_at(&textures[t.texture], t, uv),
+        }
+    }
+
+    /// The diffuse albedo averaged over the base-colour texture (its mean colour).
+    pub fn mean_diffuse_albedo(&self, textures: &[Texture]) -> Vec3 {
+        let factor = self.albedo_factor();
+        match self.base_color_texture {
+            None => factor,
+            Some(t) => factor * textures[t.texture].mean_srgb().truncate(),
+        }
+    }
+
+    /// The emitted luminance at a surface point with texture coordinates `uv`, nits: the
+    /// emission times the emissive texture (sampled as [`Self::diffuse_albedo`] samples).
+    pub fn emission(&self, textures: &[Texture], uv: TexCoords) -> Vec3 {
+        match self.emissive_texture {
+            None => self.emissive,
+            Some(t) => self.emissive * texture_at(&textures[t.texture], t, uv),
+        }
+    }
+
     /// Whether the material emits any light.
     pub fn is_emissive(&self) -> bool {
         self.emissive.max_element() > 0.0
@@ -105,5 +145,13 @@ impl Material {
             )));
         }
         Ok(())
+    }
+}
+
+/// Linear RGB of texture `t` at the set of `uv` it names, or its mean colour.
+fn texture_at(texture: &Texture, t: TextureRef, uv: TexCoords) -> Vec3 {
+    match uv.get(t.tex_coord as usize).copied().flatten() {
+        Some(uv) => texture.sample_srgb(uv).truncate(),
+        None => texture.mean_srgb().truncate(),
     }
 }

@@ -3,6 +3,7 @@
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 
+use super::TexCoords;
 use crate::error::{BakeError, Result};
 
 /// A triangle mesh in its own (local) space. Shared by every [`Instance`] that places it.
@@ -48,6 +49,20 @@ impl Mesh {
     pub fn triangle(&self, t: usize) -> [usize; 3] {
         let i = &self.indices[3 * t..3 * t + 3];
         [i[0] as usize, i[1] as usize, i[2] as usize]
+    }
+
+    /// The texture coordinates of both sets at barycentric weights `bary` (of the triangle's
+    /// second and third vertices) of triangle `t`.
+    ///
+    /// # Panics
+    /// If `t` is out of range.
+    pub fn texcoords(&self, t: usize, bary: Vec2) -> TexCoords {
+        let [a, b, c] = self.triangle(t);
+        let at = |uv: &Option<Vec<Vec2>>| {
+            uv.as_ref()
+                .map(|uv| uv[a] * (1.0 - bary.x - bary.y) + uv[b] * bary.x + uv[c] * bary.y)
+        };
+        [at(&self.uv0), at(&self.uv1)]
     }
 
     /// Area-weighted vertex normals from the triangles (for sources without normals).

@@ -36,7 +36,7 @@ pub mod testscenes;
 mod texture;
 
 pub use light::{Light, LightKind};
-pub use material::{Material, TextureRef};
+pub use material::{Material, TexCoords, TextureRef};
 pub use mesh::{GltfPrimitiveRef, Mesh};
 pub use texture::{Texture, Wrap};
 
@@ -131,6 +131,14 @@ impl Scene {
             Some(i) => std::borrow::Cow::Borrowed(&self.materials[i]),
             None => std::borrow::Cow::Owned(Material::default()),
         }
+    }
+
+    /// The diffuse albedo of instance `instance` at barycentric weights `bary` of its mesh's
+    /// triangle `triangle` ([`Material::diffuse_albedo`]).
+    pub fn albedo_at(&self, instance: usize, triangle: usize, bary: glam::Vec2) -> Vec3 {
+        let mesh = self.instances[instance].mesh;
+        self.material_of(mesh)
+            .diffuse_albedo(&self.textures, self.meshes[mesh].texcoords(triangle, bary))
     }
 
     /// Number of triangles over all instances (the ray-tracing load).

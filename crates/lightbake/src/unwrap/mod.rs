@@ -269,10 +269,28 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
         } else {
             xatlas_unwrap(mesh, request, settings, &mut layout.warnings)?
         };
+        if unwrap.origin == UvOrigin::Xatlas && mesh.uv1.is_some() && textures_use_set_1(scene, mesh) {
+            layout.warnings.push(format!(
+                "mesh '{}': its material's textures are mapped by TEXCOORD_1, which the new lightmap UVs replace; the bake, the baked glTF and the plugin's meshes map them by the lightmap UVs",
+                mesh.name
+            ));
+        }
         layout.meshes[m] = Some(unwrap);
     }
     pack_instances(scene, settings, &mut layout);
     Ok(layout)
+}
+
+/// Whether a texture of the mesh's material is mapped by `TEXCOORD_1`.
+fn textures_use_set_1(scene: &Scene, mesh: &Mesh) -> bool {
+    let material = match mesh.material {
+        Some(i) => &scene.materials[i],
+        None => return false,
+    };
+    [material.base_color_texture, material.emissive_texture]
+        .iter()
+        .flatten()
+        .any(|t| t.tex_coord == 1)
 }
 
 /// What a mesh's most demanding baked instance asks for.

@@ -90,34 +90,25 @@ enum Source {
     Sky,
 }
 
-/// Albedo of the surface at a hit (material factor × texture at UV0 × (1 − metallic)).
+/// Albedo of the surface at a hit ([`crate::scene::Material::diffuse_albedo`]).
 pub fn albedo_at(scene: &Scene, rays: &RayScene, hit: &Hit) -> Vec3 {
     let info = rays.triangles[hit.triangle as usize];
-    let inst = &scene.instances[info.instance as usize];
-    let material = scene.material_of(inst.mesh);
-    let mut albedo = material.base_color.truncate() * (1.0 - material.metallic);
-    if let (Some(t), Some(uv0)) = (
-        material.base_color_texture,
-        scene.meshes[inst.mesh].uv0.as_ref(),
-    ) {
-        let mesh = &scene.meshes[inst.mesh];
-        let [a, b, c] = mesh.triangle(info.local as usize);
-        let uv = uv0[a] * (1.0 - hit.u - hit.v) + uv0[b] * hit.u + uv0[c] * hit.v;
-        albedo *= scene.textures[t.texture].sample_srgb(uv).truncate();
-    }
-    albedo
+    scene.albedo_at(
+        info.instance as usize,
+        info.local as usize,
+        Vec2::new(hit.u, hit.v),
+    )
 }
 
-/// Keller's ρ̄: the area-weighted mean of the albedo's luminance over every triangle.
+/// Keller's ρ̄: the area-weighted mean of the albedo's luminance over every triangle (each
+/// material's albedo averaged over its texture).
 pub fn mean_reflectivity(scene: &Scene, rays: &RayScene) -> f32 {
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for info in &rays.triangles {
         let inst = &scene.instances[info.instance as usize];
-        let m = scene.material_of(inst.mesh);
-        let mut albedo = m.base_color.truncate() * (1.0 - m.metallic);
-        if let Some(t) = m.base_color_texture {
-            albedo *= scene.textures[t.texture].mean_srgb().truncate();
-        }
+        let albedo = scene
+            .material_of(inst.mesh)
+            .mean_diffuse_albedo(&scene.textures);
         num += luminance(albedo) as f64 * info.area as f64;
         den += info.area as f64;
     }
