@@ -107,6 +107,23 @@ pub fn vulkan_available() -> bool {
     has_icd && has_loader
 }
 
+/// Whether a render test can run: true when a Vulkan driver is installed. Without one it says
+/// that it skips and returns false, unless `LIGHTBAKE_REQUIRE_VULKAN=1` is set (as `.ci/run`
+/// does after installing lavapipe), when it panics so that the test fails instead of
+/// passing silently.
+pub fn render_tests_can_run() -> bool {
+    if vulkan_available() {
+        return true;
+    }
+    let required = std::env::var("LIGHTBAKE_REQUIRE_VULKAN").is_ok_and(|v| v == "1");
+    assert!(
+        !required,
+        "LIGHTBAKE_REQUIRE_VULKAN=1 but no Vulkan driver is installed (apt-get install mesa-vulkan-drivers libvulkan1)"
+    );
+    eprintln!("skipping: no Vulkan driver (apt-get install mesa-vulkan-drivers libvulkan1)");
+    false
+}
+
 /// A headless rendering app for the render tests: default plugins reading assets from
 /// `assets`, the lightbake plugin writing there, and a `width × height` frame capture (not
 /// exiting). Returns the app, ready to update, and the capture's render target.
