@@ -30,7 +30,7 @@
 //! a Monte Carlo estimate with noise ∝ 1/√(rays). Rays are processed in fixed chunks whose
 //! contributions are merged in order, so the result does not depend on the thread count.
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::hit_mapper::HitMapper;
@@ -41,6 +41,7 @@ use crate::bvh::{Hit, RayScene, coincident_groups};
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::progress::Progress;
+use crate::raster::SurfacePoint;
 use crate::sampling::{cosine_hemisphere, hash_words, unit_float};
 use crate::solve::{Recorder, Solution, norm, to_f64};
 
@@ -71,6 +72,7 @@ pub fn solve(
     progress: &Progress,
 ) -> Solution {
     let n = nodes.len();
+    let shooter = Shooter::new(ctx, nodes, mapper);
     let mut rec = Recorder::new(Some(progress));
     let s_norm = norm(&to_f64(source), &nodes.area).max(1e-300);
     let mut b = source.to_vec();
@@ -79,19 +81,6 @@ pub fn solve(
     let mut total_rays = 0u64;
     let mut first_power = None;
     let mut iteration = 0u32;
-    // Sides each node shoots from (2 for double-sided materials).
-    let sides: Vec<f32> = (0..n)
-        .map(|j| {
-            let patch = &ctx.patches.patches[nodes.patch[j] as usize];
-            let mesh = ctx.scene.instances[patch.instance as usize].mesh;
-            if ctx.scene.material_of(mesh).double_sided {
-                2.0
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let twins = Twins::new(ctx.rays);
     rec.record(0.0, 1.0, None);
     let (converged, reason) = loop {
         let residual = norm(&to_f64(&unshot), &nodes.area) / s_norm;
@@ -111,105 +100,15 @@ pub fn solve(
             break (false, "cancelled".into());
         }
         // 1. Unshot power and its distribution.
-        let mut cdf = Vec::with_capacity(n);
-        let mut total = 0.0f64;
-        for j in 0..n {
-            total += (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64;
-            cdf.push(total);
-        }
-        if total <= 0.0 {
+        let sources = Sources::new(&shooter, &unshot, iteration);
+        if sources.total <= 0.0 {
             break (true, "no unshot power left".into());
         }
-        let phi0 = *first_power.get_or_insert(total);
-        let rays = ((options.first_iteration_rays as f64 * total / phi0).ceil() as u64).max(CHUNK);
-        let u0 = unit_float(hash_words(&[ctx.settings.seed, iteration, 0x5707]));
-        let seed = hash_words(&[ctx.settings.seed, iteration]);
-        // 2–3. Shoot in fixed chunks; each chunk returns its sorted deposits. Chunks run in
-        // blocks whose deposits are merged (in chunk order) before the next block, so the
-        // deposits in memory stay bounded however many rays the iteration shoots.
-        // A node can receive millions of deposits in one iteration: sum them in f64.
-        let mut received = vec![glam::DVec3::ZERO; n];
-        let chunks = rays.div_ceil(CHUNK);
-        for block in (0..chunks).step_by(BLOCK_CHUNKS as usize) {
-            // A large iteration shoots many blocks: a cancel is seen between them.
-            if progress.is_cancelled() {
-                break;
-            }
-            let deposits: Vec<Vec<(u32, Vec3)>> = (block..(block + BLOCK_CHUNKS).min(chunks))
-                .into_par_iter()
-                .map(|c| {
-                    let mut deposits: Vec<(u32, Vec3)> = Vec::new();
-                    let mut out = [(0u32, 0f32); 4];
-                    for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
-                        let xi = ((k as f64 + u0 as f64) / rays as f64) * total;
-                        let j = cdf.partition_point(|&v| v <= xi).min(n - 1);
-                        let pj =
-                            (luminance(unshot[j].abs()) * nodes.area[j] * sides[j]) as f64 / total;
-                        if pj <= 0.0 {
-                            continue;
-                        }
-                        let power =
-                            unshot[j] * (nodes.area[j] * sides[j] / (rays as f64 * pj) as f32);
-                        let patch = &ctx.patches.patches[nodes.patch[j] as usize];
-                        let key = hash_words(&[seed, k as u32]);
-                        // Start on the source's basis support, ∝ φ_j: tent samples accepted with
-                        // probability weight / (1.5 × texel area) (the weight is the texel area
-                        // inside a chart, so 2/3 are accepted there).
-                        let mut start = None;
-                        for attempt in 0..8u32 {
-                            if let Some((sp, w)) =
-                                support_point(ctx, mapper, j, patch, attempt, hash_words(&[key, 7]))
-                            {
-                                let max_w = 1.5 * patch.texel_size * patch.texel_size;
-                                if unit_float(hash_words(&[key, 8, attempt])) * max_w <= w {
-                                    start = Some(sp);
-                                    break;
-                                }
-                            }
-                        }
-                        let sp = start.unwrap_or_else(|| patch.representative());
-                        let u = Vec2::new(
-                            unit_float(hash_words(&[key, 1])),
-                            unit_float(hash_words(&[key, 2])),
-                        );
-                        // A double-sided source leaves from its back for half its rays.
-                        let back = sides[j] > 1.0 && hash_words(&[key, 9]) & 1 == 1;
-                        let (normal, geometric) = if back {
-                            (-sp.normal, -sp.geometric_normal)
-                        } else {
-                            (sp.normal, sp.geometric_normal)
-                        };
-                        let dir = cosine_hemisphere(normal, u);
-                        if dir.dot(geometric) <= 0.0 {
-                            continue;
-                        }
-                        let origin = ctx.rays.offset(sp.position, geometric);
-                        let power = power / twins.count(sp.triangle) as f32;
-                        let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY)
-                        else {
-                            continue;
-                        };
-                        twins.deposit(ctx.rays, origin, dir, &hit, |hit| {
-                            // The back of a double-sided face: its texels hold the front only.
-                            if !hit.front_face {
-                                return;
-                            }
-                            let m = mapper.weights(hit, &mut out);
-                            for &(i, w) in &out[..m] {
-                                deposits.push((i, power * (w / nodes.area[i as usize])));
-                            }
-                        });
-                    }
-                    deposits.sort_by_key(|d| d.0);
-                    deposits
-                })
-                .collect();
-            for chunk in deposits {
-                for (i, h) in chunk {
-                    received[i as usize] += h.as_dvec3();
-                }
-            }
-        }
+        let phi0 = *first_power.get_or_insert(sources.total);
+        let rays = ((options.first_iteration_rays as f64 * sources.total / phi0).ceil() as u64)
+            .max(CHUNK);
+        // 2–3. Shoot.
+        let received = shooter.shoot(&sources, rays, progress);
         if progress.is_cancelled() {
             break (false, "cancelled".into());
         }
@@ -229,22 +128,7 @@ pub fn solve(
         );
         progress.advance(1);
     };
-    // Sliver nodes (no open footprint point, see `Nodes::sliver`) stand for a point, not an
-    // area: shot rays almost never land on them. Their reflected light is gathered once at
-    // that point from the final exitance, as the gathering solvers' rows do.
-    let slivers: Vec<usize> = (0..n)
-        .filter(|&i| nodes.sliver.get(i).copied().unwrap_or(false))
-        .collect();
-    let gather_rays = ctx.settings.transport_rays.max(1);
-    let gathered: Vec<Vec3> = slivers
-        .par_iter()
-        .map(|&i| monte_carlo::gather_row(ctx, mapper, nodes, i, gather_rays, &b))
-        .collect();
-    total_rays += slivers.len() as u64 * gather_rays as u64;
-    for (&i, h) in slivers.iter().zip(gathered) {
-        b[i] += nodes.albedo[i] * (h - indirect[i]);
-        indirect[i] = h;
-    }
+    total_rays += gather_slivers(ctx, nodes, mapper, &mut b, &mut indirect);
     Solution {
         solver: "stochastic-jacobi",
         b,
@@ -254,6 +138,196 @@ pub fn solve(
         iterations: iteration as f64,
         rays: total_rays,
         stop_reason: reason,
+    }
+}
+
+/// Sliver nodes (no open footprint point, see [`Nodes::sliver`]) stand for a point, not an
+/// area: shot rays almost never land on them. Their reflected light is gathered once at that
+/// point from the final exitance `b`, as the gathering solvers' rows do. Returns the rays.
+fn gather_slivers(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    mapper: &HitMapper<'_>,
+    b: &mut [Vec3],
+    indirect: &mut [Vec3],
+) -> u64 {
+    let slivers: Vec<usize> = (0..nodes.len())
+        .filter(|&i| nodes.sliver.get(i).copied().unwrap_or(false))
+        .collect();
+    let gather_rays = ctx.settings.transport_rays.max(1);
+    let gathered: Vec<Vec3> = slivers
+        .par_iter()
+        .map(|&i| monte_carlo::gather_row(ctx, mapper, nodes, i, gather_rays, b))
+        .collect();
+    for (&i, h) in slivers.iter().zip(gathered) {
+        b[i] += nodes.albedo[i] * (h - indirect[i]);
+        indirect[i] = h;
+    }
+    slivers.len() as u64 * gather_rays as u64
+}
+
+/// What one iteration shoots from: the unshot radiosity, the cumulative distribution of its
+/// power over the nodes, and the iteration's random numbers.
+struct Sources<'u> {
+    unshot: &'u [Vec3],
+    /// Cumulative unshot power Σ lum(|ΔB_j|)·A_j·sides_j.
+    cdf: Vec<f64>,
+    total: f64,
+    /// The systematic sample's offset.
+    u0: f32,
+    /// Seed of the rays' numbers.
+    seed: u32,
+}
+
+impl<'u> Sources<'u> {
+    fn new(shooter: &Shooter<'_>, unshot: &'u [Vec3], iteration: u32) -> Self {
+        let nodes = shooter.nodes;
+        let mut cdf = Vec::with_capacity(nodes.len());
+        let mut total = 0.0f64;
+        for j in 0..nodes.len() {
+            total += (luminance(unshot[j].abs()) * nodes.area[j] * shooter.sides[j]) as f64;
+            cdf.push(total);
+        }
+        let seed = shooter.ctx.settings.seed;
+        Self {
+            unshot,
+            cdf,
+            total,
+            u0: unit_float(hash_words(&[seed, iteration, 0x5707])),
+            seed: hash_words(&[seed, iteration]),
+        }
+    }
+}
+
+/// The scene as stochastic Jacobi shoots through it.
+struct Shooter<'a> {
+    ctx: &'a BakeContext<'a>,
+    nodes: &'a Nodes,
+    mapper: &'a HitMapper<'a>,
+    /// Sides each node shoots from (2 for double-sided materials).
+    sides: Vec<f32>,
+    twins: Twins,
+}
+
+impl<'a> Shooter<'a> {
+    fn new(ctx: &'a BakeContext<'a>, nodes: &'a Nodes, mapper: &'a HitMapper<'a>) -> Self {
+        let sides = (0..nodes.len())
+            .map(|j| {
+                let patch = &ctx.patches.patches[nodes.patch[j] as usize];
+                let mesh = ctx.scene.instances[patch.instance as usize].mesh;
+                if ctx.scene.material_of(mesh).double_sided {
+                    2.0
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        Self {
+            ctx,
+            nodes,
+            mapper,
+            sides,
+            twins: Twins::new(ctx.rays),
+        }
+    }
+
+    /// Shoots `rays` rays from `sources` in fixed chunks; each chunk returns its sorted
+    /// deposits. Chunks run in blocks whose deposits are merged (in chunk order) before the
+    /// next block, so the deposits in memory stay bounded however many rays the iteration
+    /// shoots. A node can receive millions of deposits in one iteration: they are summed in
+    /// f64. Returns the irradiance each node received.
+    fn shoot(&self, sources: &Sources<'_>, rays: u64, progress: &Progress) -> Vec<DVec3> {
+        let mut received = vec![DVec3::ZERO; self.nodes.len()];
+        let chunks = rays.div_ceil(CHUNK);
+        for block in (0..chunks).step_by(BLOCK_CHUNKS as usize) {
+            // A large iteration shoots many blocks: a cancel is seen between them.
+            if progress.is_cancelled() {
+                break;
+            }
+            let deposits: Vec<Vec<(u32, Vec3)>> = (block..(block + BLOCK_CHUNKS).min(chunks))
+                .into_par_iter()
+                .map(|c| self.chunk(sources, c, rays))
+                .collect();
+            for chunk in deposits {
+                for (i, h) in chunk {
+                    received[i as usize] += h.as_dvec3();
+                }
+            }
+        }
+        received
+    }
+
+    /// The sorted deposits (node, irradiance) of chunk `c` of the iteration's `rays` rays.
+    fn chunk(&self, sources: &Sources<'_>, c: u64, rays: u64) -> Vec<(u32, Vec3)> {
+        let (ctx, nodes) = (self.ctx, self.nodes);
+        let n = nodes.len();
+        let mut deposits: Vec<(u32, Vec3)> = Vec::new();
+        let mut out = [(0u32, 0f32); 4];
+        for k in c * CHUNK..((c + 1) * CHUNK).min(rays) {
+            // The source by the ξ-stratified number in the power distribution.
+            let xi = ((k as f64 + sources.u0 as f64) / rays as f64) * sources.total;
+            let j = sources.cdf.partition_point(|&v| v <= xi).min(n - 1);
+            let unshot = sources.unshot[j];
+            let pj = (luminance(unshot.abs()) * nodes.area[j] * self.sides[j]) as f64
+                / sources.total;
+            if pj <= 0.0 {
+                continue;
+            }
+            let power = unshot * (nodes.area[j] * self.sides[j] / (rays as f64 * pj) as f32);
+            let key = hash_words(&[sources.seed, k as u32]);
+            let Some((origin, dir, sp)) = self.ray(j, key) else {
+                continue;
+            };
+            let power = power / self.twins.count(sp.triangle) as f32;
+            let Some(hit) = ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) else {
+                continue;
+            };
+            self.twins.deposit(ctx.rays, origin, dir, &hit, |hit| {
+                // The back of a double-sided face: its texels hold the front only.
+                if !hit.front_face {
+                    return;
+                }
+                let m = self.mapper.weights(hit, &mut out);
+                for &(i, w) in &out[..m] {
+                    deposits.push((i, power * (w / nodes.area[i as usize])));
+                }
+            });
+        }
+        deposits.sort_by_key(|d| d.0);
+        deposits
+    }
+
+    /// The ray that node `j` shoots with numbers `key`: its origin, direction and start point.
+    /// It starts on the node's basis support, ∝ φ_j: tent samples accepted with probability
+    /// weight / (1.5 × texel area) (the weight is the texel area inside a chart, so 2/3 are
+    /// accepted there), and leaves cosine-distributed, from the back for half the rays of a
+    /// double-sided node. `None` when the direction points below the surface.
+    fn ray(&self, j: usize, key: u32) -> Option<(Vec3, Vec3, SurfacePoint)> {
+        let ctx = self.ctx;
+        let patch = &ctx.patches.patches[self.nodes.patch[j] as usize];
+        let max_w = 1.5 * patch.texel_size * patch.texel_size;
+        let sp = (0..8u32)
+            .find_map(|attempt| {
+                let (sp, w) =
+                    support_point(ctx, self.mapper, j, patch, attempt, hash_words(&[key, 7]))?;
+                (unit_float(hash_words(&[key, 8, attempt])) * max_w <= w).then_some(sp)
+            })
+            .unwrap_or_else(|| patch.representative());
+        let u = Vec2::new(
+            unit_float(hash_words(&[key, 1])),
+            unit_float(hash_words(&[key, 2])),
+        );
+        let back = self.sides[j] > 1.0 && hash_words(&[key, 9]) & 1 == 1;
+        let (normal, geometric) = if back {
+            (-sp.normal, -sp.geometric_normal)
+        } else {
+            (sp.normal, sp.geometric_normal)
+        };
+        let dir = cosine_hemisphere(normal, u);
+        if dir.dot(geometric) <= 0.0 {
+            return None;
+        }
+        Some((ctx.rays.offset(sp.position, geometric), dir, sp))
     }
 }
 

@@ -21,6 +21,77 @@ pub const VALIDITY_SEED: u32 = 0x7a11_d17e;
 /// Footprint samples that measure the visible share of a patch near geometry.
 const VISIBILITY_SAMPLES: u32 = 16;
 
+/// Rays along the surface that look for the way out of a solid.
+const TANGENT_RAYS: u32 = 8;
+/// Rays of the cosine fan that measures how much of a patch's view is inside a solid.
+const HEMISPHERE_RAYS: u32 = 16;
+/// Short probes along the normal for geometry hanging just above a patch.
+const NORMAL_PROBES: u32 = 4;
+
+/// One patch after its probes.
+struct Probed {
+    position: Vec3,
+    flags: u8,
+    rays: u64,
+}
+
+/// The nearest single-sided back face within `reach` along the surface (rays slightly
+/// lifted, so the surface itself is not hit): (distance, direction). Any hit sets `near`.
+fn nearest_back_face(
+    p: &Patch,
+    rays: &RayScene,
+    reach: f32,
+    near: &mut bool,
+    used: &mut u64,
+) -> Option<(f32, Vec3)> {
+    let (t, b) = basis(p.geometric_normal);
+    let origin = rays.offset(p.position, p.geometric_normal);
+    let mut exit: Option<(f32, Vec3)> = None;
+    for k in 0..TANGENT_RAYS {
+        let phi = std::f32::consts::TAU * (k as f32 + 0.5) / TANGENT_RAYS as f32;
+        let dir = (t * phi.cos() + b * phi.sin()).normalize();
+        *used += 1;
+        if let Some(h) = rays.closest_hit(origin, dir, 0.0, reach) {
+            *near = true;
+            let info = rays.triangles[h.triangle as usize];
+            if !h.front_face && !info.double_sided && exit.is_none_or(|e| h.t < e.0) {
+                exit = Some((h.t, dir));
+            }
+        }
+    }
+    exit
+}
+
+/// How many of a cosine-distributed fan of rays from `at` (about `p`'s normal) see the back
+/// of a single-sided surface; a hit within `reach` sets `near`.
+fn back_faces(
+    p: &Patch,
+    at: Vec3,
+    rays: &RayScene,
+    reach: f32,
+    near: &mut bool,
+    used: &mut u64,
+) -> u32 {
+    let g = p.geometric_normal;
+    let key = p.rng(VALIDITY_SEED, 0x5a11d);
+    let origin = rays.offset(at, g);
+    let mut back = 0;
+    for s in 0..HEMISPHERE_RAYS {
+        let dir = cosine_hemisphere(g, sobol_02(s, key));
+        *used += 1;
+        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
+            if h.t < reach {
+                *near = true;
+            }
+            let info = rays.triangles[h.triangle as usize];
+            if !h.front_face && !info.double_sided {
+                back += 1;
+            }
+        }
+    }
+    back
+}
+
 impl Patches {
     /// Finds patches inside or behind geometry, moves them out or marks them invalid, and
     /// flags those with geometry within a texel (see the module docs). The area of a flagged
@@ -34,134 +105,34 @@ impl Patches {
     /// floor of about 2.4% under the sunlit room's convergence curves, measured against a
     /// reference baked with another seed).
     pub fn fix_validity(&mut self, scene: &Scene, layout: &Layout, rays: &RayScene) {
-        let seed = VALIDITY_SEED;
-        const TANGENT_RAYS: u32 = 8;
-        const HEMISPHERE_RAYS: u32 = 16;
-        const NORMAL_PROBES: u32 = 4;
         let surface = Surface::new(scene, layout, rays);
-        let results: Vec<(Vec3, u8, u64)> = self
+        // 1. Probe every patch: move it out of solids, mark it invalid, flag it near geometry.
+        let results: Vec<Probed> = self
             .patches
             .par_iter()
-            .map(|p| {
-                let mut rays_used = 0u64;
-                let reach = 1.5 * p.texel_size;
-                let g = p.geometric_normal;
-                let (t, b) = basis(g);
-                let origin = rays.offset(p.position, g);
-                let mut near = false;
-                // Geometry hanging just above the texel (a lamp under a ceiling): short probes
-                // along the normal from points of the footprint.
-                if let Some(rect) = layout.instances[p.instance as usize] {
-                    let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
-                    let footprint = self.footprint_of(p);
-                    for k in 0..NORMAL_PROBES {
-                        let q = texel + sobol_02(k, p.rng(seed, 0x0e4a));
-                        if let Some(sp) =
-                            footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0))
-                        {
-                            rays_used += 1;
-                            let o = rays.offset(sp.position, sp.geometric_normal);
-                            if rays.occluded(o, sp.geometric_normal, 0.0, reach) {
-                                near = true;
-                                break;
-                            }
-                        }
-                    }
-                }
-                let mut exit: Option<(f32, Vec3)> = None;
-                // Probe along the surface (slightly lifted so the surface itself is not hit).
-                for k in 0..TANGENT_RAYS {
-                    let phi = std::f32::consts::TAU * (k as f32 + 0.5) / TANGENT_RAYS as f32;
-                    let dir = (t * phi.cos() + b * phi.sin()).normalize();
-                    rays_used += 1;
-                    if let Some(h) = rays.closest_hit(origin, dir, 0.0, reach) {
-                        near = true;
-                        let info = rays.triangles[h.triangle as usize];
-                        if !h.front_face && !info.double_sided && exit.is_none_or(|e| h.t < e.0) {
-                            exit = Some((h.t, dir));
-                        }
-                    }
-                }
-                // How many of a cosine-distributed fan of rays from `at` see back faces.
-                let key = p.rng(seed, 0x5a11d);
-                let mut back_faces = |at: Vec3, near: &mut bool| {
-                    let origin = rays.offset(at, g);
-                    let mut back = 0;
-                    for s in 0..HEMISPHERE_RAYS {
-                        let dir = cosine_hemisphere(g, sobol_02(s, key));
-                        rays_used += 1;
-                        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
-                            if h.t < reach {
-                                *near = true;
-                            }
-                            let info = rays.triangles[h.triangle as usize];
-                            if !h.front_face && !info.double_sided {
-                                back += 1;
-                            }
-                        }
-                    }
-                    back
-                };
-                let mut position = p.position;
-                let mut flags = p.flags;
-                let mut back = back_faces(position, &mut near);
-                // Push the point out through the back face only when it is inside a solid (it
-                // sees mostly back faces): a texel behind a thin single-sided wall sees the
-                // wall's back over part of its view only, and pushing it through would carry
-                // the other side's light into a room that gets none.
-                if let Some((dist, dir)) = exit.filter(|_| 2 * back > HEMISPHERE_RAYS) {
-                    position =
-                        p.position + dir * (dist + 0.05 * p.texel_size + rays.epsilon(p.position));
-                    flags |= Patch::MOVED;
-                    // Does the moved point still see mostly back faces?
-                    back = back_faces(position, &mut near);
-                }
-                if 2 * back > HEMISPHERE_RAYS {
-                    flags &= !Patch::VALID;
-                }
-                if near {
-                    flags |= Patch::NEAR_GEOMETRY;
-                }
-                (position, flags, rays_used)
-            })
+            .map(|p| self.probe(p, layout, &surface, rays))
             .collect();
         self.moved = 0;
         self.invalid = 0;
-        for (p, (position, flags, n)) in self.patches.iter_mut().zip(results) {
-            p.position = position;
-            p.flags = flags;
-            self.rays += n;
-            self.moved += usize::from(flags & Patch::MOVED != 0);
-            self.invalid += usize::from(flags & Patch::VALID == 0);
+        for (p, r) in self.patches.iter_mut().zip(results) {
+            p.position = r.position;
+            p.flags = r.flags;
+            self.rays += r.rays;
+            self.moved += usize::from(r.flags & Patch::MOVED != 0);
+            self.invalid += usize::from(r.flags & Patch::VALID == 0);
         }
-        // Texels next to an invalid texel (geometry hides the surface there) are near
+        // 2. Texels next to an invalid texel (geometry hides the surface there) are near
         // geometry too, even where the probes missed it.
-        let mut mark = Vec::new();
-        for (i, p) in self.patches.iter().enumerate() {
-            if p.flags & Patch::NEAR_GEOMETRY != 0 {
-                continue;
-            }
-            let w = layout.pages[p.page as usize].width as i64;
-            let h = layout.pages[p.page as usize].height as i64;
-            let index = &self.page_index[p.page as usize];
-            let touches_invalid = (-1i64..=1).any(|dy| {
-                (-1i64..=1).any(|dx| {
-                    let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
-                    if x < 0 || y < 0 || x >= w || y >= h {
-                        return false;
-                    }
-                    let j = index[(y * w + x) as usize];
-                    j != u32::MAX && !self.patches[j as usize].is_valid()
-                })
-            });
-            if touches_invalid {
-                mark.push(i);
-            }
-        }
+        let mark: Vec<usize> = (0..self.patches.len())
+            .filter(|&i| {
+                self.patches[i].flags & Patch::NEAR_GEOMETRY == 0
+                    && self.touches_invalid(&self.patches[i], layout)
+            })
+            .collect();
         for i in mark {
             self.patches[i].flags |= Patch::NEAR_GEOMETRY;
         }
-        // Visible share of the footprint of patches near geometry.
+        // 3. The area of a patch near geometry: the visible share of its footprint.
         let shares: Vec<(f32, u64)> = self
             .patches
             .par_iter()
@@ -170,7 +141,7 @@ impl Patches {
                     return (1.0, 0);
                 }
                 let (visible, total, traced) =
-                    self.visible_footprint(p, layout, &surface, rays, seed);
+                    self.visible_footprint(p, layout, &surface, rays, VALIDITY_SEED);
                 let share = if total == 0 {
                     1.0
                 } else {
@@ -183,6 +154,87 @@ impl Patches {
             p.area *= share;
             self.rays += traced;
         }
+    }
+
+    /// Probes one patch (see the module docs): short rays along its normal from points of its
+    /// footprint (geometry hanging just above, a lamp under a ceiling), along the surface (the
+    /// nearest single-sided back face, the way out of a solid), and a cosine fan (how much of
+    /// its view is the inside of a solid) — before and, when it is moved out, after the move.
+    fn probe(&self, p: &Patch, layout: &Layout, surface: &Surface<'_>, rays: &RayScene) -> Probed {
+        let mut used = 0u64;
+        let reach = 1.5 * p.texel_size;
+        let mut near = self.hangs_over(p, layout, surface, rays, reach, &mut used);
+        let exit = nearest_back_face(p, rays, reach, &mut near, &mut used);
+        let mut position = p.position;
+        let mut flags = p.flags;
+        let mut back = back_faces(p, position, rays, reach, &mut near, &mut used);
+        // Push the point out through the back face only when it is inside a solid (it sees
+        // mostly back faces): a texel behind a thin single-sided wall sees the wall's back
+        // over part of its view only, and pushing it through would carry the other side's
+        // light into a room that gets none.
+        if let Some((dist, dir)) = exit.filter(|_| 2 * back > HEMISPHERE_RAYS) {
+            position = p.position + dir * (dist + 0.05 * p.texel_size + rays.epsilon(p.position));
+            flags |= Patch::MOVED;
+            // Does the moved point still see mostly back faces?
+            back = back_faces(p, position, rays, reach, &mut near, &mut used);
+        }
+        if 2 * back > HEMISPHERE_RAYS {
+            flags &= !Patch::VALID;
+        }
+        if near {
+            flags |= Patch::NEAR_GEOMETRY;
+        }
+        Probed {
+            position,
+            flags,
+            rays: used,
+        }
+    }
+
+    /// Whether geometry hangs within `reach` above points of the patch's footprint (short
+    /// probes along the normal).
+    fn hangs_over(
+        &self,
+        p: &Patch,
+        layout: &Layout,
+        surface: &Surface<'_>,
+        rays: &RayScene,
+        reach: f32,
+        used: &mut u64,
+    ) -> bool {
+        let Some(rect) = layout.instances[p.instance as usize] else {
+            return false;
+        };
+        let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+        let footprint = self.footprint_of(p);
+        for k in 0..NORMAL_PROBES {
+            let q = texel + sobol_02(k, p.rng(VALIDITY_SEED, 0x0e4a));
+            if let Some(sp) = footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0)) {
+                *used += 1;
+                let o = rays.offset(sp.position, sp.geometric_normal);
+                if rays.occluded(o, sp.geometric_normal, 0.0, reach) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Whether a texel of the 8-neighbourhood of `p` is an invalid patch.
+    fn touches_invalid(&self, p: &Patch, layout: &Layout) -> bool {
+        let w = layout.pages[p.page as usize].width as i64;
+        let h = layout.pages[p.page as usize].height as i64;
+        let index = &self.page_index[p.page as usize];
+        (-1i64..=1).any(|dy| {
+            (-1i64..=1).any(|dx| {
+                let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
+                if x < 0 || y < 0 || x >= w || y >= h {
+                    return false;
+                }
+                let j = index[(y * w + x) as usize];
+                j != u32::MAX && !self.patches[j as usize].is_valid()
+            })
+        })
     }
 
     /// Stratified points of a patch's footprint on its surface, with whether each is visible
