@@ -5,14 +5,13 @@
 
 mod common;
 
-use common::bake;
+use common::{all_finite, bake, hard_furnace, method_settings as settings, triangles};
 use glam::{Affine3A, Vec3};
-use lightbake::BakeOutput;
 use lightbake::analysis::study::relative_rms_error;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, cuboid, furnace_box};
 use lightbake::scene::{Instance, Material, Mesh, Scene};
+use lightbake::settings::Method;
 use lightbake::settings::SolverChoice;
-use lightbake::settings::{BakeSettings, Method};
 
 /// `scene` with every length multiplied by `s` (instances, lights, ranges).
 fn scaled(scene: &Scene, s: f32) -> Scene {
@@ -25,20 +24,6 @@ fn scaled(scene: &Scene, s: f32) -> Scene {
         l.range = l.range.map(|r| r * s);
     }
     out
-}
-
-fn settings(method: Method, density: f32) -> BakeSettings {
-    let mut s = BakeSettings::medium();
-    s.method = method;
-    s.texel_density = density;
-    s.texel_density_from_scene = false;
-    s
-}
-
-fn all_finite(out: &BakeOutput) -> bool {
-    out.pages
-        .iter()
-        .all(|p| p.texels.iter().all(|t| t.is_finite()))
 }
 
 #[test]
@@ -148,235 +133,6 @@ fn texels_beyond_half_float_range_are_written_clamped_never_infinite() {
         (max - 65504.0).abs() < 1.0,
         "the brightest EXR value is {max}, not the half-float maximum"
     );
-}
-
-/// A mesh of loose triangles (flat normals from the winding), `uv1` left to xatlas.
-fn triangles(name: &str, tris: &[[Vec3; 3]]) -> Mesh {
-    let mut m = Mesh {
-        name: name.into(),
-        positions: Vec::new(),
-        normals: Vec::new(),
-        uv0: None,
-        uv1: None,
-        indices: Vec::new(),
-        material: None,
-        source: None,
-    };
-    for t in tris {
-        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or(Vec3::Y);
-        for &p in t {
-            m.indices.push(m.positions.len() as u32);
-            m.positions.push(p);
-            m.normals.push(n);
-        }
-    }
-    m
-}
-
-/// The closed furnace (every surface emits E and reflects ρ) filled with the geometry that
-/// breaks form factors: a 1 cm cube next to 1 m walls, a wedge whose faces meet at 5°, a
-/// plate carrying sliver (1 µm wide), zero-area and collinear triangles, and two coincident
-/// plates. Whatever the geometry, B = E/(1 − ρ) on every surface of a closed furnace, so any
-/// ray that leaks, is lost or is counted twice shows up amplified by 1/(1 − ρ).
-///
-/// `parts` names the pieces to add: `tiny_cube`, `wedge`, `slivers`, `coincident`.
-fn hard_furnace(rho: f32, e: f32, parts: &[&str]) -> Scene {
-    let mut scene = furnace_box(1.0, rho, e);
-    let mat = scene.add_material(Material {
-        emissive: Vec3::splat(e),
-        double_sided: true,
-        ..Material::diffuse("hard", Vec3::splat(rho))
-    });
-    let put = |scene: &mut Scene, mesh: Mesh, at: Affine3A| {
-        let name = mesh.name.clone();
-        if !parts.iter().any(|p| name.starts_with(p)) {
-            return;
-        }
-        let m = scene.add_mesh(Mesh {
-            material: Some(mat),
-            ..mesh
-        });
-        scene.instances.push(Instance::new(name, m, at));
-    };
-    let tiny = cuboid("tiny_cube", Vec3::splat(-0.005), Vec3::splat(0.005), false);
-    put(
-        &mut scene,
-        tiny,
-        Affine3A::from_translation(Vec3::new(0.25, -0.3, 0.2)),
-    );
-    // Two plates sharing the edge x = −0.3, y = 0, opening at 5°.
-    let (a, b) = (5f32.to_radians().cos() * 0.4, 5f32.to_radians().sin() * 0.4);
-    let z = 0.2;
-    let wedge = triangles(
-        "wedge",
-        &[
-            [
-                Vec3::new(-0.3, 0.0, -z),
-                Vec3::new(-0.3, 0.0, z),
-                Vec3::new(0.1, 0.0, z),
-            ],
-            [
-                Vec3::new(-0.3, 0.0, -z),
-                Vec3::new(0.1, 0.0, z),
-                Vec3::new(0.1, 0.0, -z),
-            ],
-            [
-                Vec3::new(-0.3, 0.0, -z),
-                Vec3::new(-0.3 + a, b, z),
-                Vec3::new(-0.3, 0.0, z),
-            ],
-            [
-                Vec3::new(-0.3, 0.0, -z),
-                Vec3::new(-0.3 + a, b, -z),
-                Vec3::new(-0.3 + a, b, z),
-            ],
-        ],
-    );
-    put(&mut scene, wedge, Affine3A::IDENTITY);
-    // A plate with a sliver across it, a zero-area triangle and a collinear one.
-    let (p0, p1, p2, p3) = (
-        Vec3::new(-0.3, 0.3, -0.3),
-        Vec3::new(-0.3, 0.3, 0.3),
-        Vec3::new(0.3, 0.3, 0.3),
-        Vec3::new(0.3, 0.3, -0.3),
-    );
-    let sliver = triangles(
-        "slivers",
-        &[
-            [p0, p1, p2],
-            [p0, p2, p3],
-            [p0, p2, p2 + Vec3::new(0.0, 0.0, -1e-6)],
-            [p1, p1, p3],
-            [p0, (p0 + p2) * 0.5, p2],
-        ],
-    );
-    put(&mut scene, sliver, Affine3A::IDENTITY);
-    // Two identical plates in the same place.
-    let plate = triangles(
-        "coincident",
-        &[[
-            Vec3::new(-0.2, -0.35, -0.2),
-            Vec3::new(-0.2, -0.35, 0.2),
-            Vec3::new(0.2, -0.35, 0.2),
-        ]],
-    );
-    put(&mut scene, plate.clone(), Affine3A::IDENTITY);
-    put(
-        &mut scene,
-        Mesh {
-            name: "coincident_twin".into(),
-            ..plate
-        },
-        Affine3A::IDENTITY,
-    );
-    scene
-}
-
-/// Bakes [`hard_furnace`] with each solver and returns what is off: a surface whose mean is
-/// more than `mean_tol` from E/(1 − ρ), or a texel more than `texel_tol` from it.
-fn furnace_failures(
-    parts: &[&str],
-    solvers: &[SolverChoice],
-    mean_tol: f32,
-    texel_tol: f32,
-) -> Vec<String> {
-    furnace_failures_with(
-        Method::Radiosity,
-        parts,
-        solvers,
-        mean_tol,
-        texel_tol,
-        |_| {},
-    )
-}
-
-/// [`furnace_failures`] with another method and settings.
-fn furnace_failures_with(
-    method: Method,
-    parts: &[&str],
-    solvers: &[SolverChoice],
-    mean_tol: f32,
-    texel_tol: f32,
-    adjust: impl Fn(&mut BakeSettings),
-) -> Vec<String> {
-    let (rho, e) = (0.9f32, 10.0f32);
-    let scene = hard_furnace(rho, e, parts);
-    let expected = e / (1.0 - rho);
-    let mut s = settings(method, 24.0);
-    adjust(&mut s);
-    s.transport_rays = 64;
-    // Two plates 5° apart see mostly each other, so the direct pass's noise comes back
-    // amplified by up to 1/(1 − ρ) = 10: sample it 4× more than the medium preset.
-    s.samples_per_texel = 128;
-    let mut failures = Vec::new();
-    for &solver in solvers {
-        s.solver = solver;
-        s.stochastic_rays_per_node = 1024;
-        let start = std::time::Instant::now();
-        let out = bake(&scene, &s);
-        assert!(all_finite(&out), "{solver:?}: non-finite texels");
-        for (i, inst) in scene.instances.iter().enumerate() {
-            let values: Vec<f32> = common::texels(&out, i).iter().map(|t| t.value.x).collect();
-            assert!(!values.is_empty(), "{}: no texels", inst.name);
-            let errors: Vec<f32> = values.iter().map(|&v| common::rel(v, expected)).collect();
-            let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64;
-            let worst = errors.iter().copied().fold(0.0f32, f32::max);
-            println!(
-                "{solver:?} {}: {} texels, mean {mean:.3} (expected {expected}), worst {:.2}%",
-                inst.name,
-                values.len(),
-                100.0 * worst
-            );
-            if common::rel(mean as f32, expected) >= mean_tol {
-                failures.push(format!(
-                    "{solver:?} {}: mean {mean} against {expected}",
-                    inst.name
-                ));
-            }
-            if worst >= texel_tol {
-                failures.push(format!(
-                    "{solver:?} {}: a texel is {:.1}% off",
-                    inst.name,
-                    100.0 * worst
-                ));
-            }
-        }
-        println!("{solver:?}: {:.2} s", start.elapsed().as_secs_f64());
-    }
-    failures
-}
-
-#[test]
-fn a_furnace_with_tiny_sliver_coincident_and_sharply_meeting_faces_gives_e_over_one_minus_rho() {
-    // Before the fixes this test brought: a double-sided emitter lit itself through the
-    // closed-form polygon term (tiny cube 110, plate 121 instead of 100); coincident emitters
-    // counted twice (walls 102, plates 122); inside the 5° wedge, area-sampled emitter points
-    // gave the direct pass's ratio estimator 1/d² weights (wedge texels 0.03–15 against 10 in
-    // direct light, mean 75 against 100 with radiosity). The texel tolerance covers the direct
-    // pass's visibility noise where these objects shadow the walls and the wedge.
-    let failures = furnace_failures(
-        &["tiny_cube", "wedge", "slivers", "coincident"],
-        &[SolverChoice::GaussSeidel],
-        0.01,
-        0.08,
-    );
-    assert!(failures.is_empty(), "{failures:#?}");
-}
-
-#[test]
-fn stochastic_jacobi_in_a_furnace_with_double_sided_and_coincident_faces() {
-    // Before the fixes this test brought, stochastic Jacobi put hits on the back of a
-    // double-sided plate into its texels (plate 210 against 100) and gave every hit on two
-    // coincident plates to one of them (10 and 135). The tolerances are its Monte Carlo
-    // noise: a 1 cm cube receives few of the 8 M rays (its 6 texels: mean within 2.6%, worst
-    // texel 11.7%).
-    let failures = furnace_failures(
-        &["tiny_cube", "slivers", "coincident"],
-        &[SolverChoice::StochasticJacobi],
-        0.05,
-        0.2,
-    );
-    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 #[test]
@@ -590,71 +346,6 @@ fn the_dark_side_of_a_thin_single_sided_wall_stays_dark() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
-}
-
-#[test]
-fn instant_radiosity_in_the_hard_furnace_loses_only_the_paths_it_says_it_cuts() {
-    // Keller's walk stops after `vpl_max_depth` reflections: in this closed furnace
-    // (ρ̄ = 0.9) the bake must say so, and the result must match the truncated series
-    // E·(1 − ρ^(d+1))/(1 − ρ) (d = 16: 83.3; d = 29: 95.8) within the VPL noise.
-    //
-    // The plate 0.2 m under the ceiling (the one carrying the slivers) shows its top in the
-    // lightmap, and that side sees only the paths that enter the gap: its mean is one noisy
-    // number, not an average over independent texels. Over seeds 1–6 at depth 16 its mean
-    // spread 78.1–88.2 around 83.3 (scrambled Halton; random numbers 78.0–88.3), and seed 0
-    // gave 89.9. So it is checked as the mean of eight seeds.
-    let (rho, e) = (0.9f32, 10.0f32);
-    const PLATE_SEEDS: u32 = 8;
-    for depth in [16u32, 29] {
-        let mut s = settings(Method::Hybrid, 24.0);
-        s.vpl_bias_compensation = true;
-        s.vpl_max_depth = depth;
-        let scene = hard_furnace(rho, e, &["tiny_cube", "slivers", "coincident"]);
-        let lost = (rho as f64).powi(depth as i32 + 1);
-        let expected = (e as f64 * (1.0 - lost) / (1.0 - rho as f64)) as f32;
-        let mut plate = Vec::new();
-        for seed in 0..PLATE_SEEDS {
-            s.seed = seed;
-            let out = bake(&scene, &s);
-            assert!(all_finite(&out));
-            assert!(
-                out.report
-                    .warnings
-                    .iter()
-                    .any(|w| w.contains(&format!("up to {:.1}% of the total", 100.0 * lost))),
-                "depth {depth}: no truncation warning in {:?}",
-                out.report.warnings
-            );
-            for (i, inst) in scene.instances.iter().enumerate() {
-                let values: Vec<f32> = common::texels(&out, i).iter().map(|t| t.value.x).collect();
-                let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64;
-                if inst.name == "slivers" {
-                    plate.push(mean);
-                    continue;
-                }
-                if seed > 0 {
-                    continue;
-                }
-                println!(
-                    "depth {depth} {}: mean {mean:.2} (expected {expected:.2})",
-                    inst.name
-                );
-                assert!(
-                    common::rel(mean as f32, expected) < 0.05,
-                    "depth {depth} {}: mean {mean} against {expected}",
-                    inst.name
-                );
-            }
-        }
-        let mean = plate.iter().sum::<f64>() / plate.len() as f64;
-        println!(
-            "depth {depth} plate under the ceiling: seeds {plate:.1?}, mean {mean:.2} (expected {expected:.2})"
-        );
-        assert!(
-            common::rel(mean as f32, expected) < 0.04,
-            "depth {depth} plate: mean of {PLATE_SEEDS} seeds {mean} against {expected}"
-        );
-    }
 }
 
 #[test]

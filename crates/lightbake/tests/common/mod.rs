@@ -1,16 +1,16 @@
-//! Helpers shared by the workspace integration tests.
+//! Helpers shared by the core's integration tests.
 #![allow(dead_code)]
 
 use glam::{Affine3A, Vec2, Vec3};
 use lightbake::bake::BakeOutput;
 use lightbake::progress::Progress;
-use lightbake::scene::testscenes::plane;
-use lightbake::scene::{Instance, Material, Mesh, Scene};
-use lightbake::settings::BakeSettings;
+use lightbake::scene::testscenes::{cuboid, furnace_box, plane, quad};
+use lightbake::scene::{Instance, Light, LightKind, Material, Mesh, Scene};
+use lightbake::settings::{BakeSettings, Method, SolverChoice};
 
 /// Every radiosity solver (not `Auto`).
-pub const ALL_SOLVERS: [lightbake::settings::SolverChoice; 7] = {
-    use lightbake::settings::SolverChoice::*;
+pub const ALL_SOLVERS: [SolverChoice; 7] = {
+    use SolverChoice::*;
     [
         Jacobi,
         GaussSeidel,
@@ -53,7 +53,7 @@ pub fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, transform: Affine3A, bak
 /// Settings for analytic direct-light tests: direct light only, fixed density, no scene hint.
 pub fn settings(density: f32, spp: u32) -> BakeSettings {
     let mut s = BakeSettings::medium();
-    s.method = lightbake::settings::Method::Direct;
+    s.method = Method::Direct;
     s.texel_density = density;
     s.texel_density_from_scene = false;
     s.samples_per_texel = spp;
@@ -157,4 +157,210 @@ pub fn relative_l2(prep: &lightbake::context::Prepared, a: &[Vec3], b: &[Vec3]) 
         den += p.area as f64 * b[i].length_squared() as f64;
     }
     (num / den.max(1e-300)).sqrt()
+}
+
+pub fn radiosity_settings(density: f32, solver: SolverChoice) -> BakeSettings {
+    let mut s = settings(density, 4);
+    s.method = Method::Radiosity;
+    s.solver = solver;
+    s.transport_rays = 64;
+    s.stochastic_rays_per_node = 4096;
+    s
+}
+
+/// Two unit squares as baked instances.
+pub fn two_squares(perpendicular: bool) -> Scene {
+    let mut s = Scene::default();
+    let mat = s.add_material(Material::diffuse("grey", Vec3::splat(0.5)));
+    let a = quad(
+        "a",
+        [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ],
+        Vec3::Y,
+    );
+    let b = if perpendicular {
+        quad(
+            "b",
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            Vec3::Z,
+        )
+    } else {
+        quad(
+            "b",
+            [
+                Vec3::new(0.0, 1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(1.0, 1.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            Vec3::NEG_Y,
+        )
+    };
+    for m in [a, b] {
+        let id = s.add_mesh(Mesh {
+            material: Some(mat),
+            ..m
+        });
+        s.instances
+            .push(Instance::new(format!("{id}"), id, Affine3A::IDENTITY));
+    }
+    // Something to bake with: a light, so the plan has work.
+    s.lights.push(Light {
+        name: "l".into(),
+        kind: LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 1.0,
+        range: None,
+        position: Vec3::new(0.5, 0.5, 0.5),
+        direction: Vec3::NEG_Y,
+    });
+    s
+}
+
+/// Medium settings with `method` at a fixed density (no scene hint).
+pub fn method_settings(method: Method, density: f32) -> BakeSettings {
+    let mut s = BakeSettings::medium();
+    s.method = method;
+    s.texel_density = density;
+    s.texel_density_from_scene = false;
+    s
+}
+
+/// Whether every texel of every page is finite.
+pub fn all_finite(out: &BakeOutput) -> bool {
+    out.pages
+        .iter()
+        .all(|p| p.texels.iter().all(|t| t.is_finite()))
+}
+
+/// `scene` with every length multiplied by `s` (instances, lights, ranges).
+/// A mesh of loose triangles (flat normals from the winding), `uv1` left to xatlas.
+pub fn triangles(name: &str, tris: &[[Vec3; 3]]) -> Mesh {
+    let mut m = Mesh {
+        name: name.into(),
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uv0: None,
+        uv1: None,
+        indices: Vec::new(),
+        material: None,
+        source: None,
+    };
+    for t in tris {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or(Vec3::Y);
+        for &p in t {
+            m.indices.push(m.positions.len() as u32);
+            m.positions.push(p);
+            m.normals.push(n);
+        }
+    }
+    m
+}
+
+/// The closed furnace (every surface emits E and reflects ρ) filled with the geometry that
+/// breaks form factors: a 1 cm cube next to 1 m walls, a wedge whose faces meet at 5°, a
+/// plate carrying sliver (1 µm wide), zero-area and collinear triangles, and two coincident
+/// plates. Whatever the geometry, B = E/(1 − ρ) on every surface of a closed furnace, so any
+/// ray that leaks, is lost or is counted twice shows up amplified by 1/(1 − ρ).
+///
+/// `parts` names the pieces to add: `tiny_cube`, `wedge`, `slivers`, `coincident`.
+pub fn hard_furnace(rho: f32, e: f32, parts: &[&str]) -> Scene {
+    let mut scene = furnace_box(1.0, rho, e);
+    let mat = scene.add_material(Material {
+        emissive: Vec3::splat(e),
+        double_sided: true,
+        ..Material::diffuse("hard", Vec3::splat(rho))
+    });
+    let put = |scene: &mut Scene, mesh: Mesh, at: Affine3A| {
+        let name = mesh.name.clone();
+        if !parts.iter().any(|p| name.starts_with(p)) {
+            return;
+        }
+        let m = scene.add_mesh(Mesh {
+            material: Some(mat),
+            ..mesh
+        });
+        scene.instances.push(Instance::new(name, m, at));
+    };
+    let tiny = cuboid("tiny_cube", Vec3::splat(-0.005), Vec3::splat(0.005), false);
+    put(
+        &mut scene,
+        tiny,
+        Affine3A::from_translation(Vec3::new(0.25, -0.3, 0.2)),
+    );
+    // Two plates sharing the edge x = −0.3, y = 0, opening at 5°.
+    let (a, b) = (5f32.to_radians().cos() * 0.4, 5f32.to_radians().sin() * 0.4);
+    let z = 0.2;
+    let wedge = triangles(
+        "wedge",
+        &[
+            [
+                Vec3::new(-0.3, 0.0, -z),
+                Vec3::new(-0.3, 0.0, z),
+                Vec3::new(0.1, 0.0, z),
+            ],
+            [
+                Vec3::new(-0.3, 0.0, -z),
+                Vec3::new(0.1, 0.0, z),
+                Vec3::new(0.1, 0.0, -z),
+            ],
+            [
+                Vec3::new(-0.3, 0.0, -z),
+                Vec3::new(-0.3 + a, b, z),
+                Vec3::new(-0.3, 0.0, z),
+            ],
+            [
+                Vec3::new(-0.3, 0.0, -z),
+                Vec3::new(-0.3 + a, b, -z),
+                Vec3::new(-0.3 + a, b, z),
+            ],
+        ],
+    );
+    put(&mut scene, wedge, Affine3A::IDENTITY);
+    // A plate with a sliver across it, a zero-area triangle and a collinear one.
+    let (p0, p1, p2, p3) = (
+        Vec3::new(-0.3, 0.3, -0.3),
+        Vec3::new(-0.3, 0.3, 0.3),
+        Vec3::new(0.3, 0.3, 0.3),
+        Vec3::new(0.3, 0.3, -0.3),
+    );
+    let sliver = triangles(
+        "slivers",
+        &[
+            [p0, p1, p2],
+            [p0, p2, p3],
+            [p0, p2, p2 + Vec3::new(0.0, 0.0, -1e-6)],
+            [p1, p1, p3],
+            [p0, (p0 + p2) * 0.5, p2],
+        ],
+    );
+    put(&mut scene, sliver, Affine3A::IDENTITY);
+    // Two identical plates in the same place.
+    let plate = triangles(
+        "coincident",
+        &[[
+            Vec3::new(-0.2, -0.35, -0.2),
+            Vec3::new(-0.2, -0.35, 0.2),
+            Vec3::new(0.2, -0.35, 0.2),
+        ]],
+    );
+    put(&mut scene, plate.clone(), Affine3A::IDENTITY);
+    put(
+        &mut scene,
+        Mesh {
+            name: "coincident_twin".into(),
+            ..plate
+        },
+        Affine3A::IDENTITY,
+    );
+    scene
 }

@@ -1,0 +1,125 @@
+//! The transport matrix and the solver within their memory budgets: over budget, `auto`
+//! goes matrix-free and a matrix solver is refused, counting the solver's working memory and
+//! what the memory budget leaves beside the rest of the bake.
+
+mod common;
+
+use common::radiosity_settings;
+
+use lightbake::progress::Progress;
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::{CornellLight, cornell_box};
+use lightbake::settings::BakeSettings;
+use lightbake::settings::SolverChoice;
+
+#[test]
+fn transport_over_budget_falls_back_or_is_refused() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
+    settings.transport_budget_mib = 1;
+    settings.stochastic_rays_per_node = 64;
+    let out = common::bake(&scene, &settings);
+    let report = out.report.radiosity.as_ref().unwrap();
+    assert_eq!(
+        report.solver, "stochastic-jacobi",
+        "{}",
+        report.solver_reason
+    );
+    assert!(report.solver_reason.contains("budget") && report.transport_nnz == 0);
+    assert!(
+        out.report
+            .plan
+            .stages
+            .iter()
+            .any(|s| s.name == "indirect" && s.reason.contains("matrix-free"))
+    );
+    settings.solver = SolverChoice::GaussSeidel;
+    match lightbake::bake(&scene, &settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(
+                breakdown.contains("gauss-seidel") && breakdown.contains("stochastic-jacobi"),
+                "{breakdown}"
+            );
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+}
+
+/// The area-lit Cornell box at 48 texels/m with `auto`, which picks BiCGStab: the scene, its
+/// settings and the bake (the budget tests' baseline).
+fn krylov_cornell_bake() -> (Scene, BakeSettings, lightbake::BakeOutput) {
+    let scene = cornell_box(CornellLight::Area);
+    let settings = radiosity_settings(48.0, SolverChoice::Auto);
+    let out = common::bake(&scene, &settings);
+    let report = out.report.radiosity.as_ref().unwrap();
+    assert_eq!(report.solver, "krylov", "{}", report.solver_reason);
+    (scene, settings, out)
+}
+
+/// The bake is refused as over its memory budget, with `needle` in the breakdown.
+fn assert_over_budget(scene: &Scene, settings: &BakeSettings, needle: &str) {
+    match lightbake::bake(scene, settings, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
+            assert!(breakdown.contains(needle), "{breakdown}");
+        }
+        other => panic!(
+            "expected a refusal, got {:?}",
+            other.map(|o| o.report.texels)
+        ),
+    }
+}
+
+/// The transport budget holds the solver's own memory too: shooting builds the transpose (a
+/// second matrix), so a budget that holds one matrix refuses it, and says what it needed.
+#[test]
+fn transport_budget_counts_the_solvers_working_memory() {
+    let (scene, mut settings, out) = krylov_cornell_bake();
+    let report = out.report.radiosity.as_ref().unwrap();
+    assert_eq!(
+        report.solver_working_bytes,
+        SolverChoice::Krylov.working_bytes(report.nodes, report.transport_estimate_bytes)
+    );
+    assert!(report.solver_working_bytes >= 10 * 24 * report.nodes as u64);
+    assert!(
+        report.transport_bytes <= report.transport_estimate_bytes
+            && report.transport_bytes * 5 >= report.transport_estimate_bytes * 4,
+        "matrix {} bytes against the estimate {}",
+        report.transport_bytes,
+        report.transport_estimate_bytes
+    );
+    let matrix_mib = report.transport_estimate_bytes.div_ceil(1 << 20);
+    assert!(matrix_mib >= 4, "the test needs a matrix of a few MiB");
+    settings.solver = SolverChoice::Shooting;
+    settings.transport_budget_mib = matrix_mib + 1;
+    assert_over_budget(&scene, &settings, "beside it");
+    settings.transport_budget_mib = 2 * matrix_mib + 2;
+    assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
+}
+
+/// The matrix and the solver share the memory budget with the rest of the bake: with a
+/// large transport budget and a memory budget that leaves no room for the matrix, `auto` goes
+/// matrix-free and a matrix solver is refused with the memory budget named.
+#[test]
+fn memory_budget_also_bounds_the_transport() {
+    let (scene, mut settings, out) = krylov_cornell_bake();
+    let report = out.report.radiosity.as_ref().unwrap();
+    let rest_mib = out.report.memory.mib();
+    let matrix_mib = report.transport_estimate_bytes as f64 / 1048576.0;
+    assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");
+    settings.transport_budget_mib = 1 << 20;
+    settings.memory_budget_mib = (rest_mib + 0.5 * matrix_mib).ceil() as u64;
+    let out = common::bake(&scene, &settings);
+    let report = out.report.radiosity.as_ref().unwrap();
+    assert_eq!(
+        report.solver, "stochastic-jacobi",
+        "{}",
+        report.solver_reason
+    );
+    settings.solver = SolverChoice::Jacobi;
+    assert_over_budget(&scene, &settings, "memory budget");
+    settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;
+    assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
+}
