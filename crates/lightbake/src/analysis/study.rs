@@ -145,13 +145,53 @@ pub fn run_study(
     mut on_row: impl FnMut(&StudyRow),
 ) -> Result<Study> {
     let progress = Progress::new();
-    let pick = |full: &[f64], quick: &[f64]| -> Vec<f64> {
-        match size {
-            StudySize::Full => full.to_vec(),
-            StudySize::Quick => quick.to_vec(),
-        }
+    let reference = reference_settings(base, size);
+    let full_ref = bake(scene, &reference, &progress)?;
+    let direct_reference = BakeSettings {
+        method: Method::Direct,
+        ..reference.clone()
     };
-    // References: another seed, far more samples.
+    let direct_ref = bake(scene, &direct_reference, &progress)?;
+    let texels = full_ref
+        .pages
+        .iter()
+        .map(|p| p.covered.iter().filter(|&&c| c).count())
+        .sum();
+    let mut rows = Vec::new();
+    for case in cases(base, size) {
+        let against = match case.against {
+            Against::Direct => &direct_ref.pages,
+            Against::Full => &full_ref.pages,
+        };
+        let row = match case.hemicube {
+            Some(resolution) => hemicube_run(scene, &case.settings, resolution, against)?,
+            None => {
+                let out = bake(scene, &case.settings, &progress)?;
+                StudyRow {
+                    curve: case.curve,
+                    parameter: case.parameter.to_string(),
+                    budget: case.budget,
+                    seconds: out.report.total_seconds,
+                    rays: out.report.total_rays(),
+                    measured: relative_rms_error(&out.pages, against),
+                    estimated: out.report.error.as_ref().map(|e| e.relative_rms),
+                }
+            }
+        };
+        on_row(&row);
+        rows.push(row);
+    }
+    Ok(Study {
+        scene: scene.name.clone(),
+        texels,
+        reference_seconds: full_ref.report.total_seconds,
+        direct_reference_seconds: direct_ref.report.total_seconds,
+        rows,
+    })
+}
+
+/// The reference bake's settings: another seed, far more samples, a converged solve.
+fn reference_settings(base: &BakeSettings, size: StudySize) -> BakeSettings {
     let mut reference = base.clone();
     reference.seed = base.seed.wrapping_add(0x5eed);
     reference.method = Method::Radiosity;
@@ -166,50 +206,58 @@ pub fn run_study(
     reference.solver = SolverChoice::Krylov;
     reference.solver_tolerance = 1e-7;
     reference.target_error = None;
-    let full_ref = bake(scene, &reference, &progress)?;
-    let mut direct_reference = reference.clone();
-    direct_reference.method = Method::Direct;
-    let direct_ref = bake(scene, &direct_reference, &progress)?;
-    let texels = full_ref
-        .pages
-        .iter()
-        .map(|p| p.covered.iter().filter(|&&c| c).count())
-        .sum();
+    reference
+}
 
-    let mut rows = Vec::new();
-    let mut record = |row: StudyRow, rows: &mut Vec<StudyRow>| {
-        on_row(&row);
-        rows.push(row);
-    };
-    let run = |curve: &str,
-               parameter: &str,
-               budget: f64,
-               settings: &BakeSettings,
-               against: &[LightmapPage]|
-     -> Result<StudyRow> {
-        let out = bake(scene, settings, &progress)?;
-        Ok(StudyRow {
-            curve: curve.to_string(),
-            parameter: parameter.to_string(),
-            budget,
-            seconds: out.report.total_seconds,
-            rays: out.report.total_rays(),
-            measured: relative_rms_error(&out.pages, against),
-            estimated: out.report.error.as_ref().map(|e| e.relative_rms),
-        })
-    };
-    let mut s = base.clone();
-    s.target_error = None;
+/// Which reference a run is measured against.
+#[derive(Clone, Copy)]
+enum Against {
+    /// The direct-only reference.
+    Direct,
+    /// The full (radiosity) reference.
+    Full,
+}
 
+/// One run of the study, before it runs.
+struct Case {
+    curve: String,
+    parameter: &'static str,
+    budget: f64,
+    settings: BakeSettings,
+    against: Against,
+    /// A hemicube run at this resolution instead of a bake.
+    hemicube: Option<u32>,
+}
+
+/// Every run of the study, curve by curve (see the module docs).
+fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
+    let pick = |full: &[f64], quick: &[f64]| -> Vec<f64> {
+        match size {
+            StudySize::Full => full.to_vec(),
+            StudySize::Quick => quick.to_vec(),
+        }
+    };
+    let s = BakeSettings {
+        target_error: None,
+        ..base.clone()
+    };
+    let case = |curve: &str, parameter, budget, settings, against| Case {
+        curve: curve.to_string(),
+        parameter,
+        budget,
+        settings,
+        against,
+        hemicube: None,
+    };
+    let mut cases = Vec::new();
     // Direct light over footprint samples.
     for spp in pick(&[1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0], &[2.0, 8.0]) {
         let mut d = s.clone();
         d.method = Method::Direct;
         d.samples_per_texel = spp as u32;
         d.sky_samples = (4 * spp as u32).max(4);
-        record(run("direct", "spp", spp, &d, &direct_ref.pages)?, &mut rows);
+        cases.push(case("direct", "spp", spp, d, Against::Direct));
     }
-
     // Radiosity solvers over their tolerance at a fixed matrix.
     let solvers = [
         SolverChoice::Jacobi,
@@ -234,11 +282,9 @@ pub fn run_study(
             if solver == SolverChoice::StochasticJacobi {
                 r.stochastic_rays_per_node = 256;
             }
-            let row = run(solver.name(), "tolerance", tol, &r, &full_ref.pages)?;
-            record(row, &mut rows);
+            cases.push(case(solver.name(), "tolerance", tol, r, Against::Full));
         }
     }
-
     // Monte Carlo form factors over rays per node, both bases.
     for basis in [Basis::Linear, Basis::Constant] {
         for rays in pick(
@@ -255,38 +301,25 @@ pub fn run_study(
                 Basis::Linear => "mc-linear",
                 Basis::Constant => "mc-constant",
             };
-            record(
-                run(curve, "rays/node", rays, &r, &full_ref.pages)?,
-                &mut rows,
-            );
+            cases.push(case(curve, "rays/node", rays, r, Against::Full));
         }
     }
-
     // Hemicube form factors over resolution (piecewise constant).
     for res in pick(&[8.0, 16.0, 32.0, 64.0], &[8.0]) {
-        let row = hemicube_run(scene, &s, res as u32, &full_ref.pages)?;
-        record(row, &mut rows);
+        cases.push(Case {
+            hemicube: Some(res as u32),
+            ..case("hemicube", "resolution", res, s.clone(), Against::Full)
+        });
     }
-
     // Instant radiosity (hybrid) over particles.
     for n in pick(&[64.0, 256.0, 1024.0, 4096.0, 16384.0], &[64.0, 1024.0]) {
         let mut v = s.clone();
         v.method = Method::Hybrid;
         v.vpl_particles = n as u32;
         v.vpl_time_budget_s = None;
-        record(
-            run("vpl-hybrid", "particles", n, &v, &full_ref.pages)?,
-            &mut rows,
-        );
+        cases.push(case("vpl-hybrid", "particles", n, v, Against::Full));
     }
-
-    Ok(Study {
-        scene: scene.name.clone(),
-        texels,
-        reference_seconds: full_ref.report.total_seconds,
-        direct_reference_seconds: direct_ref.report.total_seconds,
-        rows,
-    })
+    cases
 }
 
 /// One hemicube run: the bake's own stages with the matrix from [`build_hemicube`] and a

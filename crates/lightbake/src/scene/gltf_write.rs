@@ -77,19 +77,10 @@ fn wrap_code(w: Wrap) -> u32 {
     }
 }
 
-/// The glTF JSON (pretty) and binary buffer of `scene`; the JSON refers to the buffer as
-/// `bin_uri`.
-///
-/// # Panics
-/// If a texture cannot be PNG-encoded (its pixel count does not match its size).
-pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
-    let mut w = Writer {
-        bin: Vec::new(),
-        views: Vec::new(),
-        accessors: Vec::new(),
-    };
-    let mut meshes = Vec::new();
-    for m in &scene.meshes {
+impl Writer {
+    /// One scene mesh as a glTF mesh with one primitive.
+    fn mesh(&mut self, m: &super::Mesh) -> Value {
+        let w = self;
         let mut attributes = serde_json::Map::new();
         let pos: Vec<f32> = m.positions.iter().flat_map(|p| p.to_array()).collect();
         attributes.insert(
@@ -128,13 +119,15 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
         if let Some(mat) = m.material {
             prim["material"] = json!(mat);
         }
-        meshes.push(json!({ "name": m.name, "primitives": [prim] }));
+        json!({ "name": m.name, "primitives": [prim] })
     }
 
-    let mut images = Vec::new();
-    let mut textures = Vec::new();
-    let mut samplers = Vec::new();
-    for t in &scene.textures {
+    /// One texture as an embedded PNG: (image, sampler).
+    ///
+    /// # Panics
+    /// If the texture cannot be PNG-encoded (its pixel count does not match its size).
+    fn texture(&mut self, t: &super::Texture) -> (Value, Value) {
+        let w = self;
         let raw: Vec<u8> = t.rgba8.iter().flatten().copied().collect();
         let img = image::RgbaImage::from_raw(t.width, t.height, raw)
             .expect("texture size matches its pixels");
@@ -142,99 +135,139 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
         img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .expect("PNG encoding into memory");
         let view = w.view(&png, None);
-        images.push(json!({ "name": t.name, "bufferView": view, "mimeType": "image/png" }));
-        samplers.push(json!({ "wrapS": wrap_code(t.wrap_u), "wrapT": wrap_code(t.wrap_v) }));
+        (
+            json!({ "name": t.name, "bufferView": view, "mimeType": "image/png" }),
+            json!({ "wrapS": wrap_code(t.wrap_u), "wrapT": wrap_code(t.wrap_v) }),
+        )
+    }
+}
+
+/// One material as glTF metallic-roughness (metallic 0 unless set, roughness 1), and whether
+/// it needs `KHR_materials_emissive_strength`.
+fn material(m: &super::Material) -> (Value, bool) {
+    let mut uses_strength = false;
+    let mut pbr = json!({
+        "baseColorFactor": m.base_color.to_array(),
+        "metallicFactor": m.metallic,
+        "roughnessFactor": 1.0,
+    });
+    if let Some(t) = m.base_color_texture {
+        pbr["baseColorTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
+    }
+    let mut v =
+        json!({ "name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": m.double_sided });
+    let peak = m.emissive.max_element();
+    if peak > 0.0 {
+        let strength = peak.max(1.0);
+        v["emissiveFactor"] = json!((m.emissive / strength).to_array());
+        if strength > 1.0 {
+            uses_strength = true;
+            v["extensions"] =
+                json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
+        }
+    }
+    if let Some(t) = m.emissive_texture {
+        v["emissiveTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
+    }
+    (v, uses_strength)
+}
+
+/// The node of one instance (TRS, with lightbake's node extras).
+fn instance_node(inst: &super::Instance) -> Value {
+    let (scale, rotation, translation) = inst.transform.to_scale_rotation_translation();
+    let mut n = json!({ "name": inst.name, "mesh": inst.mesh });
+    if translation != Vec3::ZERO {
+        n["translation"] = json!(translation.to_array());
+    }
+    if rotation != Quat::IDENTITY {
+        n["rotation"] = json!(rotation.to_array());
+    }
+    if scale != Vec3::ONE {
+        n["scale"] = json!(scale.to_array());
+    }
+    let lb = NodeExtras {
+        texel_density_scale: (inst.texel_density_scale != 1.0).then_some(inst.texel_density_scale),
+        bake: (!inst.bake).then_some(false),
+        ..NodeExtras::default()
+    };
+    extras::write(&mut n, &lb);
+    n
+}
+
+/// One light: its `KHR_lights_punctual` entry (index `i`) and its node.
+fn light(l: &super::Light, i: usize) -> (Value, Value) {
+    let mut light =
+        json!({ "name": l.name, "color": l.color.to_array(), "intensity": l.intensity });
+    match l.kind {
+        LightKind::Point => light["type"] = json!("point"),
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => {
+            light["type"] = json!("spot");
+            light["spot"] =
+                json!({ "innerConeAngle": inner_cone_angle, "outerConeAngle": outer_cone_angle });
+        }
+        LightKind::Directional { angular_radius } => {
+            light["type"] = json!("directional");
+            let lb = LightExtras {
+                angular_radius: (angular_radius > 0.0).then_some(angular_radius),
+                ..LightExtras::default()
+            };
+            extras::write(&mut light, &lb);
+        }
+    }
+    if let Some(r) = l.range {
+        light["range"] = json!(r);
+    }
+    let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction);
+    let mut n = json!({ "name": l.name, "extensions": { "KHR_lights_punctual": { "light": i } } });
+    if l.position != Vec3::ZERO {
+        n["translation"] = json!(l.position.to_array());
+    }
+    if rotation != Quat::IDENTITY {
+        n["rotation"] = json!(rotation.to_array());
+    }
+    (light, n)
+}
+
+/// The glTF JSON (pretty) and binary buffer of `scene`; the JSON refers to the buffer as
+/// `bin_uri`.
+///
+/// # Panics
+/// If a texture cannot be PNG-encoded (its pixel count does not match its size).
+pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
+    let mut w = Writer {
+        bin: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
+    let meshes: Vec<Value> = scene.meshes.iter().map(|m| w.mesh(m)).collect();
+    let mut images = Vec::new();
+    let mut textures = Vec::new();
+    let mut samplers = Vec::new();
+    for t in &scene.textures {
+        let (image, sampler) = w.texture(t);
+        images.push(image);
+        samplers.push(sampler);
         textures.push(json!({ "source": images.len() - 1, "sampler": samplers.len() - 1 }));
     }
-
     let mut uses_strength = false;
     let materials: Vec<Value> = scene
         .materials
         .iter()
         .map(|m| {
-            let mut pbr = json!({
-                "baseColorFactor": m.base_color.to_array(),
-                "metallicFactor": m.metallic,
-                "roughnessFactor": 1.0,
-            });
-            if let Some(t) = m.base_color_texture {
-                pbr["baseColorTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
-            }
-            let mut v = json!({ "name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": m.double_sided });
-            let peak = m.emissive.max_element();
-            if peak > 0.0 {
-                let strength = peak.max(1.0);
-                v["emissiveFactor"] = json!((m.emissive / strength).to_array());
-                if strength > 1.0 {
-                    uses_strength = true;
-                    v["extensions"] = json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
-                }
-            }
-            if let Some(t) = m.emissive_texture {
-                v["emissiveTexture"] = json!({ "index": t.texture, "texCoord": t.tex_coord });
-            }
+            let (v, strength) = material(m);
+            uses_strength |= strength;
             v
         })
         .collect();
-
-    let mut nodes = Vec::new();
-    for inst in &scene.instances {
-        let (scale, rotation, translation) = inst.transform.to_scale_rotation_translation();
-        let mut n = json!({ "name": inst.name, "mesh": inst.mesh });
-        if translation != Vec3::ZERO {
-            n["translation"] = json!(translation.to_array());
-        }
-        if rotation != Quat::IDENTITY {
-            n["rotation"] = json!(rotation.to_array());
-        }
-        if scale != Vec3::ONE {
-            n["scale"] = json!(scale.to_array());
-        }
-        let lb = NodeExtras {
-            texel_density_scale: (inst.texel_density_scale != 1.0)
-                .then_some(inst.texel_density_scale),
-            bake: (!inst.bake).then_some(false),
-            ..NodeExtras::default()
-        };
-        extras::write(&mut n, &lb);
-        nodes.push(n);
-    }
+    let mut nodes: Vec<Value> = scene.instances.iter().map(instance_node).collect();
     let mut lights = Vec::new();
     for (i, l) in scene.lights.iter().enumerate() {
-        let mut light =
-            json!({ "name": l.name, "color": l.color.to_array(), "intensity": l.intensity });
-        match l.kind {
-            LightKind::Point => light["type"] = json!("point"),
-            LightKind::Spot {
-                inner_cone_angle,
-                outer_cone_angle,
-            } => {
-                light["type"] = json!("spot");
-                light["spot"] = json!({ "innerConeAngle": inner_cone_angle, "outerConeAngle": outer_cone_angle });
-            }
-            LightKind::Directional { angular_radius } => {
-                light["type"] = json!("directional");
-                let lb = LightExtras {
-                    angular_radius: (angular_radius > 0.0).then_some(angular_radius),
-                    ..LightExtras::default()
-                };
-                extras::write(&mut light, &lb);
-            }
-        }
-        if let Some(r) = l.range {
-            light["range"] = json!(r);
-        }
+        let (light, node) = light(l, i);
         lights.push(light);
-        let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction);
-        let mut n =
-            json!({ "name": l.name, "extensions": { "KHR_lights_punctual": { "light": i } } });
-        if l.position != Vec3::ZERO {
-            n["translation"] = json!(l.position.to_array());
-        }
-        if rotation != Quat::IDENTITY {
-            n["rotation"] = json!(rotation.to_array());
-        }
-        nodes.push(n);
+        nodes.push(node);
     }
     let mut gltf_scene =
         json!({ "name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>() });
