@@ -180,6 +180,25 @@ struct Importer<'a> {
     texture_map: HashMap<usize, Option<usize>>,
 }
 
+/// Triangle-list indices of a primitive drawn in `mode` (strips and fans converted).
+fn triangle_list(mode: Mode, raw: Vec<u32>) -> Vec<u32> {
+    match mode {
+        Mode::TriangleStrip => (0..raw.len().saturating_sub(2))
+            .flat_map(|i| {
+                if i % 2 == 0 {
+                    [raw[i], raw[i + 1], raw[i + 2]]
+                } else {
+                    [raw[i + 1], raw[i], raw[i + 2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..raw.len().saturating_sub(1))
+            .flat_map(|i| [raw[0], raw[i], raw[i + 1]])
+            .collect(),
+        _ => raw,
+    }
+}
+
 /// The raw `extras` JSON text of a glTF object.
 fn extras_text(extras: &gltf::json::Extras) -> Option<&str> {
     extras.as_ref().map(|raw| raw.get())
@@ -392,6 +411,65 @@ impl Importer<'_> {
         });
     }
 
+    /// Checks a mesh's own normals (count, finite), reports triangles whose normals point
+    /// against their winding, replaces zero-length normals by the face normals and normalises
+    /// the rest.
+    fn repair_normals(&mut self, m: &mut Mesh, context: &str) -> Result<()> {
+        let name = &m.name;
+        if m.normals.len() != m.positions.len() {
+            return Err(BakeError::BadAccessor {
+                context: context.to_string(),
+                message: format!(
+                    "{} normals for {} positions",
+                    m.normals.len(),
+                    m.positions.len()
+                ),
+            });
+        }
+        if let Some(vertex) = m.normals.iter().position(|n| !n.is_finite()) {
+            return Err(BakeError::NonFiniteVertex {
+                mesh: name.clone(),
+                vertex,
+                attribute: "normal",
+                value: format!("{:?}", m.normals[vertex]),
+            });
+        }
+        let zero = m
+            .normals
+            .iter()
+            .filter(|n| n.length_squared() < 1e-12)
+            .count();
+        let flipped = (0..m.triangle_count())
+            .filter(|&t| {
+                let [a, b, c] = m.triangle(t);
+                let g = (m.positions[b] - m.positions[a]).cross(m.positions[c] - m.positions[a]);
+                [a, b, c].iter().all(|&v| m.normals[v].dot(g) < 0.0)
+            })
+            .count();
+        if flipped > 0 {
+            self.scene.warnings.push(format!(
+                "mesh '{name}': {flipped} of {} triangles have normals pointing against their winding; the front face (counter-clockwise winding) is baked with the normal flipped to it",
+                m.triangle_count()
+            ));
+        }
+        if zero > 0 {
+            self.scene.warnings.push(format!(
+                "mesh '{name}': {zero} zero-length normals replaced by the face normals"
+            ));
+            let mut computed = m.clone();
+            computed.compute_normals();
+            for (n, c) in m.normals.iter_mut().zip(&computed.normals) {
+                if n.length_squared() < 1e-12 {
+                    *n = *c;
+                }
+            }
+        }
+        for n in &mut m.normals {
+            *n = n.normalize_or(Vec3::Y);
+        }
+        Ok(())
+    }
+
     fn mesh(
         &mut self,
         mesh: &gltf::Mesh<'_>,
@@ -431,21 +509,7 @@ impl Importer<'_> {
             Some(acc) => read_indices(&acc, self.buffers, &ctx("indices"))?,
             None => (0..positions.len() as u32).collect(),
         };
-        let indices = match mode {
-            Mode::TriangleStrip => (0..raw_indices.len().saturating_sub(2))
-                .flat_map(|i| {
-                    if i % 2 == 0 {
-                        [raw_indices[i], raw_indices[i + 1], raw_indices[i + 2]]
-                    } else {
-                        [raw_indices[i + 1], raw_indices[i], raw_indices[i + 2]]
-                    }
-                })
-                .collect(),
-            Mode::TriangleFan => (1..raw_indices.len().saturating_sub(1))
-                .flat_map(|i| [raw_indices[0], raw_indices[i], raw_indices[i + 1]])
-                .collect(),
-            _ => raw_indices,
-        };
+        let indices = triangle_list(mode, raw_indices);
         let mut m = Mesh {
             name: name.clone(),
             positions,
@@ -480,59 +544,7 @@ impl Importer<'_> {
                     .into_iter()
                     .map(Vec3::from_array)
                     .collect();
-                if m.normals.len() != m.positions.len() {
-                    return Err(BakeError::BadAccessor {
-                        context: ctx("NORMAL"),
-                        message: format!(
-                            "{} normals for {} positions",
-                            m.normals.len(),
-                            m.positions.len()
-                        ),
-                    });
-                }
-                if let Some(vertex) = m.normals.iter().position(|n| !n.is_finite()) {
-                    return Err(BakeError::NonFiniteVertex {
-                        mesh: name,
-                        vertex,
-                        attribute: "normal",
-                        value: format!("{:?}", m.normals[vertex]),
-                    });
-                }
-                let zero = m
-                    .normals
-                    .iter()
-                    .filter(|n| n.length_squared() < 1e-12)
-                    .count();
-                let mut flipped = 0usize;
-                for t in 0..m.triangle_count() {
-                    let [a, b, c] = m.triangle(t);
-                    let g =
-                        (m.positions[b] - m.positions[a]).cross(m.positions[c] - m.positions[a]);
-                    if [a, b, c].iter().all(|&v| m.normals[v].dot(g) < 0.0) {
-                        flipped += 1;
-                    }
-                }
-                if flipped > 0 {
-                    self.scene.warnings.push(format!(
-                        "mesh '{name}': {flipped} of {} triangles have normals pointing against their winding; the front face (counter-clockwise winding) is baked with the normal flipped to it",
-                        m.triangle_count()
-                    ));
-                }
-                if zero > 0 {
-                    self.scene.warnings.push(format!(
-                        "mesh '{name}': {zero} zero-length normals replaced by the face normals"
-                    ));
-                    let mut computed = m.clone();
-                    computed.compute_normals();
-                    for (n, c) in m.normals.iter_mut().zip(&computed.normals) {
-                        if n.length_squared() < 1e-12 {
-                            *n = *c;
-                        }
-                    }
-                }
-                for n in &mut m.normals {
-                    *n = n.normalize_or(Vec3::Y);
-                }
+                self.repair_normals(&mut m, &ctx("NORMAL"))?;
             }
             None => {
                 self.scene.warnings.push(format!(
