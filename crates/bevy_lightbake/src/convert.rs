@@ -310,7 +310,33 @@ pub fn extract_scene(
     };
     let mut mapping = SceneMapping::default();
 
-    // 1. Meshes and instances, in a stable order.
+    extract_instances(world, &mut scene, &mut mapping, texel_density)?;
+    extract_lights(world, &mut scene, &mut mapping);
+    scene.sky = match sky {
+        SkySource::GlobalAmbient => {
+            let a = world.get_resource::<GlobalAmbientLight>();
+            mapping.sky_from_ambient = a.is_some();
+            a.map_or(lightbake::glam::Vec3::ZERO, |a| {
+                linear_rgb(a.color) * a.brightness
+            })
+        }
+        SkySource::ClearColor { nits } => world
+            .get_resource::<ClearColor>()
+            .map_or(lightbake::glam::Vec3::ZERO, |c| linear_rgb(c.0) * nits),
+        SkySource::Nits(v) => vec3(v),
+        SkySource::None => lightbake::glam::Vec3::ZERO,
+    };
+    Ok((scene, mapping))
+}
+
+/// Every `Lightbaked` mesh entity as a core instance (its mesh and material converted once
+/// per (mesh, material) pair), in the order of their names.
+fn extract_instances(
+    world: &mut World,
+    scene: &mut Scene,
+    mapping: &mut SceneMapping,
+    texel_density: f32,
+) -> Result<(), String> {
     let mut query = world.query::<(
         Entity,
         &Mesh3d,
@@ -353,7 +379,7 @@ pub fn extract_scene(
                     ));
                 }
                 let mut core = core_mesh(mesh, &label)?;
-                core.material = mats.get(&mut scene, images, materials, mat_handle.as_ref());
+                core.material = mats.get(scene, images, materials, mat_handle.as_ref());
                 let needs_own_asset = mapping.meshes.iter().any(|s| s.handle == mesh_handle);
                 mapping.meshes.push(MeshSource {
                     handle: mesh_handle.clone(),
@@ -374,7 +400,11 @@ pub fn extract_scene(
         mapping.instances.push(entity);
     }
 
-    // 2. Lights.
+    Ok(())
+}
+
+/// Every point, spot and directional light without [`NotBaked`], in the order of their names.
+fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMapping) {
     let mut lights: Vec<(String, Entity, CoreLight)> = Vec::new();
     let mut q = world.query_filtered::<(Entity, &PointLight, &GlobalTransform, Option<&Name>), Without<NotBaked>>();
     for (e, l, t, n) in q.iter(world) {
@@ -445,21 +475,4 @@ pub fn extract_scene(
         scene.lights.push(l);
         mapping.lights.push(e);
     }
-
-    // 3. Sky.
-    scene.sky = match sky {
-        SkySource::GlobalAmbient => {
-            let a = world.get_resource::<GlobalAmbientLight>();
-            mapping.sky_from_ambient = a.is_some();
-            a.map_or(lightbake::glam::Vec3::ZERO, |a| {
-                linear_rgb(a.color) * a.brightness
-            })
-        }
-        SkySource::ClearColor { nits } => world
-            .get_resource::<ClearColor>()
-            .map_or(lightbake::glam::Vec3::ZERO, |c| linear_rgb(c.0) * nits),
-        SkySource::Nits(v) => vec3(v),
-        SkySource::None => lightbake::glam::Vec3::ZERO,
-    };
-    Ok((scene, mapping))
 }

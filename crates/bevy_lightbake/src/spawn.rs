@@ -104,24 +104,7 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
         scene
             .materials
             .iter()
-            .map(|m| {
-                let c = m.base_color;
-                assets.add(StandardMaterial {
-                    base_color: Color::linear_rgba(c.x, c.y, c.z, c.w),
-                    base_color_texture: m.base_color_texture.map(|t| textures[t.texture].clone()),
-                    emissive: LinearRgba::rgb(m.emissive.x, m.emissive.y, m.emissive.z),
-                    emissive_texture: m.emissive_texture.map(|t| textures[t.texture].clone()),
-                    metallic: m.metallic,
-                    perceptual_roughness: 1.0,
-                    double_sided: m.double_sided,
-                    cull_mode: if m.double_sided {
-                        None
-                    } else {
-                        Some(bevy::render::render_resource::Face::Back)
-                    },
-                    ..default()
-                })
-            })
+            .map(|m| assets.add(standard_material(m, &textures)))
             .collect()
     };
     let default_material = world
@@ -167,61 +150,7 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
     let (lo, hi) = scene.bounds();
     let unbounded = UNBOUNDED_RANGE_DIAGONALS * (hi - lo).length().max(1e-3);
     for l in &scene.lights {
-        let color = Color::linear_rgb(l.color.x, l.color.y, l.color.z);
-        let position = v3(l.position);
-        let looking = Transform::from_translation(position)
-            .looking_to(v3(l.direction), perpendicular(v3(l.direction)));
-        let lumens = l.intensity * 4.0 * PI;
-        let range = l.range.unwrap_or(unbounded);
-        let name = Name::new(l.name.clone());
-        match l.kind {
-            LightKind::Point => world.spawn((
-                PointLight {
-                    color,
-                    intensity: lumens,
-                    range,
-                    shadow_maps_enabled: true,
-                    ..default()
-                },
-                looking,
-                name,
-            )),
-            LightKind::Spot {
-                inner_cone_angle,
-                outer_cone_angle,
-            } => world.spawn((
-                SpotLight {
-                    color,
-                    intensity: lumens,
-                    range,
-                    inner_angle: inner_cone_angle,
-                    outer_angle: outer_cone_angle,
-                    shadow_maps_enabled: true,
-                    ..default()
-                },
-                looking,
-                name,
-            )),
-            LightKind::Directional { angular_radius } => {
-                let mut e = world.spawn((
-                    DirectionalLight {
-                        color,
-                        illuminance: l.intensity,
-                        shadow_maps_enabled: true,
-                        ..default()
-                    },
-                    looking,
-                    name,
-                ));
-                if angular_radius > 0.0 {
-                    e.insert(bevy::light::SunDisk {
-                        angular_size: 2.0 * angular_radius,
-                        intensity: 1.0,
-                    });
-                }
-                e
-            }
-        };
+        spawn_light(world, l, unbounded);
     }
     let peak = scene.sky.max_element();
     let sky_color = if peak > 0.0 {
@@ -235,6 +164,89 @@ pub fn spawn_scene(world: &mut World, scene: &Scene) -> Vec<Entity> {
         ..default()
     });
     entities
+}
+
+/// A core material as a `StandardMaterial` (roughness 1; back faces culled when single-sided).
+fn standard_material(
+    m: &lightbake::scene::Material,
+    textures: &[Handle<Image>],
+) -> StandardMaterial {
+    let c = m.base_color;
+    StandardMaterial {
+        base_color: Color::linear_rgba(c.x, c.y, c.z, c.w),
+        base_color_texture: m.base_color_texture.map(|t| textures[t.texture].clone()),
+        emissive: LinearRgba::rgb(m.emissive.x, m.emissive.y, m.emissive.z),
+        emissive_texture: m.emissive_texture.map(|t| textures[t.texture].clone()),
+        metallic: m.metallic,
+        perceptual_roughness: 1.0,
+        double_sided: m.double_sided,
+        cull_mode: if m.double_sided {
+            None
+        } else {
+            Some(bevy::render::render_resource::Face::Back)
+        },
+        ..default()
+    }
+}
+
+/// Spawns one core light as Bevy's light of its kind (lumens = 4π × candela; a light with no
+/// range gets `unbounded`).
+fn spawn_light(world: &mut World, l: &lightbake::scene::Light, unbounded: f32) {
+    let color = Color::linear_rgb(l.color.x, l.color.y, l.color.z);
+    let position = v3(l.position);
+    let looking = Transform::from_translation(position)
+        .looking_to(v3(l.direction), perpendicular(v3(l.direction)));
+    let lumens = l.intensity * 4.0 * PI;
+    let range = l.range.unwrap_or(unbounded);
+    let name = Name::new(l.name.clone());
+    match l.kind {
+        LightKind::Point => world.spawn((
+            PointLight {
+                color,
+                intensity: lumens,
+                range,
+                shadow_maps_enabled: true,
+                ..default()
+            },
+            looking,
+            name,
+        )),
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => world.spawn((
+            SpotLight {
+                color,
+                intensity: lumens,
+                range,
+                inner_angle: inner_cone_angle,
+                outer_angle: outer_cone_angle,
+                shadow_maps_enabled: true,
+                ..default()
+            },
+            looking,
+            name,
+        )),
+        LightKind::Directional { angular_radius } => {
+            let mut e = world.spawn((
+                DirectionalLight {
+                    color,
+                    illuminance: l.intensity,
+                    shadow_maps_enabled: true,
+                    ..default()
+                },
+                looking,
+                name,
+            ));
+            if angular_radius > 0.0 {
+                e.insert(bevy::light::SunDisk {
+                    angular_size: 2.0 * angular_radius,
+                    intensity: 1.0,
+                });
+            }
+            e
+        }
+    };
 }
 
 /// Any unit vector perpendicular to `d` (an "up" for `looking_to`).

@@ -228,9 +228,29 @@ pub fn apply_unwrap(original: &Mesh, unwrap: &MeshUnwrap) -> Result<Mesh, MeshAc
 /// entities got a lightmap.
 fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> usize {
     let Finished { output, page_paths } = finished;
-    let layout = &output.layout;
+    let new_handles = apply_meshes(world, &output, mapping);
+    let handles = page_handles(world, &output, page_paths.as_deref());
+    let lightmapped = attach_lightmaps(world, &output, mapping, &new_handles, &handles);
+    mark_lights_baked(world, mapping);
+    for w in &output.report.warnings {
+        warn!("lightbake: {w}");
+    }
+    let mut status = world.resource_mut::<BakeStatus>();
+    status.phase = BakePhase::Done;
+    status.completed += 1;
+    status.fraction = 1.0;
+    status.last_report = Some(Box::new(output.report));
+    lightmapped
+}
 
-    // 1. Meshes: the unwrap's UV_1 (and vertex split), in place or as a new asset.
+/// Meshes get the unwrap's `UV_1` (and vertex split), in place or as a new asset; returns the
+/// new assets by core mesh.
+fn apply_meshes(
+    world: &mut World,
+    output: &BakeOutput,
+    mapping: &SceneMapping,
+) -> HashMap<usize, Handle<Mesh>> {
+    let layout = &output.layout;
     let mut new_handles: HashMap<usize, Handle<Mesh>> = HashMap::new();
     for (m, source) in mapping.meshes.iter().enumerate() {
         let Some(unwrap) = &layout.meshes[m] else {
@@ -254,8 +274,16 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
         }
     }
 
-    // 2. Page images: loaded from the files just written, or made in memory.
-    let handles: Vec<Handle<Image>> = match &page_paths {
+    new_handles
+}
+
+/// The page images: loaded from the files just written (`page_paths`), or made in memory.
+fn page_handles(
+    world: &mut World,
+    output: &BakeOutput,
+    page_paths: Option<&[String]>,
+) -> Vec<Handle<Image>> {
+    match page_paths {
         Some(paths) => {
             let server = world.resource::<AssetServer>().clone();
             paths
@@ -284,9 +312,19 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
             world.resource_mut::<MemoryPages>().0 = kept.clone();
             kept
         }
-    };
+    }
+}
 
-    // 3. Entities: a lightmap each (and their own mesh where the asset was split off).
+/// Every baked entity gets its lightmap (and its own mesh where the asset was split off);
+/// returns how many.
+fn attach_lightmaps(
+    world: &mut World,
+    output: &BakeOutput,
+    mapping: &SceneMapping,
+    new_handles: &HashMap<usize, Handle<Mesh>>,
+    handles: &[Handle<Image>],
+) -> usize {
+    let layout = &output.layout;
     let mut lightmapped = 0;
     for (i, &entity) in mapping.instances.iter().enumerate() {
         let Ok(mut e) = world.get_entity_mut(entity) else {
@@ -314,7 +352,12 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
         lightmapped += 1;
     }
 
-    // 4. Lights: their diffuse light is in the lightmaps now.
+    lightmapped
+}
+
+/// The baked lights stop lighting lightmapped meshes: their diffuse light is in the lightmaps
+/// now (and the ambient light's, when the sky came from it).
+fn mark_lights_baked(world: &mut World, mapping: &SceneMapping) {
     for &entity in &mapping.lights {
         let Ok(mut e) = world.get_entity_mut(entity) else {
             continue;
@@ -335,16 +378,6 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
     {
         a.affects_lightmapped_meshes = false;
     }
-
-    for w in &output.report.warnings {
-        warn!("lightbake: {w}");
-    }
-    let mut status = world.resource_mut::<BakeStatus>();
-    status.phase = BakePhase::Done;
-    status.completed += 1;
-    status.fraction = 1.0;
-    status.last_report = Some(Box::new(output.report));
-    lightmapped
 }
 
 /// Narrows lightmap images Bevy loaded as `Rgba32Float` (EXR, HDR) to `Rgba16Float`, and
