@@ -254,11 +254,12 @@ fn add_sky(
     let spp = samples.len() as u32;
     let mut escaped = 0u32;
     let scale = std::f64::consts::PI * luminance(ctx.scene.sky) as f64;
+    let key = p.rng(ctx.settings.seed, stream::SKY);
     for k in 0..n {
         let block = &mut spread.blocks[(k as usize * BLOCKS) / n as usize];
         block.sky_n += 1;
         let sp = samples[(k % spp) as usize];
-        let u = sobol_02(k, p.rng(ctx.settings.seed, stream::SKY));
+        let u = sobol_02(k, key);
         let Some(incident) = sky::incident(ctx.scene.sky, &sp, u, ctx.rays) else {
             continue;
         };

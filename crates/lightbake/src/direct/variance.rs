@@ -49,7 +49,7 @@ pub(super) struct Block {
 /// whole one with 1/B of the samples, and the variance of their mean is estimated by
 /// Σ(y_b − ȳ)²/(B(B − 1)). Unlike the independent-sample formula, this sees what the
 /// stratification gains (hard shadow edges across a texel, stratified sky rays), which that
-/// formula counted as noise: 2.6× the measured error in the sunlit room. The whole sequence
+/// formula counts as noise (it overstates the sunlit room's error about 2.5×). The whole sequence
 /// is better stratified than B separate blocks, so in expectation this overstates the variance
 /// of the estimate a little; it cannot see bias. `r` is the whole texel's visible fraction,
 /// used for a block whose ratio estimator drew no weight.

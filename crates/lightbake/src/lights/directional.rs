@@ -21,6 +21,7 @@ fn travel(light: &Light, angular_radius: f32, u: Vec2) -> Vec3 {
 }
 
 /// The light at `at` from the point `u` of the sun's disc.
+#[inline]
 pub fn incident(
     light: &Light,
     angular_radius: f32,

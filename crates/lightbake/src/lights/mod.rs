@@ -127,6 +127,7 @@ pub trait LightSource {
 }
 
 impl LightSource for Light {
+    #[inline(always)]
     fn incident(&self, at: &SurfacePoint, u: Vec2, rays: &RayScene) -> Option<Incident> {
         match self.kind {
             LightKind::Point => point::incident(self, at, rays),

@@ -15,6 +15,7 @@ use crate::scene::Light;
 
 /// The inverse-square irradiance of a light at its position, times `falloff(l)` of the
 /// direction l from the point to the light (1 for a point light, the cone for a spot).
+#[inline]
 pub(super) fn inverse_square(
     light: &Light,
     at: &SurfacePoint,
@@ -50,6 +51,7 @@ pub(super) fn inverse_square(
 }
 
 /// The light at `at` (see the module docs).
+#[inline]
 pub fn incident(light: &Light, at: &SurfacePoint, rays: &RayScene) -> Option<Incident> {
     inverse_square(light, at, rays, |_| 1.0)
 }

@@ -12,6 +12,7 @@ use crate::sampling::{cosine_hemisphere, uniform_cone};
 
 /// One cosine-distributed sample of the sky at `at`: the direction for `u`, the estimate π·L
 /// when it escapes. `None` when the direction points below the surface.
+#[inline]
 pub fn incident(sky: Vec3, at: &SurfacePoint, u: Vec2, rays: &RayScene) -> Option<Incident> {
     let dir = cosine_hemisphere(at.normal, u);
     (at.geometric_normal.dot(dir) > 0.0).then(|| Incident {

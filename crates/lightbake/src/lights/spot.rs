@@ -16,6 +16,7 @@ use crate::sampling::uniform_cone;
 use crate::scene::Light;
 
 /// The cone falloff S towards a point seen along `-l` from the light (see the module docs).
+#[inline]
 fn falloff(light: &Light, inner: f32, outer: f32, l: Vec3) -> f32 {
     let (ci, co) = (inner.cos(), outer.cos());
     let scale = 1.0 / (ci - co).max(1e-4);
@@ -26,6 +27,7 @@ fn falloff(light: &Light, inner: f32, outer: f32, l: Vec3) -> f32 {
 }
 
 /// The light at `at`: inverse square times the cone falloff.
+#[inline]
 pub fn incident(
     light: &Light,
     inner: f32,

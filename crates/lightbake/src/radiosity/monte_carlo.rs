@@ -218,7 +218,7 @@ pub fn build(
     let n = nodes.len();
     let mut t = Transport::empty(n, basis);
     // Rows are made in blocks and packed as they come, so the per-row vectors of only one
-    // block exist next to the packed matrix (all of them at once doubled the peak). The
+    // block exist next to the packed matrix (all of them at once would double the peak). The
     // first block's mean row length sizes the packed arrays.
     for start in (0..n).step_by(BUILD_BLOCK_ROWS) {
         let end = (start + BUILD_BLOCK_ROWS).min(n);

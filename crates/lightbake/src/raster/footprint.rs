@@ -27,6 +27,8 @@ pub struct Footprint<'a> {
     rays: &'a RayScene,
     p: &'a Patch,
     seed: u32,
+    /// The scramble of the first-attempt points (`p`'s footprint stream).
+    first_key: u32,
     /// The surface over the whole texel square as one affine map, when the square lies inside
     /// the patch's triangle and no other geometry is near: every first-attempt point then
     /// comes from it without a search of the footprint triangles, as [`Surface::point`] would
@@ -64,6 +66,7 @@ impl<'a> Footprint<'a> {
             rays,
             p,
             seed,
+            first_key: p.rng(seed, stream::FOOTPRINT),
             frame,
         }
     }
@@ -75,6 +78,7 @@ impl<'a> Footprint<'a> {
     }
 
     /// Point `s` (see the type docs); shadow rays traced to check it are added to `rays`.
+    #[inline]
     pub fn point(&self, s: u32, rays: &mut u64) -> SurfacePoint {
         match &self.frame {
             Some(frame) => frame.point(self.first(s) - Vec2::splat(0.5)),
@@ -83,8 +87,9 @@ impl<'a> Footprint<'a> {
     }
 
     /// The first-attempt offset of point `s` in the texel square, in [0, 1)².
+    #[inline]
     fn first(&self, s: u32) -> Vec2 {
-        sobol_02(s, self.p.rng(self.seed, stream::FOOTPRINT))
+        sobol_02(s, self.first_key)
     }
 
     /// Point `s` found by the general search of the footprint triangles, which

@@ -73,12 +73,14 @@ impl Patch {
     }
 
     /// Key for this texel's random numbers, mixed with `seed` and a stream number.
+    #[inline]
     pub fn rng(&self, seed: u32, stream: u32) -> u32 {
         hash_words(&[seed, self.key, stream])
     }
 
     /// The representative point as a surface point (its barycentrics are not tracked: the
     /// point may have been moved off its triangle by the validity pass).
+    #[inline]
     pub fn representative(&self) -> SurfacePoint {
         SurfacePoint {
             position: self.position,

@@ -174,6 +174,7 @@ impl SurfaceFrame {
 
     /// The surface point at q₀ + `d` (texels), as [`Surface::point`] gives it for a point
     /// inside the triangle.
+    #[inline]
     pub fn point(&self, d: Vec2) -> SurfacePoint {
         let g = self.geometric_normal;
         let n = self.normal[0] + self.normal[1] * d.x + self.normal[2] * d.y;

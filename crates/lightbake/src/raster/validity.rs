@@ -101,8 +101,8 @@ impl Patches {
     ///
     /// Its probes use a fixed seed ([`VALIDITY_SEED`]), not the bake's: which texels move,
     /// where to and how much of them is visible are geometry, and a bake with another seed
-    /// must differ from this one by Monte Carlo noise alone (a seed-dependent validity put a
-    /// floor of about 2.4% under the sunlit room's convergence curves, measured against a
+    /// must differ from this one by Monte Carlo noise alone (a seed-dependent validity puts a
+    /// floor of a few percent under the convergence curves, which are measured against a
     /// reference baked with another seed).
     pub fn fix_validity(&mut self, scene: &Scene, layout: &Layout, rays: &RayScene) {
         let surface = Surface::new(scene, layout, rays);
