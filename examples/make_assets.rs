@@ -6,7 +6,7 @@
 //! cargo run --example make_assets -- DIR     # writes into DIR
 //! ```
 //!
-//! `tests/assets.rs` fails when the committed files differ from what this writes.
+//! `crates/lightbake/tests/assets.rs` fails when the committed files differ from what this writes.
 
 use std::path::PathBuf;
 

@@ -50,7 +50,7 @@ impl Prepared {
     /// Plans, unwraps, builds the BVH and the validated patches of `scene`.
     ///
     /// # Errors
-    /// As [`bake`] for the stages it runs.
+    /// As [`crate::bake()`] for the stages it runs.
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<Self> {
         settings.validate()?;
         scene.validate()?;

@@ -5,11 +5,11 @@
 //! (luminance, lux):
 //!
 //! - direct light: the spread of four blocks of its footprint samples, each block a stratified
-//!   replicate of the whole ([`crate::direct`]); below eight samples, the sample variance
+//!   replicate of the whole (the direct pass); below eight samples, the sample variance
 //!   over N samples divided by N (for the closed-form emitter's ratio estimator, the
 //!   delta-method variance);
 //! - radiosity: two independent re-gathers of sample nodes against the solution
-//!   ([`crate::indirect::gather_error`]);
+//!   (`radiosity::gather_error`);
 //! - instant radiosity: the variance over particle paths.
 //!
 //! Over the lightmap they are summarised as

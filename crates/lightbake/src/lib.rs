@@ -1,7 +1,7 @@
 //! # lightbake
 //!
 //! An engine-free lightmap baker. A [`Scene`] (imported from glTF with [`import_gltf`], or
-//! built in code) is baked with [`bake`] (or in the background with [`BakeHandle`]) into HDR
+//! built in code) is baked with [`bake()`] (or in the background with [`BakeHandle`]) into HDR
 //! lightmap pages with direct and interreflected light, and [`write_outputs`] writes them with
 //! a baked glTF (`TEXCOORD_1`), a manifest and a report:
 //!
@@ -48,7 +48,7 @@
 //! | 11 | `vpl` | instant radiosity: walks, gather, bias compensation |
 //! | 12 | [`lightmap`] | pages of E/π, filled and dilated |
 //! | 13 | [`report`] | what a bake records about itself |
-//! | 14 | [`bake`] | the driver and [`BakeHandle`] |
+//! | 14 | [`bake`](mod@bake) | the driver and [`BakeHandle`] |
 //! | 15 | [`output`] | EXR/HDR/KTX2 + PNG, baked glTF, manifest, report; atomically |
 //! | 16 | [`analysis`] | the reference path tracer and the convergence study |
 //!

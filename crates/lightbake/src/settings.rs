@@ -191,7 +191,7 @@ pub struct BakeSettings {
     /// Default 128 (medium), 32 (preview), 512 (high).
     pub transport_rays: u32,
     /// Largest transport matrix plus the solver's working memory beside it
-    /// ([`crate::solve::SolverChoice::working_bytes`]), MiB; beyond it `Auto` falls back to
+    /// (`SolverChoice::working_bytes`), MiB; beyond it `Auto` falls back to
     /// matrix-free stochastic Jacobi and the matrix solvers refuse. The smaller of this and
     /// what [`Self::memory_budget_mib`] leaves beside the rest of the bake applies.
     /// Default 4096.
@@ -264,7 +264,7 @@ pub struct BakeSettings {
     /// the solver are planned within what the rest of the bake leaves of it. Default 8192.
     pub memory_budget_mib: u64,
     /// Target relative RMS error of the lightmap (e.g. 0.02 for 2%; see
-    /// [`crate::estimate`]). When set, the sample counts above become the pilot: each
+    /// [`crate::error_estimate`]). When set, the sample counts above become the pilot: each
     /// Monte Carlo stage measures its own error, predicts the count that reaches its share of
     /// the target (the target divided by √(number of sampling stages); error falls as
     /// 1/√count), runs again with it, and repeats (at most 3 rounds, counts capped at their

@@ -1,7 +1,7 @@
 //! The driver: plan → memory check → unwrap → BVH → texel patches → validity → direct light
 //! → indirect light (radiosity or instant radiosity) → pages (fill, dilate). Each stage runs
 //! only when the plan says the scene needs it, and is timed, counted and recorded in the
-//! report ([`stages`]); the lighting passes are [`passes`].
+//! report (`bake::stages`); the lighting passes are `bake::passes`.
 //!
 //! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
 //! writes it; [`BakeHandle`] runs both on a thread of their own. Work runs on a rayon pool of

@@ -1,11 +1,11 @@
 //! The emissive-triangle term of the direct pass, per footprint sample.
 //!
-//! * With at most `max_closed_form_emitters` triangles ([`RatioEstimate`]): the unoccluded
+//! * With at most `max_closed_form_emitters` triangles (`RatioEstimate`): the unoccluded
 //!   irradiance of every triangle in closed form, and shadow rays for the visible fraction
 //!   only — a ratio estimator that picks the triangle in proportion to its closed-form share
 //!   and a point on it, E ≈ E_unoccluded · Σ wᵢVᵢ / Σ wᵢ with wᵢ = f(yᵢ)/p(yᵢ). Exact wherever
 //!   the emitter is fully visible or fully hidden.
-//! * With more ([`sampled`]): a triangle picked by power and the plain estimator f·V/p.
+//! * With more (`sampled`): a triangle picked by power and the plain estimator f·V/p.
 
 use glam::Vec3;
 

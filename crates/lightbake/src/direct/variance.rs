@@ -1,6 +1,6 @@
 //! The direct pass's estimate of its own error: the spread of blocks of each texel's
 //! footprint samples (replicates), or, with too few samples for blocks, the independent-sample
-//! variance (see [`super::texel`]).
+//! variance (see `texel` in the direct pass).
 
 use crate::settings::BakeSettings;
 

@@ -1,6 +1,6 @@
 //! Writing a bake to disk: lightmap pages (EXR by default; HDR, KTX2 on request; a PNG
 //! preview), the baked glTF, `manifest.json` and `report.json`, all staged to temporary files
-//! and renamed into place together ([`atomic`]).
+//! and renamed into place together ([`crate::atomic`]).
 //!
 //! Layout of an output directory:
 //!

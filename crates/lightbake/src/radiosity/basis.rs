@@ -1,5 +1,5 @@
 //! The area of each node's basis function, ∫φᵢ dA: split from the texels' open areas by the
-//! basis weights, in closed form inside a chart ([`exact_split`]) and by stratified footprint
+//! basis weights, in closed form inside a chart (`exact_split`) and by stratified footprint
 //! samples elsewhere.
 
 use glam::{Vec2, Vec3};

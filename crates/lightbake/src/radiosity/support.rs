@@ -17,7 +17,7 @@ use crate::settings::Basis;
 /// surface. Returns the point and its importance weight φᵢ(x)·a(x)/density(x), with a(x) the
 /// world area of a texel there; `None` when the offset leaves the surface or the node's chart
 /// or lands on a part of a texel hidden under geometry (those samples carry no weight, as they
-/// carry no area in [`Nodes::area`]).
+/// carry no area in [`Nodes::area`](super::Nodes::area)).
 pub fn support_point(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,

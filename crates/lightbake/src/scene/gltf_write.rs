@@ -1,5 +1,5 @@
 //! Writes a [`Scene`] as glTF 2.0 (`.gltf` + `.bin`): how the shipped assets are produced
-//! from [`super::testscenes`], and how tests make input files.
+//! from `scene::testscenes`, and how tests make input files.
 //!
 //! One node per instance (TRS), one mesh with one primitive per scene mesh, metallic-roughness
 //! materials (metallic 0, roughness 1) with `KHR_materials_emissive_strength` when the

@@ -13,7 +13,7 @@ pub type TexCoords = [Option<Vec2>; 2];
 /// Reference from a material to a texture and the UV set it uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TextureRef {
-    /// Index into [`Scene::textures`].
+    /// Index into [`Scene::textures`](super::Scene::textures).
     pub texture: usize,
     /// Which `TEXCOORD_n` the texture uses (0 or 1; a point without that set, or a higher set,
     /// takes the texture's mean colour).

@@ -6,7 +6,7 @@ use serde::Serialize;
 use super::TexCoords;
 use crate::error::{BakeError, Result};
 
-/// A triangle mesh in its own (local) space. Shared by every [`Instance`] that places it.
+/// A triangle mesh in its own (local) space. Shared by every [`Instance`](super::Instance) that places it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     /// Name used in messages (glTF: `mesh name / primitive index`).
@@ -21,7 +21,7 @@ pub struct Mesh {
     pub uv1: Option<Vec<Vec2>>,
     /// Triangle list, three indices per triangle.
     pub indices: Vec<u32>,
-    /// Index into [`Scene::materials`]; `None` means the glTF default material (white).
+    /// Index into [`Scene::materials`](super::Scene::materials); `None` means the glTF default material (white).
     pub material: Option<usize>,
     /// Where it came from in the source glTF, for the baked-glTF export.
     pub source: Option<GltfPrimitiveRef>,

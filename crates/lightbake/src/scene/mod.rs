@@ -20,7 +20,7 @@ use crate::error::{BakeError, Result};
 
 /// Largest world coordinate a vertex may have, m (default and only value: 10⁹ m). Beyond it
 /// f32 positions are more than 100 m apart, so nothing can be baked there; xatlas crashed on
-/// a fuzzed scene with a vertex at 1.4·10²² m (`tests/fuzz_import.rs`).
+/// a fuzzed scene with a vertex at 1.4·10²² m (`crates/lightbake/tests/fuzz_import.rs`).
 pub const MAX_COORDINATE: f32 = 1e9;
 
 pub mod extras;

@@ -2,7 +2,7 @@
 //!
 //! In lightbake's split formulation (see [`crate::radiosity`]) S = ρ·H_direct, so B is the
 //! exitance of *reflected* light and H = H_direct + F·B the total irradiance a texel stores
-//! (over π). Every solver records a [`History`] of (time, iteration, relative residual
+//! (over π). Every solver records a history ([`HistoryEntry`]) of (time, iteration, relative residual
 //! ‖S + ρFB − B‖ / ‖S‖, error bound) with ‖·‖ the area-weighted RMS over nodes and channels.
 //!
 //! | solver | module | source |
@@ -110,7 +110,7 @@ pub struct Solution {
     /// Reflected exitance B per node.
     #[serde(skip)]
     pub b: Vec<Vec3>,
-    /// Irradiance from reflected light per node, F·B (filled by [`finish`] for matrix
+    /// Irradiance from reflected light per node, F·B (filled by `finish` for matrix
     /// solvers; accumulated directly by stochastic Jacobi).
     #[serde(skip)]
     pub indirect: Vec<Vec3>,

@@ -51,7 +51,7 @@ pub struct VplReport {
     /// Whether bias compensation ran.
     pub compensated: bool,
     /// Fixed-point iterations of the compensation (0 when it did not run; see
-    /// [`gather::NearField`]).
+    /// `vpl::compensation`).
     pub compensation_iterations: u32,
     /// Why the compensation was cut short, when it was (a warning for the report).
     pub compensation_note: Option<String>,
@@ -64,7 +64,7 @@ pub struct VplReport {
     /// Shadow rays per second in the gather.
     pub shadow_rays_per_second: f64,
     /// The gather's own error estimate (variance over the particle paths; see
-    /// [`crate::estimate`]), relative to the direct plus VPL light of the valid texels.
+    /// [`crate::error_estimate`]), relative to the direct plus VPL light of the valid texels.
     pub error: ErrorEstimate,
 }
 
