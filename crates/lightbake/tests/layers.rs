@@ -18,7 +18,9 @@ fn layer_order() -> Vec<String> {
             let cells: Vec<&str> = row.split('|').map(str::trim).collect();
             let first = cells.first()?;
             first.parse::<u32>().ok()?;
-            let name = cells.get(1)?.trim_matches(|c| "[]`".contains(c));
+            // `name`, [`name`] or [`name`](target): the link text.
+            let cell = cells.get(1)?;
+            let name = cell.split("](").next()?.trim_matches(|c| "[]`".contains(c));
             Some(name.to_string())
         })
         .collect()
