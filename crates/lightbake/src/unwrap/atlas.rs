@@ -1,0 +1,125 @@
+//! One mesh unwrapped by xatlas at the density its most demanding instance asks for,
+//! lowered until the atlas fits on a page.
+
+use glam::Vec2;
+
+use super::{Density, MeshUnwrap, UvOrigin, xatlas};
+use crate::error::{BakeError, Result};
+use crate::scene::Mesh;
+use crate::settings::BakeSettings;
+
+/// Runs xatlas on one mesh at the requested density, lowering the density until the
+/// result fits on a page.
+pub(super) fn xatlas_unwrap(
+    mesh: &Mesh,
+    request: Density,
+    settings: &BakeSettings,
+    warnings: &mut Vec<String>,
+) -> Result<MeshUnwrap> {
+    // The longest triangle must fit a page: lower the density up front when it does not (as
+    // the loop below does for whole atlases), but refuse a mesh that would need less than
+    // 1/1000 of the requested density: xatlas crashed (SIGSEGV) on a fuzzed mesh with a
+    // 1.5·10⁸ m sliver next to 0.3 m faces.
+    let max_chart = settings
+        .max_page_size
+        .saturating_sub(2 * settings.padding + 2)
+        .max(1) as f32;
+    let (mut longest, mut longest_t) = (0.0f32, 0);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i]);
+        let edge = (b - a).length().max((c - b).length()).max((a - c).length());
+        if edge.is_nan() || edge > longest {
+            (longest, longest_t) = (edge, t);
+        }
+    }
+    let texels = longest * request.texels_per_unit;
+    let fit = max_chart / texels;
+    if fit.is_nan() || fit < 1e-3 {
+        return Err(BakeError::Unwrap {
+            mesh: mesh.name.clone(),
+            message: format!(
+                "triangle {longest_t} is {longest:e} units long, {texels:e} texels at {:e} texels per unit: a {}-texel page holds it only below 1/1000 of the requested density; split it or check the mesh",
+                request.texels_per_unit, settings.max_page_size
+            ),
+        });
+    }
+    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+    let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
+    // TEXCOORD_0 only guides xatlas' chart seams; absurd values are left out, not passed on.
+    let uvs: Option<Vec<[f32; 2]>> = mesh
+        .uv0
+        .as_ref()
+        .filter(|u| u.iter().all(|p| p.abs().max_element() <= 1e6))
+        .map(|u| u.iter().map(|p| p.to_array()).collect());
+    let input = xatlas::Input {
+        positions: &positions,
+        normals: Some(&normals),
+        uvs: uvs.as_deref(),
+        indices: &mesh.indices,
+    };
+    let max_page = settings.max_page_size;
+    let tpu = request.texels_per_unit;
+    let mut pack = xatlas::PackOptions {
+        texels_per_unit: tpu,
+        padding: settings.padding,
+        max_chart_size: max_page.saturating_sub(2 * settings.padding + 2).max(1),
+        ..xatlas::PackOptions::default()
+    };
+    let mut scaled = false;
+    if fit < 1.0 {
+        pack.texels_per_unit *= 0.97 * fit;
+        scaled = true;
+    }
+    for _attempt in 0..8 {
+        let out =
+            xatlas::generate(&input, &xatlas::ChartOptions::default(), &pack).map_err(|e| {
+                BakeError::Unwrap {
+                    mesh: mesh.name.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        if out.width == 0 || out.height == 0 {
+            return Err(BakeError::Unwrap {
+                mesh: mesh.name.clone(),
+                message: "xatlas produced an empty atlas".into(),
+            });
+        }
+        let largest = out.width.max(out.height);
+        if largest > max_page {
+            scaled = true;
+            pack.texels_per_unit *= 0.97 * (max_page as f32 / largest as f32);
+            continue;
+        }
+        if scaled {
+            warnings.push(format!(
+                "mesh '{}' needs more than one {max_page}² page at the requested density; baked at {:.0}% of it",
+                mesh.name,
+                100.0 * pack.texels_per_unit / tpu
+            ));
+        }
+        let (w, h) = (out.width as f32, out.height as f32);
+        let uv1 = out
+            .vertices
+            .iter()
+            .map(|v| Vec2::new((v.uv[0] / w).clamp(0.0, 1.0), (v.uv[1] / h).clamp(0.0, 1.0)))
+            .collect();
+        return Ok(MeshUnwrap {
+            width: out.width,
+            height: out.height,
+            uv1,
+            xref: Some(out.vertices.iter().map(|v| v.xref).collect()),
+            indices: out.indices,
+            triangle_charts: out.triangle_charts,
+            chart_count: out.chart_count,
+            origin: UvOrigin::Xatlas,
+            texels_per_metre: request.texels_per_metre * pack.texels_per_unit
+                / request.texels_per_unit,
+            scaled_to_fit: scaled,
+        });
+    }
+    Err(BakeError::Unwrap {
+        mesh: mesh.name.clone(),
+        message: format!("could not fit the mesh on a {max_page}² page"),
+    })
+}
+
