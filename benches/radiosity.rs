@@ -35,7 +35,7 @@ struct Case {
 fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
     let mut settings = BakeSettings::medium();
     if let Some(d) = density {
-        settings.texel_density = d;
+        settings.texel_density = Some(d);
         settings.texel_density_from_scene = false;
     }
     let prep = Prepared::new(scene, &settings).expect("prepare");

@@ -47,7 +47,7 @@ fn dense_with_uv1(n: u32) -> Scene {
 
 fn settings(density: f32) -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = density;
+    s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s.formats.png_preview = false;
     s

@@ -27,7 +27,7 @@ const TIMEOUT: Duration = Duration::from_secs(600);
 /// Preview quality at 64 texels/m: a few seconds per bake in a test build.
 fn settings(method: Method) -> BakeSettings {
     BakeSettings {
-        texel_density: 64.0,
+        texel_density: Some(64.0),
         texel_density_from_scene: false,
         method,
         threads: 1,
@@ -182,8 +182,16 @@ fn in_app_bake_gives_uvs_lightmaps_shadows_and_bleeding_and_matches_the_cli() {
     let mut fresh = headless_app(&dir.path().join("fresh"), false);
     spawn_scene(fresh.world_mut(), &cornell_box(CornellLight::Area));
     fresh.update();
-    let (scene, _) =
-        extract_scene(fresh.world_mut(), "cornell", SkySource::GlobalAmbient, 64.0).unwrap();
+    let (scene, _) = extract_scene(
+        fresh.world_mut(),
+        "cornell",
+        SkySource::GlobalAmbient,
+        &mut BakeSettings {
+            texel_density: Some(64.0),
+            ..BakeSettings::default()
+        },
+    )
+    .unwrap();
     let gltf = dir.path().join("cornell.gltf");
     write_scene_gltf(&scene, &gltf).unwrap();
     let cli_out = dir.path().join("cli");
@@ -284,8 +292,16 @@ fn baked_lights_stop_lighting_lightmapped_meshes_and_unit_conversion_round_trips
     let original = cornell_box(CornellLight::Point);
     spawn_scene(fresh.world_mut(), &original);
     fresh.update();
-    let (back, mapping) =
-        extract_scene(fresh.world_mut(), "x", SkySource::GlobalAmbient, 64.0).unwrap();
+    let (back, mapping) = extract_scene(
+        fresh.world_mut(),
+        "x",
+        SkySource::GlobalAmbient,
+        &mut BakeSettings {
+            texel_density: Some(64.0),
+            ..BakeSettings::default()
+        },
+    )
+    .unwrap();
     assert_eq!(back.instances.len(), original.instances.len());
     assert_eq!(mapping.instances.len(), original.instances.len());
     for inst in &back.instances {
@@ -304,6 +320,39 @@ fn baked_lights_stop_lighting_lightmapped_meshes_and_unit_conversion_round_trips
         assert_eq!(
             (mat.base_color, mat.emissive, mat.metallic),
             (omat.base_color, omat.emissive, omat.metallic)
+        );
+    }
+    // An entity's own density holds when the bake chooses the rest from its texel budget:
+    // the base density is fixed over the scene first, and the entity's scale is its own
+    // density over that base.
+    let floor = fresh
+        .world_mut()
+        .query::<(Entity, &Name)>()
+        .iter(fresh.world())
+        .find(|(_, n)| n.as_str() == "floor")
+        .map(|(e, _)| e)
+        .expect("the Cornell box has a floor");
+    fresh
+        .world_mut()
+        .entity_mut(floor)
+        .insert(Lightbaked::with_density(200.0));
+    let mut auto = BakeSettings::default();
+    assert_eq!(auto.texel_density, None);
+    let (scene, _) =
+        extract_scene(fresh.world_mut(), "x", SkySource::GlobalAmbient, &mut auto).unwrap();
+    let base = auto.texel_density.expect("the base density is fixed");
+    assert!(base > 0.0);
+    for inst in &scene.instances {
+        let want = if inst.name == "floor" {
+            200.0 / base
+        } else {
+            1.0
+        };
+        assert!(
+            (inst.texel_density_scale - want).abs() < 1e-5,
+            "{}: scale {} against {want}",
+            inst.name,
+            inst.texel_density_scale
         );
     }
     let (l, ol) = (&back.lights[0], &original.lights[0]);
@@ -437,7 +486,7 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
     // under an existing one).
     let mut removed = 0;
     app.world_mut().resource_mut::<LightbakeConfig>().settings = BakeSettings {
-        texel_density: 128.0,
+        texel_density: Some(128.0),
         ..settings(Method::Direct)
     };
     app.world_mut().write_message(RequestBake::default());

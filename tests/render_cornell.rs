@@ -62,7 +62,7 @@ fn rendered_cornell_box_shows_the_bake() {
     app.world_mut()
         .resource_mut::<LightbakeConfig>()
         .settings
-        .texel_density = 128.0;
+        .texel_density = Some(128.0);
 
     let world = app.world_mut();
     let scene = cornell_box(CornellLight::Point);

@@ -14,8 +14,9 @@ use lightbake::report::BakeReport;
 #[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct Lightbaked {
-    /// Lightmap texels per metre for this mesh; `None` uses
-    /// [`LightbakeConfig::settings`]`.texel_density`. Default `None`.
+    /// Lightmap texels per metre for this mesh; `None` uses the bake's density
+    /// ([`LightbakeConfig::settings`]`.texel_density`, or the one chosen from its texel
+    /// budget). Default `None`.
     pub texel_density: Option<f32>,
     /// Give this mesh a lightmap. `false` keeps it as an occluder and reflector only (a
     /// mesh that is never seen up close). Default `true`.

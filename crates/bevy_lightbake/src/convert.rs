@@ -296,13 +296,18 @@ impl Materials {
 /// scene named `name`. Entities are taken in the order of their `Name` (then id), so the same
 /// world gives the same scene and the same bake.
 ///
+/// An entity's own density ([`Lightbaked::texel_density`], texels per metre) becomes its
+/// instance's `texel_density_scale` against the bake's density. When `settings` choose the
+/// density from their texel budget, that density is fixed here first (over the whole scene)
+/// and written into `settings.texel_density`, so every entity's own density holds.
+///
 /// # Errors
 /// A message naming the entity whose mesh cannot be read.
 pub fn extract_scene(
     world: &mut World,
     name: &str,
     sky: SkySource,
-    texel_density: f32,
+    settings: &mut lightbake::BakeSettings,
 ) -> Result<(Scene, SceneMapping), String> {
     let mut scene = Scene {
         name: name.to_string(),
@@ -310,7 +315,7 @@ pub fn extract_scene(
     };
     let mut mapping = SceneMapping::default();
 
-    extract_instances(world, &mut scene, &mut mapping, texel_density)?;
+    let own = extract_instances(world, &mut scene, &mut mapping)?;
     extract_lights(world, &mut scene, &mut mapping);
     scene.sky = match sky {
         SkySource::GlobalAmbient => {
@@ -326,17 +331,27 @@ pub fn extract_scene(
         SkySource::Nits(v) => vec3(v),
         SkySource::None => lightbake::glam::Vec3::ZERO,
     };
+    if !own.is_empty() {
+        let base = settings
+            .texel_density
+            .unwrap_or_else(|| lightbake::chosen_texel_density(&scene, settings).0);
+        settings.texel_density = Some(base);
+        for (i, d) in own {
+            scene.instances[i].texel_density_scale = d / base;
+        }
+    }
     Ok((scene, mapping))
 }
 
 /// Every `Lightbaked` mesh entity as a core instance (its mesh and material converted once
 /// per (mesh, material) pair), in the order of their names.
+/// Returns the instances whose entity asks for its own density, with that density.
 fn extract_instances(
     world: &mut World,
     scene: &mut Scene,
     mapping: &mut SceneMapping,
-    texel_density: f32,
-) -> Result<(), String> {
+) -> Result<Vec<(usize, f32)>, String> {
+    let mut own = Vec::new();
     let mut query = world.query::<(
         Entity,
         &Mesh3d,
@@ -394,13 +409,12 @@ fn extract_instances(
         let mut instance = CoreInstance::new(label, mesh_index, affine(&transform));
         instance.bake = baked.receive_lightmap;
         if let Some(d) = baked.texel_density {
-            instance.texel_density_scale = d / texel_density;
+            own.push((scene.instances.len(), d));
         }
         scene.instances.push(instance);
         mapping.instances.push(entity);
     }
-
-    Ok(())
+    Ok(own)
 }
 
 /// Every point, spot and directional light without [`NotBaked`], in the order of their names.

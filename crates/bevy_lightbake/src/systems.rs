@@ -90,12 +90,11 @@ pub(crate) fn start_bake(world: &mut World) {
     };
     let started = Instant::now();
     let config = world.resource::<LightbakeConfig>().clone();
-    let settings = request.settings.unwrap_or_else(|| config.settings.clone());
-    let (scene, mapping) =
-        match extract_scene(world, "bevy world", config.sky, settings.texel_density) {
-            Ok(x) => x,
-            Err(message) => return fail(world, started, message),
-        };
+    let mut settings = request.settings.unwrap_or_else(|| config.settings.clone());
+    let (scene, mapping) = match extract_scene(world, "bevy world", config.sky, &mut settings) {
+        Ok(x) => x,
+        Err(message) => return fail(world, started, message),
+    };
     for w in &scene.warnings {
         warn!("lightbake: {w}");
     }

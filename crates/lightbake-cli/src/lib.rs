@@ -96,13 +96,17 @@ struct Args {
     /// Instant radiosity: deepest reflection followed (at most 29).
     #[arg(long)]
     vpl_max_depth: Option<u32>,
-    /// Lightmap texels per metre (overrides the preset and the scene's own hint).
+    /// Lightmap texels per metre (overrides the scene's own hint and the texel budget).
     #[arg(long)]
     texel_density: Option<f32>,
-    /// Use the preset's texel density even when the scene suggests one
-    /// (`extras.lightbake.texel_density`).
+    /// Ignore the scene's suggested density (`extras.lightbake.texel_density`) and choose one
+    /// from the texel budget.
     #[arg(long)]
     ignore_scene_density: bool,
+    /// Covered texels to aim for when the density is chosen automatically (the preset's: 65536
+    /// preview, 262144 medium, 1048576 high).
+    #[arg(long)]
+    texel_budget: Option<u64>,
     /// Samples per texel for direct light (footprint points × one sample per light).
     #[arg(long)]
     samples: Option<u32>,
@@ -191,7 +195,7 @@ mod convergence {
         settings.threads = args.threads;
         settings.light_convention = args.light_convention;
         if let Some(d) = args.texel_density {
-            settings.texel_density = d;
+            settings.texel_density = Some(d);
             settings.texel_density_from_scene = false;
         }
         settings.validate().map_err(|e| e.to_string())?;
@@ -276,10 +280,12 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.vpl_bias_compensation = args.bias_compensation;
     set(&mut s.vpl_compensation_rays, args.vpl_compensation_rays);
     set(&mut s.vpl_max_depth, args.vpl_max_depth);
-    if let Some(d) = args.texel_density {
-        s.texel_density = d;
-    }
+    s.texel_density = args.texel_density;
+    // An explicit density wins over the scene's hint anyway; the report says so too.
     s.texel_density_from_scene = args.texel_density.is_none() && !args.ignore_scene_density;
+    if let Some(v) = args.texel_budget {
+        s.texel_budget = v;
+    }
     set(&mut s.samples_per_texel, args.samples);
     set(&mut s.sky_samples, args.sky_samples);
     set(
@@ -495,6 +501,8 @@ mod tests {
             "--vpl-compensation-rays=19",
             "--vpl-max-depth=5",
             "--texel-density=3",
+            "--ignore-scene-density",
+            "--texel-budget=5000",
             "--samples=23",
             "--sky-samples=29",
             "--max-closed-form-emitters=31",

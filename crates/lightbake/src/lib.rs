@@ -94,6 +94,7 @@ pub use error::{BakeError, Result};
 pub use glam;
 pub use lightmap::LightmapPage;
 pub use output::{Written, write_outputs};
+pub use plan::texel_density as chosen_texel_density;
 pub use progress::{Progress, ProgressSnapshot};
 pub use report::BakeReport;
 pub use scene::Scene;

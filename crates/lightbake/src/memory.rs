@@ -70,18 +70,16 @@ impl MemoryEstimate {
 /// Before unwrapping: texels from the baked world area at `density` (with 1/0.6 for chart
 /// packing and padding), pages sized to match.
 pub fn estimate_from_area(scene: &Scene, density: f32) -> MemoryEstimate {
-    let mut texels = 0f64;
-    for inst in scene.instances.iter().filter(|i| i.bake) {
-        let mesh = &scene.meshes[inst.mesh];
-        let d = (density * inst.texel_density_scale) as f64;
-        let mut area = 0f64;
-        for t in 0..mesh.triangle_count() {
-            let [a, b, c] = mesh.triangle(t);
-            let p = [a, b, c].map(|i| inst.transform.transform_point3(mesh.positions[i]));
-            area += 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length() as f64;
-        }
-        texels += area * d * d;
-    }
+    let texels: f64 = scene
+        .instances
+        .iter()
+        .enumerate()
+        .filter(|(_, inst)| inst.bake)
+        .map(|(i, inst)| {
+            let d = (density * inst.texel_density_scale) as f64;
+            scene.instance_area(i) as f64 * d * d
+        })
+        .sum();
     let page_texels = texels / 0.6;
     MemoryEstimate::from_items(vec![
         (

@@ -142,7 +142,8 @@ impl BakePlan {
     pub fn describe(&self) -> String {
         let mut s = format!(
             "texel density {} texels/m (from {})\n",
-            self.texel_density, self.texel_density_source
+            density_text(self.texel_density),
+            self.texel_density_source
         );
         if self.nothing_to_bake {
             s.push_str("NOTHING TO BAKE: no light reaches the scene, nothing is emissive and the sky is black; the lightmaps will be black.\n");
@@ -167,14 +168,69 @@ impl BakePlan {
     }
 }
 
-/// The texel density and where it came from.
-fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
-    match (scene.texel_density_hint, settings.texel_density_from_scene) {
-        (Some(d), true) if d.is_finite() && d > 0.0 => (
+/// The texel density a bake of `scene` with `settings` uses (texels per metre), and where it
+/// came from: the settings, the scene's hint, or the texel budget spread over the baked
+/// surface (so a scene in millimetres, metres or kilometres gets the same layout).
+pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
+    if let Some(d) = settings.texel_density {
+        return (d, "settings (texel_density)".to_string());
+    }
+    if let Some(d) = scene
+        .texel_density_hint
+        .filter(|d| settings.texel_density_from_scene && d.is_finite() && *d > 0.0)
+    {
+        return (
             d,
             "the scene's hint (extras.lightbake.texel_density)".to_string(),
+        );
+    }
+    // Covered texels ≈ Σ area × (density × scale)².
+    let area: f64 = scene
+        .instances
+        .iter()
+        .enumerate()
+        .filter(|(_, inst)| inst.bake)
+        .map(|(i, inst)| {
+            let scale = inst.texel_density_scale as f64;
+            scene.instance_area(i) as f64 * scale * scale
+        })
+        .sum();
+    if !(area > 0.0 && area.is_finite()) {
+        return (1.0, "no baked surface: any density".to_string());
+    }
+    let budget = settings.texel_budget as f64;
+    let density = (budget / area).sqrt().clamp(1e-9, 1e9) as f32;
+    (
+        density,
+        format!(
+            "a budget of {} texels over {} of baked surface",
+            settings.texel_budget,
+            format_area(area)
         ),
-        _ => (settings.texel_density, "settings".to_string()),
+    )
+}
+
+/// A density to four significant digits (whole numbers as they are).
+pub fn density_text(d: f32) -> String {
+    if d == d.round() && d.abs() < 1e7 {
+        return format!("{d:.0}");
+    }
+    let digits = 3 - d.abs().log10().floor() as i32;
+    if (0..=12).contains(&digits) {
+        format!("{d:.*}", digits as usize)
+    } else {
+        format!("{d:.3e}")
+    }
+}
+
+/// An area in the unit that reads best (m², mm², km²).
+fn format_area(area: f64) -> String {
+    if area < 1e-2 {
+        format!("{:.4} mm²", area * 1e6)
+    } else if area > 1e6 {
+        format!("{:.4} km²", area * 1e-6)
+    } else {
+        format!("{area:.4} m²")
     }
 }
 
@@ -469,6 +525,28 @@ mod tests {
         assert_eq!(plan.texel_density, 256.0);
         let text = plan.describe();
         assert!(text.contains("no punctual"), "{text}");
+    }
+
+    /// An explicit density wins over the scene's hint, which wins over the budget; the budget
+    /// spreads its texels over the baked area (density = √(budget / area)).
+    #[test]
+    fn texel_density_precedence_and_budget() {
+        let s = cornell_box(CornellLight::Area);
+        let explicit = BakeSettings {
+            texel_density: Some(64.0),
+            ..BakeSettings::default()
+        };
+        assert_eq!(texel_density(&s, &explicit).0, 64.0);
+        assert_eq!(texel_density(&s, &BakeSettings::default()).0, 256.0);
+        let budget = BakeSettings {
+            texel_density_from_scene: false,
+            texel_budget: 10_000,
+            ..BakeSettings::default()
+        };
+        let (d, why) = texel_density(&s, &budget);
+        let area: f32 = (0..s.instances.len()).map(|i| s.instance_area(i)).sum();
+        assert!((d * d * area / 10_000.0 - 1.0).abs() < 1e-4, "{d} {area}");
+        assert!(why.contains("10000 texels"), "{why}");
     }
 
     #[test]

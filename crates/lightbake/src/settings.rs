@@ -175,7 +175,7 @@ pub enum LightConvention {
 /// ```
 /// use lightbake::settings::{BakeSettings, Quality};
 /// let mut s = BakeSettings::preset(Quality::High);
-/// s.texel_density = 64.0;
+/// s.texel_density = Some(64.0);
 /// assert!(s.validate().is_ok());
 /// ```
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -223,14 +223,20 @@ pub struct BakeSettings {
     pub vpl_compensation_rays: u32,
     /// Instant radiosity: deepest reflection followed (≤ 29). Default 16.
     pub vpl_max_depth: u32,
-    /// Lightmap texels per metre of world-space surface (per axis). Range (0, 100 000].
-    /// Default 32 (medium), 12 (preview), 64 (high). A glTF scene may suggest its own in
-    /// `scene.extras.lightbake.texel_density`; [`BakeSettings::texel_density_from_scene`] says
-    /// whether that hint is honoured.
-    pub texel_density: f32,
-    /// Take the scene's `texel_density` hint when it has one. Default true; the CLI turns it
-    /// off when `--texel-density` is given.
+    /// Lightmap texels per metre of world-space surface (per axis; per scene unit for a scene
+    /// not in metres). Range (0, 10⁹]; the memory plan refuses what does not fit. Default
+    /// none: the density is chosen so the baked surfaces get about [`Self::texel_budget`]
+    /// texels, whatever the scene's unit. When set, it wins over the scene's own hint
+    /// (`scene.extras.lightbake.texel_density`) and over the budget; a node's
+    /// `texel_density_scale` multiplies it either way.
+    pub texel_density: Option<f32>,
+    /// Take the scene's `texel_density` hint when it has one and `texel_density` is not set.
+    /// Default true.
     pub texel_density_from_scene: bool,
+    /// Covered lightmap texels to aim for when the density is chosen automatically (no
+    /// `texel_density` and no scene hint): density = √(budget / Σ baked area × scale²).
+    /// Range 1 000..=100 000 000. Default 65 536 (preview), 262 144 (medium), 1 048 576 (high).
+    pub texel_budget: u64,
     /// Empty texels kept between charts and between atlas rectangles, filled by dilation so
     /// bilinear and bicubic sampling never read unset texels. Range 1..=16. Default 2.
     pub padding: u32,
@@ -288,14 +294,14 @@ impl Default for BakeSettings {
 impl BakeSettings {
     /// The settings of a quality preset.
     pub fn preset(quality: Quality) -> Self {
-        let (texel_density, samples_per_texel, sky_samples, transport_rays, vpl_particles) =
+        let (texel_budget, samples_per_texel, sky_samples, transport_rays, vpl_particles) =
             match quality {
                 // Direct samples per texel from the convergence study (docs/convergence.md):
                 // direct light costs little per sample, and at 16 spp it was the larger half
                 // of the Cornell box's error at 128 form-factor rays.
-                Quality::Preview => (12.0, 8, 16, 32, 256),
-                Quality::Medium => (32.0, 32, 64, 128, 1024),
-                Quality::High => (64.0, 128, 256, 512, 4096),
+                Quality::Preview => (1 << 16, 8, 16, 32, 256),
+                Quality::Medium => (1 << 18, 32, 64, 128, 1024),
+                Quality::High => (1 << 20, 128, 256, 512, 4096),
             };
         Self {
             method: Method::Radiosity,
@@ -313,8 +319,9 @@ impl BakeSettings {
             vpl_bias_compensation: false,
             vpl_compensation_rays: 64,
             vpl_max_depth: 16,
-            texel_density,
+            texel_density: None,
             texel_density_from_scene: true,
+            texel_budget,
             padding: 2,
             max_page_size: 2048,
             samples_per_texel,
@@ -357,14 +364,20 @@ impl BakeSettings {
                 message: message.to_string(),
             }
         }
-        if !(self.texel_density.is_finite()
-            && self.texel_density > 0.0
-            && self.texel_density <= 100_000.0)
-        {
+        if let Some(d) = self.texel_density {
+            if !(d.is_finite() && d > 0.0 && d <= 1e9) {
+                return Err(bad(
+                    "texel_density",
+                    d,
+                    "must be in (0, 10⁹] texels per metre (per scene unit)",
+                ));
+            }
+        }
+        if !(1_000..=100_000_000).contains(&self.texel_budget) {
             return Err(bad(
-                "texel_density",
-                self.texel_density,
-                "must be in (0, 100000] texels per metre",
+                "texel_budget",
+                self.texel_budget,
+                "must be 1000..=100000000 texels",
             ));
         }
         if !(1..=16).contains(&self.padding) {
@@ -477,7 +490,7 @@ mod tests {
         for s in [&p, &m, &h] {
             s.validate().unwrap();
         }
-        assert!(p.texel_density < m.texel_density && m.texel_density < h.texel_density);
+        assert!(p.texel_budget < m.texel_budget && m.texel_budget < h.texel_budget);
         assert!(p.samples_per_texel < m.samples_per_texel);
         assert_eq!(BakeSettings::default(), m);
     }
@@ -485,7 +498,7 @@ mod tests {
     #[test]
     fn out_of_range_fields_are_named() {
         let s = BakeSettings {
-            texel_density: f32::NAN,
+            texel_density: Some(f32::NAN),
             ..BakeSettings::default()
         };
         let msg = s.validate().unwrap_err().to_string();

@@ -61,7 +61,7 @@ fn floor_scene() -> Scene {
 fn every_stage_sees_the_albedo_of_the_texture_coordinate_set_the_material_names() {
     let scene = floor_scene();
     let settings = BakeSettings {
-        texel_density: 8.0,
+        texel_density: Some(8.0),
         texel_density_from_scene: false,
         ..BakeSettings::preview()
     };

@@ -12,7 +12,7 @@ use lightbake::settings::{BakeSettings, LightConvention};
 
 fn settings(threads: usize, density: f32) -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = density;
+    s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s.threads = threads;
     s.formats.ktx2 = true;
@@ -68,7 +68,7 @@ fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
     let scene = cornell_box(CornellLight::Area);
     let base = {
         let mut s = BakeSettings::preview();
-        s.texel_density = 24.0;
+        s.texel_density = Some(24.0);
         s.texel_density_from_scene = false;
         s
     };

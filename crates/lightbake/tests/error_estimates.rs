@@ -14,7 +14,7 @@ use lightbake::settings::{BakeSettings, Method};
 /// Cornell box (area light) settings at a low density: about 1 800 texels.
 fn settings(method: Method) -> BakeSettings {
     let mut s = BakeSettings::medium();
-    s.texel_density = 24.0;
+    s.texel_density = Some(24.0);
     s.texel_density_from_scene = false;
     s.method = method;
     s
@@ -85,7 +85,7 @@ fn direct_estimate_tracks_the_sunlit_room() {
     let scene = lightbake::scene::testscenes::sunlit_room();
     let mk = |spp: u32, seed: u32| {
         let mut s = BakeSettings::medium();
-        s.texel_density = 4.0;
+        s.texel_density = Some(4.0);
         s.texel_density_from_scene = false;
         s.method = Method::Direct;
         s.samples_per_texel = spp;
@@ -114,7 +114,7 @@ fn radiosity_estimates_track_the_measured_error() {
     let cornell = cornell_box(CornellLight::Area);
     let low = |density: f32, seed: u32| {
         let mut s = BakeSettings::medium();
-        s.texel_density = density;
+        s.texel_density = Some(density);
         s.texel_density_from_scene = false;
         s.seed = seed;
         s

@@ -106,7 +106,7 @@ fn apply(json: &mut Value, e: &Edit) {
 
 fn settings() -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = 8.0;
+    s.texel_density = Some(8.0);
     s.texel_density_from_scene = false;
     s.memory_budget_mib = 256;
     s

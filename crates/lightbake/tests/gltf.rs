@@ -29,7 +29,7 @@ fn write_cornell(dir: &Path, light: CornellLight) -> PathBuf {
 
 fn fast_settings() -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = 64.0;
+    s.texel_density = Some(64.0);
     s.texel_density_from_scene = false;
     s
 }

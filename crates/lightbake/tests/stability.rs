@@ -10,8 +10,8 @@ use glam::{Affine3A, Vec3};
 use lightbake::analysis::study::relative_rms_error;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, cuboid, furnace_box};
 use lightbake::scene::{Instance, Material, Mesh, Scene};
-use lightbake::settings::Method;
 use lightbake::settings::SolverChoice;
+use lightbake::settings::{BakeSettings, Method};
 
 /// `scene` with every length multiplied by `s` (instances, lights, ranges).
 fn scaled(scene: &Scene, s: f32) -> Scene {
@@ -29,19 +29,42 @@ fn scaled(scene: &Scene, s: f32) -> Scene {
 #[test]
 fn the_same_scene_at_1_mm_1_m_and_10_km_gives_the_same_lightmap() {
     // The area-lit Cornell box: emitted luminance does not depend on scale, so neither does
-    // the irradiance anywhere. The texel density follows the scale so the layout is the same.
+    // the irradiance anywhere. No density is given: the texel budget chooses one from the
+    // scene's area, so the layout is the same at every scale.
+    let auto = BakeSettings {
+        method: Method::Radiosity,
+        texel_density: None,
+        texel_density_from_scene: false,
+        texel_budget: 2_500,
+        ..BakeSettings::medium()
+    };
     let base = cornell_box(CornellLight::Area);
-    let reference = bake(&base, &settings(Method::Radiosity, 32.0));
+    let reference = bake(&base, &auto);
+    let reference_density = reference.report.plan.texel_density;
+    assert!(
+        reference
+            .report
+            .plan
+            .texel_density_source
+            .contains("budget"),
+        "{}",
+        reference.report.plan.texel_density_source
+    );
     for s in [1e-3f32, 1e4] {
-        let out = bake(&scaled(&base, s), &settings(Method::Radiosity, 32.0 / s));
+        let out = bake(&scaled(&base, s), &auto);
         assert!(all_finite(&out), "scale {s}: non-finite texels");
+        let density = out.report.plan.texel_density;
+        assert!(
+            (density * s / reference_density - 1.0).abs() < 1e-4,
+            "scale {s}: density {density} against {reference_density} at 1 m"
+        );
         assert_eq!(
             out.report.texels.patches, reference.report.texels.patches,
             "scale {s}: the layout changed"
         );
         let diff = relative_rms_error(&out.pages, &reference.pages);
         println!(
-            "scale {s}: {} patches, {} moved, {} invalid; relative RMS difference {diff:.5}",
+            "scale {s}: {density} texels per unit, {} patches, {} moved, {} invalid; relative RMS difference {diff:.5}",
             out.report.texels.patches, out.report.texels.moved, out.report.texels.invalid
         );
         assert!(
@@ -50,6 +73,54 @@ fn the_same_scene_at_1_mm_1_m_and_10_km_gives_the_same_lightmap() {
             100.0 * diff
         );
     }
+}
+
+/// A whole scene 0.5 mm wide at an absolute 32 texels per metre, and a 0.1 mm cube in a 1 m
+/// room: every mesh gets a chart (the smallest, with a warning), none an unwrap error.
+#[test]
+fn meshes_smaller_than_a_texel_get_the_smallest_chart() {
+    let mut tiny = scaled(&cornell_box(CornellLight::Area), 0.5e-3 / 0.555);
+    tiny.texel_density_hint = None;
+    let out = bake(&tiny, &settings(Method::Direct, 32.0));
+    assert!(all_finite(&out));
+    assert!(
+        out.layout.instances.iter().all(Option::is_some),
+        "every instance has a rectangle"
+    );
+    assert!(
+        out.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("smallest chart")),
+        "{:?}",
+        out.report.warnings
+    );
+
+    let mut room = cornell_box(CornellLight::Area);
+    let m = room.add_mesh(cuboid(
+        "crumb",
+        Vec3::splat(0.2),
+        Vec3::splat(0.2001),
+        false,
+    ));
+    room.instances
+        .push(Instance::new("crumb", m, Affine3A::IDENTITY));
+    let out = bake(&room, &settings(Method::Direct, 32.0));
+    let crumb = out
+        .layout
+        .instances
+        .last()
+        .unwrap()
+        .expect("the crumb is baked");
+    assert!(crumb.width >= 2 && crumb.height >= 2, "{crumb:?}");
+    assert!(
+        out.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("smallest chart") && w.contains("crumb")),
+        "{:?}",
+        out.report.warnings
+    );
 }
 
 #[test]

@@ -15,7 +15,7 @@ use lightbake::vpl::instant_radiosity;
 
 fn prepared(scene: &Scene, density: f32) -> Prepared {
     let mut s = BakeSettings::medium();
-    s.texel_density = density;
+    s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     Prepared::new(scene, &s).unwrap()
 }

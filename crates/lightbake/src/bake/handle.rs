@@ -115,7 +115,7 @@ mod tests {
     #[test]
     fn a_handle_bakes_and_reports_panics() {
         let settings = BakeSettings {
-            texel_density: 4.0,
+            texel_density: Some(4.0),
             texel_density_from_scene: false,
             samples_per_texel: 2,
             method: crate::settings::Method::Direct,

@@ -104,7 +104,7 @@ fn bake_in_pool(
     // Plan, and refuse early when the texel count alone would not fit.
     let mut plan = stages.run("plan", 1, || {
         let plan = BakePlan::new(scene, settings);
-        let note = format!("{} texels/m", plan.texel_density);
+        let note = format!("{} texels/m", crate::plan::density_text(plan.texel_density));
         Ok((plan, 0, note))
     })?;
     memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;

@@ -255,6 +255,21 @@ impl Scene {
         }
     }
 
+    /// The world-space surface area of one instance, m² (its mesh's area under its
+    /// transform).
+    pub fn instance_area(&self, instance: usize) -> f32 {
+        let inst = &self.instances[instance];
+        let mesh = &self.meshes[inst.mesh];
+        (0..mesh.triangle_count())
+            .map(|t| {
+                let [a, b, c] = mesh
+                    .triangle(t)
+                    .map(|i| inst.transform.transform_point3(mesh.positions[i]));
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
     /// The world-space bounds of one instance.
     pub fn instance_bounds(&self, instance: usize) -> (Vec3, Vec3) {
         let inst = &self.instances[instance];

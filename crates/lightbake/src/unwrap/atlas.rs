@@ -8,13 +8,37 @@ use crate::error::{BakeError, Result};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
 
-/// Runs xatlas on one mesh at the requested density, lowering the density until the
-/// result fits on a page.
+/// Texels a mesh's longest extent gets at least, so a mesh smaller than a texel still has a
+/// chart.
+const MIN_MESH_TEXELS: f32 = 2.0;
+
+/// The power of two that scales `extent` into [1, 2) (1 for an empty or non-finite extent).
+fn unit_scale(extent: f32) -> f32 {
+    if !(extent.is_finite() && extent > 0.0) {
+        return 1.0;
+    }
+    let exponent = extent.log2().floor().clamp(-120.0, 120.0);
+    2f32.powi(-(exponent as i32))
+}
+
+/// The longest side of a mesh's bounding box, mesh units.
+fn mesh_extent(mesh: &Mesh) -> f32 {
+    let (lo, hi) = mesh.positions.iter().fold(
+        (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    (hi - lo).max_element().max(0.0)
+}
+
+/// Runs xatlas on one mesh at the requested density (raised, and `raised` set, when the mesh
+/// would be smaller than [`MIN_MESH_TEXELS`]), lowering the density until the result fits on
+/// a page.
 pub(super) fn xatlas_unwrap(
     mesh: &Mesh,
     request: Density,
     settings: &BakeSettings,
     warnings: &mut Vec<String>,
+    raised: &mut bool,
 ) -> Result<MeshUnwrap> {
     // The longest triangle must fit a page: lower the density up front when it does not (as
     // the loop below does for whole atlases), but refuse a mesh that would need less than
@@ -43,7 +67,16 @@ pub(super) fn xatlas_unwrap(
             ),
         });
     }
-    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+    // xatlas judges degenerate triangles and welds vertices by absolute tolerances, so it is
+    // given the mesh scaled by a power of two to an extent in [1, 2): exact in floating point
+    // (texel coordinates, position × texels per unit, keep their bits), and a 0.1 mm part is
+    // not mistaken for dust.
+    let unit = unit_scale(mesh_extent(mesh));
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| (*p * unit).to_array())
+        .collect();
     let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
     // TEXCOORD_0 only guides xatlas' chart seams; absurd values are left out, not passed on.
     let uvs: Option<Vec<[f32; 2]>> = mesh
@@ -58,9 +91,16 @@ pub(super) fn xatlas_unwrap(
         indices: &mesh.indices,
     };
     let max_page = settings.max_page_size;
-    let tpu = request.texels_per_unit;
+    // A mesh smaller than a texel still gets a chart: at least MIN_MESH_TEXELS across.
+    let extent = mesh_extent(mesh);
+    let tpu = if extent * request.texels_per_unit < MIN_MESH_TEXELS && extent > 0.0 {
+        *raised = true;
+        MIN_MESH_TEXELS / extent
+    } else {
+        request.texels_per_unit
+    };
     let mut pack = xatlas::PackOptions {
-        texels_per_unit: tpu,
+        texels_per_unit: tpu / unit,
         padding: settings.padding,
         max_chart_size: max_page.saturating_sub(2 * settings.padding + 2).max(1),
         ..xatlas::PackOptions::default()
@@ -79,10 +119,10 @@ pub(super) fn xatlas_unwrap(
                 }
             })?;
         if out.width == 0 || out.height == 0 {
-            return Err(BakeError::Unwrap {
-                mesh: mesh.name.clone(),
-                message: "xatlas produced an empty atlas".into(),
-            });
+            // Charts below a texel: ask again at twice the density.
+            *raised = true;
+            pack.texels_per_unit *= 2.0;
+            continue;
         }
         let largest = out.width.max(out.height);
         if largest > max_page {
@@ -90,11 +130,12 @@ pub(super) fn xatlas_unwrap(
             pack.texels_per_unit *= 0.97 * (max_page as f32 / largest as f32);
             continue;
         }
+        let achieved = pack.texels_per_unit * unit;
         if scaled {
             warnings.push(format!(
                 "mesh '{}' needs more than one {max_page}² page at the requested density; baked at {:.0}% of it",
                 mesh.name,
-                100.0 * pack.texels_per_unit / tpu
+                100.0 * achieved / tpu
             ));
         }
         let (w, h) = (out.width as f32, out.height as f32);
@@ -112,8 +153,7 @@ pub(super) fn xatlas_unwrap(
             triangle_charts: out.triangle_charts,
             chart_count: out.chart_count,
             origin: UvOrigin::Xatlas,
-            texels_per_metre: request.texels_per_metre * pack.texels_per_unit
-                / request.texels_per_unit,
+            texels_per_metre: request.texels_per_metre * achieved / request.texels_per_unit,
             scaled_to_fit: scaled,
         });
     }

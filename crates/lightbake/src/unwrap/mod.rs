@@ -258,11 +258,13 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
             };
         }
     }
+    let mut raised = Vec::new();
     for (m, mesh) in scene.meshes.iter().enumerate() {
         let request = requests[m];
         if request.texels_per_unit <= 0.0 || mesh.area() <= 0.0 {
             continue;
         }
+        let mut small = false;
         let keep_existing = !settings.reunwrap && mesh.uv1.is_some();
         let unwrap = if keep_existing {
             match existing_uvs(mesh, request, settings) {
@@ -272,12 +274,15 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
                         "mesh '{}': its TEXCOORD_1 cannot be used ({problem}); unwrapped again with xatlas",
                         mesh.name
                     ));
-                    xatlas_unwrap(mesh, request, settings, &mut layout.warnings)?
+                    xatlas_unwrap(mesh, request, settings, &mut layout.warnings, &mut small)?
                 }
             }
         } else {
-            xatlas_unwrap(mesh, request, settings, &mut layout.warnings)?
+            xatlas_unwrap(mesh, request, settings, &mut layout.warnings, &mut small)?
         };
+        if small {
+            raised.push(mesh.name.as_str());
+        }
         if unwrap.origin == UvOrigin::Xatlas && mesh.uv1.is_some() && textures_use_set_1(scene, mesh) {
             layout.warnings.push(format!(
                 "mesh '{}': its material's textures are mapped by TEXCOORD_1, which the new lightmap UVs replace; the bake, the baked glTF and the plugin's meshes map them by the lightmap UVs",
@@ -285,6 +290,15 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
             ));
         }
         layout.meshes[m] = Some(unwrap);
+    }
+    if !raised.is_empty() {
+        let shown: Vec<&str> = raised.iter().take(3).copied().collect();
+        layout.warnings.push(format!(
+            "{} mesh(es) smaller than two texels at the texel density got the smallest chart instead ({}{})",
+            raised.len(),
+            shown.join(", "),
+            if raised.len() > 3 { ", …" } else { "" }
+        ));
     }
     pack_instances(scene, settings, &mut layout);
     Ok(layout)

@@ -54,7 +54,7 @@ pub fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, transform: Affine3A, bak
 pub fn settings(density: f32, spp: u32) -> BakeSettings {
     let mut s = BakeSettings::medium();
     s.method = Method::Direct;
-    s.texel_density = density;
+    s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s.samples_per_texel = spp;
     s
@@ -230,7 +230,7 @@ pub fn two_squares(perpendicular: bool) -> Scene {
 pub fn method_settings(method: Method, density: f32) -> BakeSettings {
     let mut s = BakeSettings::medium();
     s.method = method;
-    s.texel_density = density;
+    s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s
 }
