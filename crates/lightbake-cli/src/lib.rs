@@ -62,8 +62,19 @@ struct Args {
     /// Form-factor rays per texel (radiosity).
     #[arg(long)]
     transport_rays: Option<u32>,
-    /// Largest transport matrix plus the solver's vectors beside it, MiB (above it `auto` goes
-    /// matrix-free); what the memory budget leaves beside the rest of the bake also bounds it.
+    /// Hierarchical solve: edge of its first clusters, texels (a power of two, at most 256).
+    #[arg(long)]
+    cluster_texels: Option<u32>,
+    /// Hierarchical solve: form-factor rays per cluster of its coarse level.
+    #[arg(long)]
+    cluster_rays: Option<u32>,
+    /// Hierarchical solve: refine the coarse level until the light its clusters miss is at
+    /// most this fraction of the irradiance.
+    #[arg(long)]
+    cluster_tolerance: Option<f32>,
+    /// Largest transport matrix plus the solver's vectors beside it, MiB (above it `auto` takes
+    /// the hierarchical solve); what the memory budget leaves beside the rest of the bake also
+    /// bounds it.
     #[arg(long)]
     transport_budget: Option<u64>,
     /// Target relative error of the radiosity solve.
@@ -265,6 +276,11 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.solver = args.solver;
     s.basis = args.basis;
     set(&mut s.transport_rays, args.transport_rays);
+    set(&mut s.cluster_texels, args.cluster_texels);
+    set(&mut s.cluster_rays, args.cluster_rays);
+    if let Some(v) = args.cluster_tolerance {
+        s.cluster_tolerance = v;
+    }
     if let Some(v) = args.transport_budget {
         s.transport_budget_mib = v;
     }
@@ -489,6 +505,9 @@ mod tests {
             "--solver=krylov-cg",
             "--basis=constant",
             "--transport-rays=7",
+            "--cluster-texels=4",
+            "--cluster-rays=5",
+            "--cluster-tolerance=0.2",
             "--transport-budget=9",
             "--tolerance=0.25",
             "--max-solver-iterations=11",

@@ -220,6 +220,8 @@ fn convergence_study_writes_csv_markdown_and_plots() {
         "stochastic-jacobi",
         "mc-linear",
         "mc-constant",
+        "hierarchical",
+        "hierarchical-coarse",
         "hemicube",
         "vpl-hybrid",
     ] {

@@ -23,6 +23,9 @@ pub struct StageStats {
     pub rays: u64,
     /// What most of its rays are (for the ray-tracing floor).
     pub ray_kind: RayKind,
+    /// Of `rays`, the any-hit ones of a stage whose `ray_kind` is [`RayKind::Closest`] (the
+    /// visibility tests of its rays' start points); 0 otherwise.
+    pub shadow_rays: u64,
     /// The stage's estimate of its own error (Monte Carlo stages; see [`crate::error_estimate`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<ErrorEstimate>,
@@ -44,6 +47,18 @@ pub enum RayKind {
 }
 
 impl StageStats {
+    /// (closest-hit, any-hit) rays, for the ray-tracing floor.
+    pub fn rays_by_kind(&self) -> (u64, u64) {
+        match self.ray_kind {
+            RayKind::None => (0, 0),
+            RayKind::Closest => (
+                self.rays - self.shadow_rays.min(self.rays),
+                self.shadow_rays,
+            ),
+            RayKind::Shadow => (0, self.rays),
+        }
+    }
+
     /// Million rays per second (0 when no rays).
     pub fn mrays_per_second(&self) -> f64 {
         if self.rays == 0 || self.seconds <= 0.0 {

@@ -16,7 +16,7 @@ pub use crate::vpl::VplReport;
 
 /// The ray-tracing floor: the shortest time the bake's rays can take at the rates the BVH
 /// measured on this scene and these threads, and how far the bake is above it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Floor {
     /// Measured rates (all worker threads).
     pub rates: RayRates,
@@ -28,32 +28,34 @@ pub struct Floor {
     pub seconds: f64,
     /// Total bake time / floor (1 = nothing but rays at the measured rate).
     pub ratio: f64,
+    /// Per stage that traced rays: (name, its time / the floor of its own rays).
+    pub stages: Vec<(String, f64)>,
 }
 
 impl Floor {
     /// The floor of `stages` at `rates`, against a bake that took `total_seconds`.
     pub fn new(stages: &[StageStats], rates: RayRates, total_seconds: f64) -> Self {
-        let count = |k: RayKind| -> u64 {
-            stages
-                .iter()
-                .filter(|s| s.ray_kind == k)
-                .map(|s| s.rays)
-                .sum()
-        };
-        let (closest_rays, shadow_rays) = (count(RayKind::Closest), count(RayKind::Shadow));
         let per = |n: u64, rate: f64| if rate > 0.0 { n as f64 / rate } else { 0.0 };
-        let seconds =
-            per(closest_rays, rates.closest_per_second) + per(shadow_rays, rates.shadow_per_second);
+        let floor_of = |(closest, shadow): (u64, u64)| {
+            per(closest, rates.closest_per_second) + per(shadow, rates.shadow_per_second)
+        };
+        let (closest_rays, shadow_rays) = stages
+            .iter()
+            .map(StageStats::rays_by_kind)
+            .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        let seconds = floor_of((closest_rays, shadow_rays));
+        let ratio = |time: f64, floor: f64| if floor > 0.0 { time / floor } else { 0.0 };
         Self {
             rates,
             closest_rays,
             shadow_rays,
             seconds,
-            ratio: if seconds > 0.0 {
-                total_seconds / seconds
-            } else {
-                0.0
-            },
+            ratio: ratio(total_seconds, seconds),
+            stages: stages
+                .iter()
+                .filter(|s| s.ray_kind != RayKind::None)
+                .map(|s| (s.name.clone(), ratio(s.seconds, floor_of(s.rays_by_kind()))))
+                .collect(),
         }
     }
 }
@@ -185,6 +187,15 @@ impl BakeReport {
                 f.shadow_rays,
                 f.rates.shadow_per_second / 1e6,
                 f.ratio
+            ));
+            let per_stage: Vec<String> = f
+                .stages
+                .iter()
+                .map(|(name, r)| format!("{name} {r:.2}"))
+                .collect();
+            s.push_str(&format!(
+                "time / ray floor per stage: {}\n",
+                per_stage.join(", ")
             ));
         }
         s

@@ -29,11 +29,15 @@ pub enum Method {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SolverChoice {
-    /// Chosen from the scene and stated in the plan: dense LU for small systems, BiCGStab
-    /// otherwise (Gauss-Seidel when BiCGStab's vectors do not fit beside the matrix),
-    /// stochastic Jacobi when the matrix does not fit its budget.
+    /// Chosen from the scene and stated in the plan: dense LU for small systems, the full
+    /// matrix with BiCGStab up to `AUTO_MATRIX_NODES` nodes (Gauss-Seidel when BiCGStab's
+    /// vectors do not fit beside the matrix), hierarchical beyond, or when the matrix does
+    /// not fit its budget.
     #[default]
     Auto,
+    /// Hierarchical: a coarse solve over texel clusters, refined where it is too coarse,
+    /// then a final gather per texel; memory linear in the texels (no full matrix).
+    Hierarchical,
     /// Jacobi gathering.
     Jacobi,
     /// Gauss-Seidel gathering.
@@ -55,6 +59,7 @@ impl SolverChoice {
     pub fn name(self) -> &'static str {
         match self {
             Self::Auto => "auto",
+            Self::Hierarchical => "hierarchical",
             Self::Jacobi => "jacobi",
             Self::GaussSeidel => "gauss-seidel",
             Self::Shooting => "shooting",
@@ -65,9 +70,9 @@ impl SolverChoice {
         }
     }
 
-    /// Whether the solver needs the transport matrix.
+    /// Whether the solver needs the full transport matrix (one row per node).
     pub fn needs_matrix(self) -> bool {
-        !matches!(self, Self::StochasticJacobi)
+        !matches!(self, Self::StochasticJacobi | Self::Hierarchical)
     }
 }
 
@@ -187,12 +192,26 @@ pub struct BakeSettings {
     pub solver: SolverChoice,
     /// Radiosity basis over the texel grid. Default [`Basis::Linear`].
     pub basis: Basis,
-    /// Monte Carlo form-factor rays per texel node. Range 1..=65 536.
+    /// Monte Carlo form-factor rays per texel node: a row of the full matrix, or the final
+    /// gather of the hierarchical solve. Range 1..=65 536.
     /// Default 128 (medium), 32 (preview), 512 (high).
     pub transport_rays: u32,
+    /// Hierarchical solve: edge of the first cut's cells, texels (a power of two,
+    /// 1..=256); refinement splits them where the coarse solution is too coarse.
+    /// Default 16 (preview), 8 (medium, high).
+    pub cluster_texels: u32,
+    /// Hierarchical solve: form-factor rays per cell of the coarse level (shared out over its
+    /// texels, at least one each). Range 1..=65 536. Default 64 (preview), 128 (medium),
+    /// 256 (high).
+    pub cluster_rays: u32,
+    /// Hierarchical solve: refine the coarse level until the light its cells miss (the RMS
+    /// over the surface of the spread between a cell's quadrants, reflected) is at most this
+    /// fraction of the RMS irradiance. Range (0, 1). Default 0.02 (preview), 0.01 (medium),
+    /// 0.005 (high).
+    pub cluster_tolerance: f32,
     /// Largest transport matrix plus the solver's working memory beside it
-    /// (`SolverChoice::working_bytes`), MiB; beyond it `Auto` falls back to
-    /// matrix-free stochastic Jacobi and the matrix solvers refuse. The smaller of this and
+    /// (`SolverChoice::working_bytes`), MiB; beyond it `Auto` takes the hierarchical solve
+    /// (which must fit it too) and the matrix solvers refuse. The smaller of this and
     /// what [`Self::memory_budget_mib`] leaves beside the rest of the bake applies.
     /// Default 4096.
     pub transport_budget_mib: u64,
@@ -303,11 +322,19 @@ impl BakeSettings {
                 Quality::Medium => (1 << 18, 32, 64, 128, 1024),
                 Quality::High => (1 << 20, 128, 256, 512, 4096),
             };
+        let (cluster_texels, cluster_rays, cluster_tolerance) = match quality {
+            Quality::Preview => (16, 64, 0.02),
+            Quality::Medium => (8, 128, 0.01),
+            Quality::High => (8, 256, 0.005),
+        };
         Self {
             method: Method::Radiosity,
             solver: SolverChoice::Auto,
             basis: Basis::Linear,
             transport_rays,
+            cluster_texels,
+            cluster_rays,
+            cluster_tolerance,
             transport_budget_mib: 4096,
             solver_tolerance: 1e-3,
             max_solver_iterations: 20_000,
@@ -405,6 +432,23 @@ impl BakeSettings {
                 "transport_rays",
                 self.transport_rays,
                 "must be 1..=65536",
+            ));
+        }
+        if !(self.cluster_texels.is_power_of_two() && self.cluster_texels <= 256) {
+            return Err(bad(
+                "cluster_texels",
+                self.cluster_texels,
+                "must be a power of two from 1 to 256 texels",
+            ));
+        }
+        if !(1..=65_536).contains(&self.cluster_rays) {
+            return Err(bad("cluster_rays", self.cluster_rays, "must be 1..=65536"));
+        }
+        if !(self.cluster_tolerance > 0.0 && self.cluster_tolerance < 1.0) {
+            return Err(bad(
+                "cluster_tolerance",
+                self.cluster_tolerance,
+                "must be in (0, 1)",
             ));
         }
         if !(self.solver_tolerance > 0.0 && self.solver_tolerance < 1.0) {

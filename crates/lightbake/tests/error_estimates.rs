@@ -216,7 +216,7 @@ fn the_report_has_a_ray_floor_and_progress_lists_finished_stages() {
     let scene = cornell_box(CornellLight::Area);
     let progress = Progress::new();
     let out = lightbake::bake(&scene, &settings(Method::Radiosity), &progress).unwrap();
-    let floor = out.report.floor.expect("a floor");
+    let floor = out.report.floor.clone().expect("a floor");
     assert!(floor.rates.closest_per_second > 0.0 && floor.rates.shadow_per_second > 0.0);
     assert!(floor.closest_rays > 0 && floor.shadow_rays > 0);
     assert!(floor.seconds > 0.0 && floor.ratio.is_finite() && floor.ratio > 0.0);
@@ -225,8 +225,20 @@ fn the_report_has_a_ray_floor_and_progress_lists_finished_stages() {
         out.report.total_rays(),
         "every ray is of a kind"
     );
+    // Every stage that traced rays has its own time over its own floor.
+    let traced: Vec<&str> = out
+        .report
+        .stages
+        .iter()
+        .filter(|s| s.rays > 0)
+        .map(|s| s.name.as_str())
+        .collect();
+    let per_stage: Vec<&str> = floor.stages.iter().map(|s| s.0.as_str()).collect();
+    assert_eq!(per_stage, traced);
+    assert!(floor.stages.iter().all(|s| s.1.is_finite() && s.1 > 0.0));
     let table = out.report.table();
     assert!(table.contains("bake / floor"), "{table}");
+    assert!(table.contains("time / ray floor per stage"), "{table}");
     assert!(table.contains("estimated error"), "{table}");
     let snap = progress.snapshot();
     assert_eq!(snap.finished.len(), out.report.stages.len());

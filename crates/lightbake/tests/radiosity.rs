@@ -27,7 +27,10 @@ fn furnace_gives_e_over_one_minus_rho_for_every_solver() {
         for solver in common::ALL_SOLVERS {
             let stiff_capable = matches!(
                 solver,
-                SolverChoice::Krylov | SolverChoice::KrylovCg | SolverChoice::Direct
+                SolverChoice::Krylov
+                    | SolverChoice::KrylovCg
+                    | SolverChoice::Direct
+                    | SolverChoice::Hierarchical
             );
             if rho > 0.99 && !stiff_capable {
                 continue;

@@ -1,5 +1,5 @@
 //! The transport matrix and the solver within their memory budgets: over budget, `auto`
-//! goes matrix-free and a matrix solver is refused, counting the solver's working memory and
+//! goes hierarchical (no full matrix) and a matrix solver is refused, counting the solver's working memory and
 //! what the memory budget leaves beside the rest of the bake.
 
 mod common;
@@ -13,39 +13,35 @@ use lightbake::settings::BakeSettings;
 use lightbake::settings::SolverChoice;
 
 #[test]
-fn transport_over_budget_falls_back_or_is_refused() {
-    let scene = cornell_box(CornellLight::Area);
-    let mut settings = radiosity_settings(48.0, SolverChoice::Auto);
-    settings.transport_budget_mib = 1;
-    settings.stochastic_rays_per_node = 64;
+fn transport_over_budget_goes_hierarchical_or_is_refused() {
+    let (scene, mut settings, out) = krylov_cornell_bake();
+    let matrix_mib = out
+        .report
+        .radiosity
+        .as_ref()
+        .unwrap()
+        .transport_estimate_bytes as f64
+        / 1048576.0;
+    assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");
+    settings.transport_budget_mib = (matrix_mib / 2.0).ceil() as u64;
     let out = common::bake(&scene, &settings);
     let report = out.report.radiosity.as_ref().unwrap();
-    assert_eq!(
-        report.solver, "stochastic-jacobi",
-        "{}",
-        report.solver_reason
-    );
+    assert_eq!(report.solver, "hierarchical", "{}", report.solver_reason);
     assert!(report.solver_reason.contains("budget") && report.transport_nnz == 0);
     assert!(
         out.report
             .plan
             .stages
             .iter()
-            .any(|s| s.name == "indirect" && s.reason.contains("matrix-free"))
+            .any(|s| s.name == "indirect" && s.reason.contains("hierarchical"))
     );
     settings.solver = SolverChoice::GaussSeidel;
-    match lightbake::bake(&scene, &settings, &Progress::new()) {
-        Err(lightbake::BakeError::OverMemoryBudget { breakdown, .. }) => {
-            assert!(
-                breakdown.contains("gauss-seidel") && breakdown.contains("stochastic-jacobi"),
-                "{breakdown}"
-            );
-        }
-        other => panic!(
-            "expected a refusal, got {:?}",
-            other.map(|o| o.report.texels)
-        ),
-    }
+    assert_over_budget(&scene, &settings, "gauss-seidel");
+    assert_over_budget(&scene, &settings, "--solver hierarchical");
+    // A budget that cannot hold even the hierarchical solve's vectors is refused as well.
+    settings.solver = SolverChoice::Auto;
+    settings.transport_budget_mib = 0;
+    assert_over_budget(&scene, &settings, "hierarchical solve");
 }
 
 /// The area-lit Cornell box at 48 texels/m with `auto`, which picks BiCGStab: the scene, its
@@ -101,7 +97,7 @@ fn transport_budget_counts_the_solvers_working_memory() {
 
 /// The matrix and the solver share the memory budget with the rest of the bake: with a
 /// large transport budget and a memory budget that leaves no room for the matrix, `auto` goes
-/// matrix-free and a matrix solver is refused with the memory budget named.
+/// hierarchical and a matrix solver is refused with the memory budget named.
 #[test]
 fn memory_budget_also_bounds_the_transport() {
     let (scene, mut settings, out) = krylov_cornell_bake();
@@ -113,11 +109,7 @@ fn memory_budget_also_bounds_the_transport() {
     settings.memory_budget_mib = (rest_mib + 0.5 * matrix_mib).ceil() as u64;
     let out = common::bake(&scene, &settings);
     let report = out.report.radiosity.as_ref().unwrap();
-    assert_eq!(
-        report.solver, "stochastic-jacobi",
-        "{}",
-        report.solver_reason
-    );
+    assert_eq!(report.solver, "hierarchical", "{}", report.solver_reason);
     settings.solver = SolverChoice::Jacobi;
     assert_over_budget(&scene, &settings, "memory budget");
     settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;

@@ -1,6 +1,7 @@
 //! The radiosity pass's sampling against slow, obvious versions of itself: fast support
 //! frames against the general sampler, sliver nodes against the hemicube, closed-form node
-//! areas against the sampled split, affine footprints against the searched points.
+//! areas against the sampled split, affine footprints against the searched points, the
+//! exitance grid against the hit mapper.
 
 mod common;
 
@@ -77,7 +78,7 @@ fn fast_support_frames_match_the_slow_sampler() {
             let key = 0x9e37_79b9 ^ i as u32;
             for k in 0..32 {
                 let fast = frame.point(lightbake::sampling::sobol_02(k, key));
-                let slow = support_point(&ctx, &mapper, i, p, k, key);
+                let slow = support_point(&ctx, &mapper, i, p, k, key, &mut 0);
                 let (Some((f, fw)), Some((s, sw))) = (fast, slow) else {
                     assert_eq!(
                         fast.is_some(),
@@ -235,5 +236,67 @@ fn affine_footprints_match_the_searched_points() {
             worst.0 < 1e-3 && worst.1 < 1e-4 && worst.2 < 1e-4,
             "{name}: {worst:?}"
         );
+    }
+}
+
+#[test]
+fn the_exitance_grid_reads_what_the_hit_mapper_weights_give() {
+    use lightbake::bvh::workload::gather_rays;
+    use lightbake::radiosity::HitMapper;
+    use lightbake::radiosity::exitance_grid::ExitanceGrid;
+    // The Cornell box (blocks standing on the floor split nodes along their bases), the
+    // hard furnace (slivers, a wedge, coincident and double-sided faces) and the sunlit room
+    // (thin walls, a window).
+    let scenes = [
+        (cornell_box(CornellLight::Area), 48.0),
+        (
+            common::hard_furnace(0.9, 10.0, &["tiny_cube", "wedge", "slivers", "coincident"]),
+            24.0,
+        ),
+        (lightbake::scene::testscenes::sunlit_room(), 16.0),
+    ];
+    for (scene, density) in scenes {
+        for basis in [Basis::Linear, Basis::Constant] {
+            let prep =
+                Prepared::new(&scene, &radiosity_settings(density, SolverChoice::Auto)).unwrap();
+            let ctx = prep.ctx();
+            let nodes = Nodes::new(&ctx, basis);
+            let mapper = HitMapper::new(ctx, &nodes, basis);
+            // A field that differs from node to node in every channel.
+            let b: Vec<Vec3> = (0..nodes.len())
+                .map(|i| Vec3::new((i % 7) as f32, (i % 11) as f32 + 0.5, (i % 13) as f32))
+                .collect();
+            let grid = ExitanceGrid::new(&mapper, &b);
+            let (mut hits, mut split_hits) = (0, 0);
+            for ray in gather_rays(&prep.rays, 20_000, 3) {
+                let Some(hit) = prep
+                    .rays
+                    .closest_hit(ray.origin, ray.direction, 0.0, ray.tmax)
+                else {
+                    continue;
+                };
+                let mut w = [(0u32, 0f32); 4];
+                let n = mapper.weights(&hit, &mut w);
+                let slow = w[..n]
+                    .iter()
+                    .fold(Vec3::ZERO, |s, &(j, wj)| s + b[j as usize] * wj);
+                let fast = grid.at(&hit);
+                assert!(
+                    fast.to_array().map(f32::to_bits) == slow.to_array().map(f32::to_bits),
+                    "{} {basis:?}: triangle {} at ({}, {}): grid {fast} against the mapper's {slow}",
+                    scene.name,
+                    hit.triangle,
+                    hit.u,
+                    hit.v
+                );
+                hits += 1;
+                split_hits += usize::from(w[..n].iter().any(|&(j, _)| nodes.split[j as usize]));
+            }
+            println!(
+                "{} {basis:?}: {hits} hits, {split_hits} next to split nodes",
+                scene.name
+            );
+            assert!(hits > 4_000, "{} {basis:?}: {hits} hits", scene.name);
+        }
     }
 }

@@ -92,7 +92,7 @@ fn a_furnace_with_tiny_sliver_coincident_and_sharply_meeting_faces_gives_e_over_
     // pass's visibility noise where these objects shadow the walls and the wedge.
     let failures = furnace_failures(
         &["tiny_cube", "wedge", "slivers", "coincident"],
-        &[SolverChoice::GaussSeidel],
+        &[SolverChoice::GaussSeidel, SolverChoice::Hierarchical],
         0.01,
         0.08,
     );

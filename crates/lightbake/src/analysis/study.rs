@@ -16,8 +16,10 @@
 //! The curves: direct light over footprint samples; each radiosity solver (Jacobi,
 //! Gauss–Seidel, shooting, BiCGStab, CG, stochastic Jacobi) over its tolerance at a fixed
 //! matrix; Monte Carlo form factors over rays per node for the piecewise-linear and the
-//! piecewise-constant basis; hemicube form factors over resolution (piecewise constant); and
-//! instant radiosity (hybrid) over particle counts.
+//! piecewise-constant basis; the hierarchical solve over its final gather's rays per node and
+//! over its refinement tolerance (from a coarse first cut, where its bias shows); hemicube
+//! form factors over resolution (piecewise constant); and instant radiosity (hybrid) over
+//! particle counts.
 
 use std::time::Instant;
 
@@ -303,6 +305,34 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
             };
             cases.push(case(curve, "rays/node", rays, r, Against::Full));
         }
+    }
+    // The hierarchical solve over its final gather's rays per node (its coarse level at the
+    // preset's settings), and over its refinement tolerance from a deliberately coarse first
+    // cut (64 × 64 texels) at 256 rays, where its bias is a visible share of the error.
+    for rays in pick(
+        &[16.0, 32.0, 64.0, 128.0, 256.0, 512.0, 1024.0],
+        &[16.0, 128.0],
+    ) {
+        let mut r = s.clone();
+        r.method = Method::Radiosity;
+        r.solver = SolverChoice::Hierarchical;
+        r.transport_rays = rays as u32;
+        cases.push(case("hierarchical", "rays/node", rays, r, Against::Full));
+    }
+    for tolerance in pick(&[0.3, 0.1, 0.03, 0.01, 0.003], &[0.3, 0.01]) {
+        let mut r = s.clone();
+        r.method = Method::Radiosity;
+        r.solver = SolverChoice::Hierarchical;
+        r.transport_rays = 256;
+        r.cluster_texels = 64;
+        r.cluster_tolerance = tolerance as f32;
+        cases.push(case(
+            "hierarchical-coarse",
+            "cluster tolerance",
+            tolerance,
+            r,
+            Against::Full,
+        ));
     }
     // Hemicube form factors over resolution (piecewise constant).
     for res in pick(&[8.0, 16.0, 32.0, 64.0], &[8.0]) {

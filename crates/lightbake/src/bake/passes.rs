@@ -13,9 +13,11 @@ use crate::error::Result;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
 use crate::lights::Emitters;
 use crate::progress::RayKind;
-use crate::radiosity::{self, Nodes, RadiosityReport};
-use crate::settings::{MAX_VPL_DEPTH, Method};
-use crate::solve::Transport;
+use crate::radiosity::error_estimate::HierarchicalFields;
+use crate::radiosity::hierarchical::{self, Coarse, CoarseReport, Gather};
+use crate::radiosity::{self, HitMapper, Nodes, RadiosityReport};
+use crate::settings::{MAX_VPL_DEPTH, Method, SolverChoice};
+use crate::solve::{Solution, Transport};
 use crate::vpl::{VplReport, instant_radiosity};
 
 /// What the lighting passes produced.
@@ -256,8 +258,10 @@ fn vpl(
 struct Solved {
     plan: radiosity::SolverPlan,
     transport: Option<Transport>,
-    solution: crate::solve::Solution,
+    solution: Solution,
     error: ErrorEstimate,
+    /// The hierarchical solve's coarse level and its estimated bias (relative RMS).
+    coarse: Option<(CoarseReport, f64)>,
 }
 
 /// The radiosity stages (nodes, transport, solve, error estimate): reflected irradiance per
@@ -279,7 +283,6 @@ fn radiosity(
         );
         Ok((nodes, 0, note))
     })?;
-    let source = radiosity::source(&nodes, direct);
     let mut s = settings.clone();
     if let Some(t) = settings.target_error {
         s.solver_tolerance = s.solver_tolerance.min(t as f64 / 4.0);
@@ -293,11 +296,20 @@ fn radiosity(
                 settings: s,
                 ..*ctx
             };
-            let solved = radiosity_round(&c, &nodes, &source, direct, round, stages)?;
+            let solved = radiosity_round(&c, &nodes, direct, round, stages)?;
             let relative = solved.error.relative_rms;
             Ok((solved, Some(relative)))
         },
         |s, solved, factor| {
+            if solved.coarse.is_some() {
+                // The final gather's rays set its noise; the coarse level's tolerance its
+                // bias: both are tightened by the same factor of error.
+                let next = scaled(s.transport_rays, factor, 65_536);
+                let tolerance = (s.cluster_tolerance / (factor as f32).sqrt()).max(1e-4);
+                let changed = next != s.transport_rays || tolerance != s.cluster_tolerance;
+                (s.transport_rays, s.cluster_tolerance) = (next, tolerance);
+                return changed;
+            }
             // The count that sets the noise: form-factor rays, or the shooting's rays.
             let count = if solved.transport.is_some() {
                 &mut s.transport_rays
@@ -315,6 +327,7 @@ fn radiosity(
         transport,
         solution,
         error,
+        coarse,
     } = rounds.value;
     if rounds.missed {
         warnings.push(format!(
@@ -341,6 +354,8 @@ fn radiosity(
         transport_estimate_bytes: plan.transport_estimate_bytes,
         solver_working_bytes: plan.solver_working_bytes,
         solution,
+        coarse_bias: coarse.as_ref().map(|c| c.1),
+        coarse: coarse.map(|c| c.0),
     };
     Ok((reflected, report, Some(error)))
 }
@@ -351,7 +366,6 @@ fn radiosity(
 fn radiosity_round(
     ctx: &BakeContext<'_>,
     nodes: &Nodes,
-    source: &[Vec3],
     direct: &[Vec3],
     round: u32,
     stages: &mut Stages<'_>,
@@ -364,6 +378,10 @@ fn radiosity_round(
         String::new()
     };
     let plan = radiosity::plan_solver(ctx, nodes)?;
+    if plan.choice == SolverChoice::Hierarchical {
+        return hierarchical_round(ctx, nodes, direct, plan, &suffix, stages);
+    }
+    let source = radiosity::source(nodes, direct);
     let transport = if plan.choice.needs_matrix() {
         Some(
             stages.run(&format!("transport{suffix}"), nodes.len() as u64, || {
@@ -383,7 +401,7 @@ fn radiosity_round(
         None
     };
     let solution = stages.run(&format!("solve{suffix}"), 0, || {
-        let sol = radiosity::solve_system(ctx, nodes, &plan, transport.as_ref(), source, progress);
+        let sol = radiosity::solve_system(ctx, nodes, &plan, transport.as_ref(), &source, progress);
         let note = format!("{}: {}", sol.solver, sol.stop_reason);
         let rays = sol.rays;
         Ok((sol, rays, note))
@@ -407,5 +425,148 @@ fn radiosity_round(
         transport,
         solution,
         error,
+        coarse: None,
+    })
+}
+
+/// Rays per node of the hierarchical solve's correction gather: a quarter of the final
+/// gather's (at least 4). The field it gathers, ρ(H₁ − C), is a few per cent of the light,
+/// so its noise is small at fewer rays.
+fn correction_rays(gather_rays: u32) -> u32 {
+    (gather_rays / 4).max(4)
+}
+
+/// A gather stage's note: its rays per node, and the visibility rays of its start points.
+fn gather_note(per_node: u32, rays: hierarchical::GatherRays) -> String {
+    format!(
+        "{per_node} rays/node, {} visibility rays of start points near geometry",
+        rays.visibility
+    )
+}
+
+/// One round of the hierarchical solve ([`hierarchical`]): the coarse level, the final
+/// gather, its correction and the error estimate, each a stage.
+fn hierarchical_round(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    direct: &[Vec3],
+    plan: radiosity::SolverPlan,
+    suffix: &str,
+    stages: &mut Stages<'_>,
+) -> Result<Solved> {
+    let s = ctx.settings;
+    let progress = stages.progress();
+    let direct_nodes: Vec<Vec3> = nodes.patch.iter().map(|&p| direct[p as usize]).collect();
+    let mapper = HitMapper::new(*ctx, nodes, s.basis);
+    // The plan admitted the coarse matrix at its per-node cap.
+    let options = radiosity::hierarchy_options(ctx, nodes, u64::MAX);
+    let coarse = stages.run(&format!("coarse solve{suffix}"), 0, || {
+        let c = hierarchical::coarse_solve(ctx, &mapper, nodes, &direct_nodes, &options, progress);
+        let r = &c.report;
+        let note = format!(
+            "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
+            r.cells,
+            r.rounds,
+            r.matrix_entries,
+            r.matrix_bytes as f64 / 1048576.0,
+            100.0 * r.missed_detail,
+            r.stop_reason,
+            c.solution.stop_reason
+        );
+        let rays = r.rays;
+        Ok((c, rays, note))
+    })?;
+    let cell_indirect = &coarse.solution.indirect;
+    let b = hierarchical::fine_exitance(nodes, &direct_nodes, &coarse.clusters, cell_indirect);
+    drop(direct_nodes);
+    let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
+        let (h, rays) = hierarchical::final_gather(
+            ctx,
+            &mapper,
+            nodes,
+            &b,
+            s.transport_rays,
+            Gather::Final,
+            progress,
+        );
+        let note = gather_note(s.transport_rays, rays);
+        Ok(((h, rays.visibility), rays.closest + rays.visibility, note))
+    })?;
+    let (gathered, visibility) = gathered;
+    stages.annotate(RayKind::Closest, None);
+    stages.shadow_rays(visibility);
+    let coarse_per_node = coarse.clusters.prolong(cell_indirect);
+    let missed = hierarchical::missed_exitance(nodes, &gathered, &coarse_per_node);
+    drop(coarse_per_node);
+    let correction_rays = correction_rays(s.transport_rays);
+    let correction = stages.run(&format!("correction{suffix}"), nodes.len() as u64, || {
+        let (d, rays) = hierarchical::final_gather(
+            ctx,
+            &mapper,
+            nodes,
+            &missed,
+            correction_rays,
+            Gather::Correction,
+            progress,
+        );
+        let note = gather_note(correction_rays, rays);
+        Ok(((d, rays.visibility), rays.closest + rays.visibility, note))
+    })?;
+    let (correction, visibility) = correction;
+    stages.annotate(RayKind::Closest, None);
+    stages.shadow_rays(visibility);
+    let indirect: Vec<Vec3> = gathered
+        .iter()
+        .zip(&correction)
+        .map(|(h, d)| *h + *d)
+        .collect();
+    let (error, bias) = stages.run(&format!("error estimate{suffix}"), 1, || {
+        let (e, bias, rays) = radiosity::hierarchical_error(
+            ctx,
+            &mapper,
+            nodes,
+            &HierarchicalFields {
+                exitance: &b,
+                gathered: &gathered,
+                missed: &missed,
+                correction: &correction,
+            },
+            direct,
+            s.transport_rays,
+            correction_rays,
+        );
+        let note = format!(
+            "{:.2}% ({:.2}% the coarse level's bias) from {}",
+            100.0 * e.relative_rms,
+            100.0 * bias,
+            e.method
+        );
+        Ok(((e, bias), rays, note))
+    })?;
+    stages.annotate(RayKind::Closest, Some(error.clone()));
+    let Coarse {
+        solution: c,
+        report,
+        ..
+    } = coarse;
+    let solution = Solution {
+        solver: "hierarchical",
+        b,
+        indirect,
+        history: c.history,
+        converged: c.converged,
+        iterations: c.iterations,
+        rays: 0,
+        stop_reason: format!(
+            "coarse level of {} cells ({}): {}; final gather of {} rays per node, correction of {correction_rays}",
+            report.cells, c.solver, c.stop_reason, s.transport_rays
+        ),
+    };
+    Ok(Solved {
+        plan,
+        transport: None,
+        solution,
+        error,
+        coarse: Some((report, bias)),
     })
 }

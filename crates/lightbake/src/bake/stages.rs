@@ -50,6 +50,7 @@ impl<'p> Stages<'p> {
             } else {
                 RayKind::None
             },
+            shadow_rays: 0,
             error: None,
             note,
         });
@@ -59,6 +60,16 @@ impl<'p> Stages<'p> {
             return Err(BakeError::Cancelled);
         }
         Ok(value)
+    }
+
+    /// Sets how many of the last stage's rays were any-hit visibility tests (of a stage of
+    /// closest-hit rays).
+    pub(super) fn shadow_rays(&mut self, rays: u64) {
+        let index = self.list.len().saturating_sub(1);
+        if let Some(last) = self.list.last_mut() {
+            last.shadow_rays = rays;
+            self.progress.record_stage(index, last);
+        }
     }
 
     /// Sets the last stage's ray kind and error estimate (and publishes the estimate).

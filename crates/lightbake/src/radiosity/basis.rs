@@ -20,6 +20,12 @@ type AreaChunk = (Vec<(u32, f32)>, Vec<u32>);
 /// Footprint samples per texel for the basis areas.
 const AREA_SAMPLES: u32 = 16;
 
+/// Patches per chunk of work.
+const CHUNK_PATCHES: usize = 512;
+/// Chunks whose shares are made before they are added up: their entries (up to nine per
+/// patch) are all that exists beside the result.
+const BLOCK_CHUNKS: usize = 64;
+
 /// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];
 /// invalid texels contribute their open rim), split over stratified points of its footprint,
 /// given to the nodes by the basis weights at those points.
@@ -32,80 +38,25 @@ pub(super) fn basis_areas(
     mapper: &HitMapper<'_>,
 ) -> (Vec<f32>, Vec<bool>) {
     let patches = &ctx.patches.patches;
-    let chunks: Vec<AreaChunk> = patches
-        .par_chunks(512)
-        .enumerate()
-        .map(|(c, chunk)| {
-            let mut out = Vec::new();
-            let mut slivers = Vec::new();
-            let mut w = [(0u32, 0f32); 4];
-            for (k, p) in chunk.iter().enumerate() {
-                let Some(rect) = ctx.layout.instances[p.instance as usize] else {
-                    continue;
-                };
-                if exact_split(mapper, p, rect, &mut out) {
-                    continue;
-                }
-                let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
-                let footprint = ctx.patches.footprint_of(p);
-                // Full-texel world area per sample; a valid texel's samples share its
-                // (already visibility-reduced) area instead.
-                let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> =
-                    Vec::with_capacity(AREA_SAMPLES as usize);
-                let mut on_surface = 0;
-                for s in 0..AREA_SAMPLES {
-                    let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
-                    let Some(sp) = footprint
-                        .iter()
-                        .find_map(|&t| mapper.surface.point(t, q, 0.0))
-                    else {
-                        continue;
-                    };
-                    on_surface += 1;
-                    let from = (sp.position, sp.geometric_normal);
-                    let n = mapper.weights_at(sp.triangle, q, from, &mut w);
-                    let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
-                    else {
-                        continue;
-                    };
-                    let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
-                    if ctx.patches.open_point(p, &sp, anchor_patch, ctx.rays) {
-                        points.push((sp.triangle, q, from));
-                    }
-                }
-                if p.is_valid() && points.is_empty() {
-                    // A sliver: its representative point stands for it.
-                    slivers.push(nodes.of_patch[c * 512 + k]);
-                    points.push((
-                        p.triangle,
-                        texel + Vec2::splat(0.5),
-                        (p.position, p.geometric_normal),
-                    ));
-                }
-                if points.is_empty() {
-                    continue;
-                }
-                let share = if p.is_valid() {
-                    p.area / points.len() as f32
-                } else {
-                    p.area / on_surface.max(1) as f32
-                };
-                for (t, q, from) in points {
-                    let n = mapper.weights_at(t, q, from, &mut w);
-                    out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
-                }
-            }
-            (out, slivers)
-        })
-        .collect();
     let mut area = vec![0.0f32; nodes.len()];
     let mut sliver = vec![false; nodes.len()];
-    for (chunk, slivers) in chunks {
-        for (j, a) in chunk {
-            area[j as usize] += a;
-        }
-        for j in slivers {
-            sliver[j as usize] = true;
+    // Blocks of chunks, added up in order (the same sums whatever the thread count).
+    for (b, block) in patches.chunks(CHUNK_PATCHES * BLOCK_CHUNKS).enumerate() {
+        let first = b * CHUNK_PATCHES * BLOCK_CHUNKS;
+        let chunks: Vec<AreaChunk> = block
+            .par_chunks(CHUNK_PATCHES)
+            .enumerate()
+            .map(|(c, chunk)| {
+                area_chunk(ctx, nodes, mapper, first + c * CHUNK_PATCHES, chunk)
+            })
+            .collect();
+        for (chunk, slivers) in chunks {
+            for (j, a) in chunk {
+                area[j as usize] += a;
+            }
+            for j in slivers {
+                sliver[j as usize] = true;
+            }
         }
     }
     // Every node keeps at least a sliver of its own area.
@@ -113,6 +64,78 @@ pub(super) fn basis_areas(
         *a = a.max(1e-3 * patches[nodes.patch[i] as usize].area);
     }
     (area, sliver)
+}
+
+/// The area shares of the patches `chunk` (the first of which is patch `first`): (node,
+/// share) entries, and the sliver nodes.
+fn area_chunk(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    mapper: &HitMapper<'_>,
+    first: usize,
+    chunk: &[Patch],
+) -> AreaChunk {
+    let patches = &ctx.patches.patches;
+    let mut out = Vec::new();
+    let mut slivers = Vec::new();
+    let mut w = [(0u32, 0f32); 4];
+    for (k, p) in chunk.iter().enumerate() {
+        let Some(rect) = ctx.layout.instances[p.instance as usize] else {
+            continue;
+        };
+        if exact_split(mapper, p, rect, &mut out) {
+            continue;
+        }
+        let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+        let footprint = ctx.patches.footprint_of(p);
+        // Full-texel world area per sample; a valid texel's samples share its
+        // (already visibility-reduced) area instead.
+        let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> =
+            Vec::with_capacity(AREA_SAMPLES as usize);
+        let mut on_surface = 0;
+        for s in 0..AREA_SAMPLES {
+            let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
+            let Some(sp) = footprint
+                .iter()
+                .find_map(|&t| mapper.surface.point(t, q, 0.0))
+            else {
+                continue;
+            };
+            on_surface += 1;
+            let from = (sp.position, sp.geometric_normal);
+            let n = mapper.weights_at(sp.triangle, q, from, &mut w);
+            let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
+            else {
+                continue;
+            };
+            let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
+            if ctx.patches.open_point(p, &sp, anchor_patch, ctx.rays) {
+                points.push((sp.triangle, q, from));
+            }
+        }
+        if p.is_valid() && points.is_empty() {
+            // A sliver: its representative point stands for it.
+            slivers.push(nodes.of_patch[first + k]);
+            points.push((
+                p.triangle,
+                texel + Vec2::splat(0.5),
+                (p.position, p.geometric_normal),
+            ));
+        }
+        if points.is_empty() {
+            continue;
+        }
+        let share = if p.is_valid() {
+            p.area / points.len() as f32
+        } else {
+            p.area / on_surface.max(1) as f32
+        };
+        for (t, q, from) in points {
+            let n = mapper.weights_at(t, q, from, &mut w);
+            out.extend(w[..n].iter().map(|&(j, wj)| (j, wj * share)));
+        }
+    }
+    (out, slivers)
 }
 
 /// A texel's area split over the nodes in closed form, where the sampled split of

@@ -42,11 +42,159 @@ pub fn gather_error(
         return (ErrorEstimate::default(), 0);
     }
     let mapper = HitMapper::new(*ctx, nodes, ctx.settings.basis);
+    let picked = picked_nodes(n);
+    let gathers = regathers(ctx, &mapper, nodes, &picked, b, rays, [1, 2]);
+    let terms: Vec<f64> = picked
+        .iter()
+        .zip(&gathers)
+        .map(|(&i, &(g1, g2))| noise_term(g1, g2, luminance(indirect[i]) as f64))
+        .collect();
+    let method = format!(
+        "two independent re-gathers of {} nodes with {rays} rays each",
+        picked.len()
+    );
+    let est = summarise(&terms, method).relative_to(value_rms(nodes, &picked, indirect, direct));
+    (est, 2 * picked.len() as u64 * rays as u64)
+}
+
+/// The per-node fields of a hierarchical solve ([`super::hierarchical`]) that its error
+/// estimate reads.
+pub struct HierarchicalFields<'a> {
+    /// b = ρ∘(H_d + C̃): the exitance the final gather read (C̃ the coarse level's reflected
+    /// irradiance, prolonged to the nodes).
+    pub exitance: &'a [Vec3],
+    /// H₁: the final gather's result, lux.
+    pub gathered: &'a [Vec3],
+    /// ρ∘(H₁ − C̃): the exitance the correction read.
+    pub missed: &'a [Vec3],
+    /// Δ: the correction's result, lux (the baked reflected irradiance is H₁ + Δ).
+    pub correction: &'a [Vec3],
+}
+
+/// The hierarchical solve's error ([`super::hierarchical`]): the noise of its two gathers and
+/// the coarse level's remaining bias.
+///
+/// * **Noise.** The final gather H₁ and the correction Δ are each re-gathered twice at the
+///   sampled nodes from the exitance they read (as in [`gather_error`]), which gives each
+///   one's squared noise without a variance model.
+/// * **Bias.** With H* the exact reflected irradiance (of the same Monte Carlo transport F)
+///   and u = E[H₁] − C̃ what the coarse level misses, E[H₁] = H* − (I − Fρ)⁻¹·Fρ·u, and the
+///   correction gathers E[Δ] = Fρ·u, so the bias left in H₁ + Δ is
+///   Σ_{k≥1} (Fρ)ᵏ·E[Δ]: the coarse level's error enters only from the third bounce on. Its
+///   first term δ = Fρ·Δ is gathered twice under independent seeds at the sampled nodes
+///   (δ₁·δ₂ estimates δ² without the noise's own square), and the series is summed as
+///   δ/(1 − r), r = ‖δ‖/‖Δ‖ the contraction measured on this field (Δ's noise taken out of
+///   ‖Δ‖), at most the largest albedo.
+///
+/// Each node's squared error is the sum of the three. Returns the estimate, the bias part
+/// (relative RMS) and the rays traced.
+pub fn hierarchical_error(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    fields: &HierarchicalFields<'_>,
+    direct: &[Vec3],
+    rays: u32,
+    correction_rays: u32,
+) -> (ErrorEstimate, f64, u64) {
+    let n = nodes.len();
+    if n == 0 {
+        return (ErrorEstimate::default(), 0.0, 0);
+    }
+    let picked = picked_nodes(n);
+    let gathers = regathers(ctx, mapper, nodes, &picked, fields.exitance, rays, [1, 2]);
+    let corrections = regathers(
+        ctx,
+        mapper,
+        nodes,
+        &picked,
+        fields.missed,
+        correction_rays,
+        [3, 4],
+    );
+    let reflected: Vec<Vec3> = (0..n)
+        .map(|i| nodes.albedo[i] * fields.correction[i])
+        .collect();
+    let deltas = regathers(ctx, mapper, nodes, &picked, &reflected, rays, [5, 6]);
+    drop(reflected);
+    let lum = |v: &[Vec3], i: usize| luminance(v[i]) as f64;
+    let gather_noise: Vec<f64> = picked
+        .iter()
+        .zip(&gathers)
+        .map(|(&i, &(g1, g2))| noise_term(g1, g2, lum(fields.gathered, i)))
+        .collect();
+    let correction_noise: Vec<f64> = picked
+        .iter()
+        .zip(&corrections)
+        .map(|(&i, &(d1, d2))| noise_term(d1, d2, lum(fields.correction, i)))
+        .collect();
+    let delta_sq: Vec<f64> = deltas.iter().map(|&(d1, d2)| d1 * d2).collect();
+    let field_sq: f64 = picked
+        .iter()
+        .zip(&correction_noise)
+        .map(|(&i, &e)| lum(fields.correction, i).powi(2) - e.max(0.0))
+        .sum();
+    let r = if field_sq > 0.0 {
+        (delta_sq.iter().sum::<f64>().max(0.0) / field_sq).sqrt()
+    } else {
+        0.0
+    }
+    .min(nodes.max_albedo() as f64);
+    let amplification = 1.0 / (1.0 - r).max(1e-6);
+    let bias: Vec<f64> = delta_sq
+        .iter()
+        .map(|&d| d * amplification * amplification)
+        .collect();
+    let terms: Vec<f64> = (0..picked.len())
+        .map(|k| gather_noise[k] + correction_noise[k] + bias[k])
+        .collect();
+    let indirect: Vec<Vec3> = picked
+        .iter()
+        .map(|&i| fields.gathered[i] + fields.correction[i])
+        .collect();
+    let values = {
+        let v: Vec<Vec3> = picked
+            .iter()
+            .zip(&indirect)
+            .map(|(&i, &h)| direct[nodes.patch[i] as usize] + h)
+            .collect();
+        rms_luminance(&v)
+    };
+    let bias_rms = (bias.iter().sum::<f64>() / picked.len() as f64)
+        .max(0.0)
+        .sqrt();
+    let method = format!(
+        "two re-gathers of {} nodes for each of the final gather ({rays} rays) and the correction ({correction_rays} rays), two gathers of the correction's reflection for the coarse level's bias (×{amplification:.2}: r = {r:.3})",
+        picked.len()
+    );
+    let est = summarise(&terms, method).relative_to(values);
+    let bias_relative = if values > 0.0 { bias_rms / values } else { 0.0 };
+    let traced = 2 * picked.len() as u64 * (2 * rays as u64 + correction_rays as u64);
+    (est, bias_relative, traced)
+}
+
+/// The nodes the estimates sample: [`ERROR_SAMPLE_NODES`] evenly spaced ones, or all.
+fn picked_nodes(n: usize) -> Vec<usize> {
+    let picked = n.min(ERROR_SAMPLE_NODES);
+    (0..picked).map(|k| k * n / picked).collect()
+}
+
+/// Two gathers of luminance(`b`) at each of `picked`, with `rays` rays under two seeds
+/// derived from the bake's seed and `keys` (independent of every other ray of the bake).
+fn regathers(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    picked: &[usize],
+    b: &[Vec3],
+    rays: u32,
+    keys: [u32; 2],
+) -> Vec<(f64, f64)> {
     let reseeded = |k: u32| BakeSettings {
         seed: crate::sampling::hash_words(&[ctx.settings.seed, 0x57_0c4a, k]),
         ..ctx.settings.clone()
     };
-    let (s1, s2) = (reseeded(1), reseeded(2));
+    let (s1, s2) = (reseeded(keys[0]), reseeded(keys[1]));
     let (c1, c2) = (
         BakeContext {
             settings: &s1,
@@ -57,39 +205,46 @@ pub fn gather_error(
             ..*ctx
         },
     );
-    let picked = n.min(ERROR_SAMPLE_NODES);
-    // Per node: (ḡ − h)² − (g₁ − g₂)²/4, lux² (an unbiased term, negative at times).
-    let mut per_node: Vec<f64> = (0..picked)
-        .into_par_iter()
-        .map(|k| {
-            let i = k * n / picked;
-            let g1 = monte_carlo::gather_luminance(&c1, &mapper, nodes, i, rays, b);
-            let g2 = monte_carlo::gather_luminance(&c2, &mapper, nodes, i, rays, b);
-            let h = luminance(indirect[i]) as f64;
-            let mean = 0.5 * (g1 + g2);
-            (mean - h) * (mean - h) - 0.25 * (g1 - g2) * (g1 - g2)
+    picked
+        .par_iter()
+        .map(|&i| {
+            (
+                monte_carlo::gather_luminance(&c1, mapper, nodes, i, rays, b),
+                monte_carlo::gather_luminance(&c2, mapper, nodes, i, rays, b),
+            )
         })
-        .collect();
-    let mean_sq = per_node.iter().sum::<f64>() / picked as f64;
-    for v in &mut per_node {
-        *v = v.max(0.0).sqrt();
-    }
+        .collect()
+}
+
+/// (ḡ − h)² − (g₁ − g₂)²/4, lux²: an unbiased estimate of h's squared error (negative at
+/// times).
+fn noise_term(g1: f64, g2: f64, h: f64) -> f64 {
+    let mean = 0.5 * (g1 + g2);
+    (mean - h) * (mean - h) - 0.25 * (g1 - g2) * (g1 - g2)
+}
+
+/// RMS of the per-node squared-error terms, and the p95 of their square roots (negative
+/// terms count as zero), absolute.
+fn summarise(terms: &[f64], method: String) -> ErrorEstimate {
+    let picked = terms.len();
+    let mean_sq = terms.iter().sum::<f64>() / picked as f64;
+    let mut roots: Vec<f64> = terms.iter().map(|v| v.max(0.0).sqrt()).collect();
     let k = ((picked as f64 * 0.95).ceil() as usize).clamp(1, picked) - 1;
-    let (_, p95, _) = per_node.select_nth_unstable_by(k, f64::total_cmp);
-    let values: Vec<Vec3> = (0..picked)
-        .map(|k| {
-            let i = k * n / picked;
-            direct[nodes.patch[i] as usize] + indirect[i]
-        })
-        .collect();
-    let est = ErrorEstimate {
+    let (_, p95, _) = roots.select_nth_unstable_by(k, f64::total_cmp);
+    ErrorEstimate {
         rms: mean_sq.max(0.0).sqrt(),
         p95_abs: *p95,
         texels: picked,
-        method: format!("two independent re-gathers of {picked} nodes with {rays} rays each"),
+        method,
         ..ErrorEstimate::default()
     }
-    .relative_to(rms_luminance(&values));
-    (est, 2 * picked as u64 * rays as u64)
 }
 
+/// RMS luminance of direct plus reflected light at `picked`, lux.
+fn value_rms(nodes: &Nodes, picked: &[usize], indirect: &[Vec3], direct: &[Vec3]) -> f64 {
+    let values: Vec<Vec3> = picked
+        .iter()
+        .map(|&i| direct[nodes.patch[i] as usize] + indirect[i])
+        .collect();
+    rms_luminance(&values)
+}

@@ -49,7 +49,7 @@ struct TriangleTexels {
 /// [`SPLIT`] in `instance` marks a node that cannot see the anchor of a neighbour in its
 /// chart: geometry (a wall standing on a floor) cuts its basis support.
 #[derive(Clone, Copy, Debug)]
-struct TexelNode {
+pub(super) struct TexelNode {
     node: u32,
     instance: u32,
     chart: u32,
@@ -57,6 +57,19 @@ struct TexelNode {
 
 /// Flag bit in [`TexelNode::instance`].
 const SPLIT: u32 = 1 << 31;
+
+impl TexelNode {
+    /// (node, instance, chart, split), or `None` when the texel has no node.
+    #[inline]
+    pub(super) fn node(&self) -> Option<(u32, u32, u32, bool)> {
+        (self.node != u32::MAX).then_some((
+            self.node,
+            self.instance & !SPLIT,
+            self.chart,
+            self.instance & SPLIT != 0,
+        ))
+    }
+}
 
 /// One instance rectangle of a mapper's texel grid, seen from one chart.
 #[derive(Clone, Copy)]
@@ -215,6 +228,18 @@ impl<'a> HitMapper<'a> {
                 grid[j].instance |= SPLIT;
             }
         }
+    }
+
+    /// Per page, per texel: its node and owner.
+    pub(super) fn texel_pages(&self) -> &[Vec<TexelNode>] {
+        &self.grid
+    }
+
+    /// Global triangle `t`'s lightmap UVs (in its instance's rectangle, [0, 1]²), instance
+    /// and chart; `None` when it is not baked.
+    pub(super) fn triangle_texels(&self, t: u32) -> Option<([Vec2; 3], u32, u32)> {
+        let tri = self.triangles[t as usize];
+        (tri.instance != u32::MAX).then_some((tri.uv, tri.instance, tri.chart))
     }
 
     /// Whether node `node`'s anchor is visible from `from` (a point and the normal of the side
@@ -394,32 +419,3 @@ impl<'a> HitMapper<'a> {
         }
     }
 }
-
-/// Outcome of tracing one ray for transport.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RayFate {
-    /// Left the scene.
-    Escaped,
-    /// Hit a surface that carries no radiosity (not baked, or its back).
-    Absorbed,
-    /// Hit nodes (the weights were written).
-    Nodes(usize),
-}
-
-/// Traces one transport ray from `origin` along `dir`.
-#[inline]
-pub fn trace_to_nodes(
-    mapper: &HitMapper<'_>,
-    origin: Vec3,
-    dir: Vec3,
-    out: &mut [(u32, f32); 4],
-) -> RayFate {
-    match mapper.ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
-        None => RayFate::Escaped,
-        Some(hit) => match mapper.weights(&hit, out) {
-            0 => RayFate::Absorbed,
-            n => RayFate::Nodes(n),
-        },
-    }
-}
-

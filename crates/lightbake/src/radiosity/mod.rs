@@ -19,16 +19,24 @@
 //! | [`basis`] | ∫φᵢ dA of every node's basis function |
 //! | [`hit_mapper`] | a ray hit → the nodes and basis weights there |
 //! | [`support`] | transport-ray start points on a node's basis support |
+//! | [`exitance_grid`] | a field B per node on the lightmap pages, for gathers |
 //! | [`monte_carlo`] | form factors by Monte Carlo (Galerkin rows of F) |
 //! | [`hemicube`] | form factors by Cohen & Greenberg's hemicube, for comparison |
 //! | [`stochastic_jacobi`] | the matrix-free solver (it traces rays, so it lives here) |
+//! | [`clusters`] | texel clusters: cuts through a quadtree per chart |
+//! | [`coarse`] | the clusters' form factors and the refinement oracle |
+//! | [`hierarchical`] | the coarse solve, its refinement and the per-texel final gather |
 //! | [`error_estimate`] | the pass's estimate of its own error |
 //!
 //! The linear algebra (the matrix F and the matrix solvers) is [`crate::solve`].
 
 pub mod basis;
+pub mod clusters;
+pub mod coarse;
 pub mod error_estimate;
+pub mod exitance_grid;
 pub mod hemicube;
+pub mod hierarchical;
 pub mod hit_mapper;
 pub mod monte_carlo;
 pub mod nodes;
@@ -43,8 +51,10 @@ use crate::error::{BakeError, Result};
 use crate::progress::Progress;
 use crate::settings::{Basis, SolverChoice};
 use crate::solve::transport::Transport;
-use crate::solve::{self, DIRECT_MAX_NODES, Solution, SolveOptions, System};
-pub use error_estimate::gather_error;
+use crate::solve::{self, AUTO_MATRIX_NODES, DIRECT_MAX_NODES, Solution, SolveOptions, System};
+pub use error_estimate::{gather_error, hierarchical_error};
+use exitance_grid::ExitanceGrid;
+use hierarchical::{CoarseReport, HierarchyOptions};
 pub use hit_mapper::HitMapper;
 pub use nodes::Nodes;
 use stochastic_jacobi::StochasticOptions;
@@ -83,8 +93,28 @@ pub struct RadiosityReport {
     pub transport_estimate_bytes: u64,
     /// Bytes planned for the solver beside the matrix.
     pub solver_working_bytes: u64,
-    /// The solver's result (history, iterations, stop reason).
+    /// The solver's result (history, iterations, stop reason; for the hierarchical solve,
+    /// the last coarse solve's).
     pub solution: Solution,
+    /// The hierarchical solve's coarse level (none for the other solvers).
+    pub coarse: Option<CoarseReport>,
+    /// The hierarchical solve's estimated bias from its coarse level, relative RMS (part of
+    /// the error estimate; none for the other solvers).
+    pub coarse_bias: Option<f64>,
+}
+
+/// The hierarchical solve's options for these nodes and settings: the coarse matrix capped
+/// at [`solve::COARSE_BYTES_PER_NODE`] per node and by `budget` bytes.
+pub fn hierarchy_options(ctx: &BakeContext<'_>, nodes: &Nodes, budget: u64) -> HierarchyOptions {
+    let s = ctx.settings;
+    HierarchyOptions {
+        top_level: s.cluster_texels.trailing_zeros() as u8,
+        cell_rays: s.cluster_rays,
+        tolerance: s.cluster_tolerance,
+        max_matrix_bytes: (nodes.len() as u64 * solve::COARSE_BYTES_PER_NODE).min(budget),
+        solver_tolerance: s.solver_tolerance,
+        max_iterations: s.max_solver_iterations,
+    }
 }
 
 /// Decides the solver for these nodes (resolving `Auto`) and checks the matrix budget.
@@ -111,7 +141,7 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     } else {
         "raise the transport budget".to_string()
     };
-    let estimate = if s.solver.needs_matrix() {
+    let estimate = if s.solver.needs_matrix() || s.solver == SolverChoice::Auto {
         monte_carlo::estimate_bytes(ctx, nodes, s.transport_rays, s.basis)
     } else {
         0
@@ -120,16 +150,40 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let n = nodes.len();
     let fits_with = |c: SolverChoice| estimate + c.working_bytes(n, estimate) <= budget;
     let (choice, reason) = match s.solver {
+        SolverChoice::Auto if n > AUTO_MATRIX_NODES => (
+            SolverChoice::Hierarchical,
+            format!(
+                "{n} nodes, above {AUTO_MATRIX_NODES}: the full matrix would take {:.0} MiB ({:.0} bytes per node); the hierarchical solve's memory is linear in the nodes",
+                estimate as f64 / MIB as f64,
+                estimate as f64 / n as f64
+            ),
+        ),
         SolverChoice::Auto => solve::choose(n, nodes.max_albedo(), fits_with),
         c => (c, "chosen in the settings".to_string()),
     };
-    let working = choice.working_bytes(n, estimate);
+    let estimate = if choice.needs_matrix() { estimate } else { 0 };
+    let mut working = choice.working_bytes(n, estimate);
+    if choice == SolverChoice::Hierarchical {
+        // Its gathers read the field from the page grid (see `exitance_grid`).
+        working += ctx.layout.page_texels() * ExitanceGrid::BYTES_PER_PAGE_TEXEL
+            + ctx.rays.triangles.len() as u64 * ExitanceGrid::BYTES_PER_TRIANGLE;
+    }
+    if choice == SolverChoice::Hierarchical && working > budget {
+        return Err(BakeError::OverMemoryBudget {
+            needed_mib: working as f64 / MIB as f64,
+            budget_mib: budget as f64 / MIB as f64,
+            breakdown: format!(
+                "the hierarchical solve of {n} nodes needs {:.0} MiB for its vectors and coarse matrix; lower the texel density, or {limit}",
+                working as f64 / MIB as f64
+            ),
+        });
+    }
     if choice.needs_matrix() && !fits_with(choice) {
         return Err(BakeError::OverMemoryBudget {
             needed_mib: (estimate + working) as f64 / MIB as f64,
             budget_mib: budget as f64 / MIB as f64,
             breakdown: format!(
-                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver stochastic-jacobi (matrix-free), or {limit}",
+                "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver hierarchical (no full matrix), or {limit}",
                 choice.name(),
                 nodes.len(),
                 s.transport_rays,
@@ -189,6 +243,9 @@ pub fn solve_system(
     let s = ctx.settings;
     let residual_tolerance = residual_tolerance(s.solver_tolerance, nodes.max_albedo());
     match (plan.choice, transport) {
+        (SolverChoice::Hierarchical, _) => {
+            panic!("the hierarchical solve runs as its own stages (see bake::passes)")
+        }
         (SolverChoice::StochasticJacobi, _) | (_, None) => {
             let mapper = HitMapper::new(*ctx, nodes, s.basis);
             let options = StochasticOptions {

@@ -14,10 +14,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::hit_mapper::{HitMapper, RayFate, trace_to_nodes};
+use super::exitance_grid::ExitanceGrid;
+use super::hit_mapper::HitMapper;
 use super::nodes::Nodes;
 use super::support::{SupportFrame, support_point};
 use crate::color::luminance;
+use crate::bvh::Hit;
 use crate::context::BakeContext;
 use crate::progress::Progress;
 use crate::raster::SurfacePoint;
@@ -25,54 +27,61 @@ use crate::sampling::{Sobol02, cosine_hemisphere};
 use crate::settings::Basis;
 use crate::solve::transport::{RowBlock, Transport};
 
-/// Random-number stream of the transport rays (mixed into a texel's key).
-const STREAM_TRANSPORT: u32 = 200;
+/// Random-number stream of the transport rays and of the final gather (mixed into a texel's
+/// key): a texel's final-gather rays are the rays of its matrix row.
+pub(super) const STREAM_TRANSPORT: u32 = 200;
 
 /// Rows the Monte Carlo build makes before packing them into the matrix.
 const BUILD_BLOCK_ROWS: usize = 16_384;
 
-/// The samples of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
+/// Where one transport ray ended.
+pub(super) enum RayEnd {
+    /// It pointed below the surface: no light arrives from there.
+    Below,
+    /// It left the scene.
+    Escaped,
+    /// It hit a surface (front or back).
+    Hit(Hit),
+}
+
+/// The rays of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
 /// basis support (from its representative point when it is a [`Nodes::sliver`], or when
-/// no support point is open), cosine-distributed about the surface there. Calls
-/// `f(weight, hit)` for every start point, with `hit` the nodes and bilinear weights the
-/// ray reached (empty when it escaped, was absorbed or pointed below the surface); returns
-/// the escaped weight.
-fn for_each_sample(
+/// no support point is open), cosine-distributed about the surface there, numbered by
+/// random-number `stream`. Calls `f(weight, end)` for every start point. Returns the
+/// visibility rays the start points took (see [`support_point`]).
+#[inline]
+pub(super) fn for_each_ray(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     i: usize,
     rays: u32,
-    mut f: impl FnMut(f32, &[(u32, f32)]),
-) -> f32 {
+    stream: u32,
+    mut f: impl FnMut(f32, RayEnd),
+) -> u64 {
     let p = &ctx.patches.patches[nodes.patch[i] as usize];
-    let key = p.rng(ctx.settings.seed, STREAM_TRANSPORT);
-    let mut escaped = 0.0f32;
-    let mut out = [(0u32, 0f32); 4];
+    let key = p.rng(ctx.settings.seed, stream);
     let (starts, directions) = (Sobol02::new(key), Sobol02::new(key ^ 0x6a09_e667));
     let mut trace = |sp: &SurfacePoint, weight: f32, k: u32| {
         let dir = cosine_hemisphere(sp.normal, directions.point(k));
         if dir.dot(sp.geometric_normal) <= 0.0 {
-            f(weight, &[]); // below the surface: no light arrives from there
+            f(weight, RayEnd::Below);
             return;
         }
         let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-        match trace_to_nodes(mapper, origin, dir, &mut out) {
-            RayFate::Escaped => {
-                escaped += weight;
-                f(weight, &[]);
-            }
-            RayFate::Absorbed => f(weight, &[]),
-            RayFate::Nodes(n) => f(weight, &out[..n]),
+        match ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
+            None => f(weight, RayEnd::Escaped),
+            Some(hit) => f(weight, RayEnd::Hit(hit)),
         }
     };
     let mut started = 0u32;
+    let mut visibility = 0u64;
     if !nodes.sliver.get(i).copied().unwrap_or(false) {
         let fast = SupportFrame::new(ctx, mapper, i, p);
         for k in 0..rays {
             let start = match &fast {
                 Some(frame) => frame.point(starts.point(k)),
-                None => support_point(ctx, mapper, i, p, k, key),
+                None => support_point(ctx, mapper, i, p, k, key, &mut visibility),
             };
             if let Some((sp, weight)) = start {
                 started += 1;
@@ -86,6 +95,35 @@ fn for_each_sample(
             trace(&sp, 1.0, k);
         }
     }
+    visibility
+}
+
+/// The samples of one row of Monte Carlo transport ([`for_each_ray`]), mapped to nodes:
+/// calls `f(weight, hit)` for every start point, with `hit` the nodes and bilinear weights
+/// the ray reached (empty when it escaped, was absorbed or pointed below the surface);
+/// returns the escaped weight.
+pub(super) fn for_each_sample(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    stream: u32,
+    mut f: impl FnMut(f32, &[(u32, f32)]),
+) -> f32 {
+    let mut escaped = 0.0f32;
+    let mut out = [(0u32, 0f32); 4];
+    let _ = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end| match end {
+        RayEnd::Below => f(weight, &[]),
+        RayEnd::Escaped => {
+            escaped += weight;
+            f(weight, &[]);
+        }
+        RayEnd::Hit(hit) => {
+            let n = mapper.weights(&hit, &mut out);
+            f(weight, &out[..n]);
+        }
+    });
     escaped
 }
 
@@ -118,7 +156,7 @@ fn mc_row_into(
     // (weights are non-negative, so their bits order like their values).
     scratch.clear();
     let mut total = 0.0f32;
-    let escaped = for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
+    let escaped = for_each_sample(ctx, mapper, nodes, i, rays, STREAM_TRANSPORT, |weight, hit| {
         total += weight;
         scratch.extend(
             hit.iter()
@@ -160,6 +198,31 @@ pub fn gather_row(
         .fold(Vec3::ZERO, |s, &(j, w)| s + b[j as usize] * w)
 }
 
+/// Node `i`'s gathered irradiance Σw·B(hit) / Σw from the field on `grid` over the rays of
+/// stream `stream` (the rays [`build`] traces for row i when it is [`STREAM_TRANSPORT`]),
+/// summed as the rays come, without forming the row (lux): (F·B)ᵢ of the matrix row those
+/// rays would make. The final gather of the hierarchical solve. Also returns the visibility
+/// rays of the start points.
+pub fn gather(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: u32,
+    stream: u32,
+    grid: &ExitanceGrid<'_>,
+) -> (Vec3, u64) {
+    let (mut total, mut sum) = (0.0f32, Vec3::ZERO);
+    let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end| {
+        total += weight;
+        if let RayEnd::Hit(hit) = end {
+            sum += grid.at(&hit) * weight;
+        }
+    });
+    let h = if total > 0.0 { sum / total } else { Vec3::ZERO };
+    (h, visibility)
+}
+
 /// Luminance of node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row
 /// estimated by `rays` rays as [`build`] does: the self-normalised
 /// mean Σw·v / Σw of the luminance v of B at each ray's hit, without forming the row (lux).
@@ -172,7 +235,7 @@ pub fn gather_luminance(
     b: &[Vec3],
 ) -> f64 {
     let (mut total, mut weighted) = (0.0f64, 0.0f64);
-    for_each_sample(ctx, mapper, nodes, i, rays, |weight, hit| {
+    for_each_sample(ctx, mapper, nodes, i, rays, STREAM_TRANSPORT, |weight, hit| {
         let v: f32 = hit
             .iter()
             .map(|&(j, wj)| wj * luminance(b[j as usize]))

@@ -308,8 +308,15 @@ impl<'a> Shooter<'a> {
         let max_w = 1.5 * patch.texel_size * patch.texel_size;
         let sp = (0..8u32)
             .find_map(|attempt| {
-                let (sp, w) =
-                    support_point(ctx, self.mapper, j, patch, attempt, hash_words(&[key, 7]))?;
+                let (sp, w) = support_point(
+                    ctx,
+                    self.mapper,
+                    j,
+                    patch,
+                    attempt,
+                    hash_words(&[key, 7]),
+                    &mut 0,
+                )?;
                 (unit_float(hash_words(&[key, 8, attempt])) * max_w <= w).then_some(sp)
             })
             .unwrap_or_else(|| patch.representative());

@@ -17,7 +17,8 @@ use crate::settings::Basis;
 /// surface. Returns the point and its importance weight φᵢ(x)·a(x)/density(x), with a(x) the
 /// world area of a texel there; `None` when the offset leaves the surface or the node's chart
 /// or lands on a part of a texel hidden under geometry (those samples carry no weight, as they
-/// carry no area in [`Nodes::area`](super::Nodes::area)).
+/// carry no area in [`Nodes::area`](super::Nodes::area)). Adds the visibility rays it traces
+/// (two when the point's texel lies near geometry) to `traced`.
 pub fn support_point(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -25,6 +26,7 @@ pub fn support_point(
     p: &Patch,
     k: u32,
     key: u32,
+    traced: &mut u64,
 ) -> Option<(SurfacePoint, f32)> {
     let rect = ctx.layout.instances[p.instance as usize]?;
     let centre = Vec2::new((p.x - rect.x) as f32 + 0.5, (p.y - rect.y) as f32 + 0.5);
@@ -58,6 +60,9 @@ pub fn support_point(
         .iter()
         .find_map(|&t| mapper.surface.point(t, q, 0.0))?;
     // Hidden under geometry: not part of the surface (the basis areas leave it out too).
+    if !texel.is_valid() || texel.flags & Patch::NEAR_GEOMETRY != 0 {
+        *traced += 2;
+    }
     if !ctx.patches.open_point(texel, &sp, p, ctx.rays) {
         return None;
     }

@@ -44,6 +44,14 @@ impl SolverChoice {
         let vector = n as u64 * size_of::<DVec3>() as u64;
         match self {
             Self::Auto | Self::StochasticJacobi => 0,
+            // The hierarchical solve builds no full matrix: its per-node vectors (direct
+            // light, source, exitance, gathered light, the coarse light and missed detail
+            // of the error estimate: 12 bytes each; the cells' indices and sort keys 32) and
+            // its coarse matrix, capped per node. (The page grid its gathers read is per
+            // page texel: `radiosity::plan_solver` adds it.)
+            Self::Hierarchical => {
+                n as u64 * (7 * 12 + 32 + COARSE_BYTES_PER_NODE)
+            }
             Self::Jacobi => 5 * vector,
             Self::GaussSeidel => 4 * vector,
             Self::Shooting => matrix_bytes + 4 * vector,
@@ -255,8 +263,9 @@ pub fn finish(system: &System<'_>, mut solution: Solution) -> Solution {
 /// Runs a matrix solver (everything but stochastic Jacobi and `Auto`).
 ///
 /// # Panics
-/// For [`SolverChoice::Auto`] and [`SolverChoice::StochasticJacobi`] (resolve `Auto` with
-/// [`choose`]; stochastic Jacobi needs the scene, see [`crate::radiosity::stochastic_jacobi::solve`]).
+/// For [`SolverChoice::Auto`], [`SolverChoice::StochasticJacobi`] and
+/// [`SolverChoice::Hierarchical`] (resolve `Auto` with [`choose`]; the other two trace rays,
+/// see [`crate::radiosity`]).
 pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOptions) -> Solution {
     let s = match choice {
         SolverChoice::Jacobi => jacobi::solve(system, options),
@@ -265,7 +274,7 @@ pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOp
         SolverChoice::Krylov => krylov::bicgstab(system, options),
         SolverChoice::KrylovCg => krylov::conjugate_gradient(system, options),
         SolverChoice::Direct => lu::solve(system),
-        SolverChoice::Auto | SolverChoice::StochasticJacobi => {
+        SolverChoice::Auto | SolverChoice::StochasticJacobi | SolverChoice::Hierarchical => {
             panic!("solve_matrix called with {}", choice.name())
         }
     };
@@ -276,6 +285,12 @@ pub fn solve_matrix(choice: SolverChoice, system: &System<'_>, options: &SolveOp
 pub const DIRECT_MAX_NODES: usize = 4096;
 /// Below this many nodes `Auto` picks the dense LU solve.
 pub const AUTO_DIRECT_NODES: usize = 1500;
+/// Up to this many nodes `Auto` builds the full matrix (at most about 100 MiB at 128 rays
+/// per node); beyond, the hierarchical solve.
+pub const AUTO_MATRIX_NODES: usize = 32_768;
+/// Bytes of coarse matrix the hierarchical solve may hold per node: its refinement stops at
+/// this cap.
+pub const COARSE_BYTES_PER_NODE: u64 = 128;
 
 /// Resolves `Auto`: (choice, reason). `fits` says whether the matrix and a solver's working
 /// memory ([`SolverChoice::working_bytes`]) fit the transport budget together.
@@ -315,8 +330,10 @@ pub fn choose(
         );
     }
     (
-        SolverChoice::StochasticJacobi,
-        "the transport matrix is over its memory budget: matrix-free stochastic Jacobi".into(),
+        SolverChoice::Hierarchical,
+        format!(
+            "{nodes} nodes: the full transport matrix is over its memory budget; the hierarchical solve's memory is linear in the nodes"
+        ),
     )
 }
 
@@ -340,7 +357,7 @@ mod tests {
         assert_eq!(choose(n, 0.5, fits).0, SolverChoice::GaussSeidel);
         assert_eq!(
             choose(10, 0.5, |_| false).0,
-            SolverChoice::StochasticJacobi,
+            SolverChoice::Hierarchical,
             "a matrix over budget is never built, however small the system"
         );
     }

@@ -9,7 +9,7 @@ use lightbake::scene::{Instance, Light, LightKind, Material, Mesh, Scene};
 use lightbake::settings::{BakeSettings, Method, SolverChoice};
 
 /// Every radiosity solver (not `Auto`).
-pub const ALL_SOLVERS: [SolverChoice; 7] = {
+pub const ALL_SOLVERS: [SolverChoice; 8] = {
     use SolverChoice::*;
     [
         Jacobi,
@@ -19,6 +19,7 @@ pub const ALL_SOLVERS: [SolverChoice; 7] = {
         Krylov,
         KrylovCg,
         Direct,
+        Hierarchical,
     ]
 };
 

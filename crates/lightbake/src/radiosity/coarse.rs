@@ -1,0 +1,239 @@
+//! The hierarchical solve's coarse level: the form factors between the cells of a
+//! [`Clusters`] cut, by Monte Carlo (Galerkin over piecewise-constant cells), and the
+//! refinement oracle that says which cells are too coarse.
+//!
+//! Row c of the coarse matrix is the area-weighted mean of its nodes' Monte Carlo rows
+//! ([`super::monte_carlo`]) with every hit node replaced by its cell: F_cd = Σ_{i∈c} (A_i/A_c)
+//! · F̂_i(d), F̂_i(d) the weight of node i's rays landing on cell d. A cell's rays are shared
+//! out evenly over its nodes (at least one each), so every node's surface, normal and
+//! occluders are sampled. The same rays gather the reflected direct light at full node
+//! resolution where they land, so the coarse level's first bounce does not spread a sharp
+//! source (a sun patch) uniformly over its cells.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::clusters::Clusters;
+use super::hit_mapper::HitMapper;
+use super::monte_carlo::for_each_sample;
+use super::nodes::Nodes;
+use crate::color::luminance;
+use crate::context::BakeContext;
+use crate::progress::Progress;
+use crate::solve::transport::{RowBlock, Transport};
+
+/// Random-number stream of the coarse rows' rays.
+const STREAM_COARSE: u32 = 210;
+/// Random-number stream of the refinement oracle's rays.
+const STREAM_ORACLE: u32 = 220;
+
+/// Rays per node of cell `c` for `rays` per cell: shared out evenly, at least `least` each.
+fn per_node(rays: u32, members: usize, least: u32) -> u32 {
+    rays.div_ceil(members.max(1) as u32).max(least)
+}
+
+/// Row `c` of the coarse matrix appended to `out`, with `scratch` as its sort buffer.
+/// Returns the escaped fraction.
+#[allow(clippy::too_many_arguments)]
+fn cell_row_into(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    clusters: &Clusters,
+    c: usize,
+    rays: u32,
+    first: &[Vec3],
+    scratch: &mut Vec<u64>,
+    out: &mut RowBlock,
+) -> (f32, Vec3) {
+    let members = clusters.members_of(c);
+    let area = clusters.area[c];
+    let r = per_node(rays, members.len(), 1);
+    scratch.clear();
+    let mut escaped = 0.0f32;
+    let mut gathered = Vec3::ZERO;
+    let mut hits: Vec<(u32, f32)> = Vec::new();
+    for &m in members {
+        let m = m as usize;
+        hits.clear();
+        let mut total = 0.0f32;
+        let mut sum = Vec3::ZERO;
+        let e = for_each_sample(ctx, mapper, nodes, m, r, STREAM_COARSE, |weight, hit| {
+            total += weight;
+            for &(j, wj) in hit {
+                hits.push((clusters.of_node[j as usize], wj * weight));
+                sum += first[j as usize] * (wj * weight);
+            }
+        });
+        if total <= 0.0 {
+            continue;
+        }
+        let share = if area > 0.0 {
+            nodes.area[m] / area
+        } else {
+            1.0 / members.len() as f32
+        };
+        let scale = share / total;
+        escaped += e * scale;
+        gathered += sum * scale;
+        // Entries packed as (cell << 32 | weight bits): weights are non-negative, so one
+        // integer sort orders them by cell.
+        scratch.extend(
+            hits.iter()
+                .map(|&(d, w)| (d as u64) << 32 | (w * scale).to_bits() as u64),
+        );
+    }
+    scratch.sort_unstable();
+    let start = out.cols.len();
+    for &e in scratch.iter() {
+        let (d, v) = ((e >> 32) as u32, f32::from_bits(e as u32));
+        if out.cols.len() > start && out.cols.last() == Some(&d) {
+            *out.vals.last_mut().expect("a value per column") += v;
+        } else {
+            out.cols.push(d);
+            out.vals.push(v);
+        }
+    }
+    out.lens.push((out.cols.len() - start) as u32);
+    (escaped, gathered)
+}
+
+/// The coarse level's matrix and first bounce.
+pub struct CoarseRows {
+    /// F between the cells.
+    pub matrix: Transport,
+    /// Per cell: the irradiance its rays gather from the per-node exitance `first` given to
+    /// [`build`], read at full node resolution at every hit (lux).
+    pub first_bounce: Vec<Vec3>,
+}
+
+/// Builds the coarse matrix of `clusters` with about `rays` rays per cell, and gathers with
+/// the same rays the per-node exitance `first` (the reflected direct light): the cells' first
+/// bounce at full resolution on the emitting side.
+pub fn build(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    clusters: &Clusters,
+    rays: u32,
+    first: &[Vec3],
+    progress: &Progress,
+) -> CoarseRows {
+    let m = clusters.len();
+    let traced = AtomicU64::new(0);
+    let runs: Vec<(RowBlock, Vec<(f32, Vec3)>)> = (0..m)
+        .into_par_iter()
+        .with_min_len(16)
+        .fold(
+            || (RowBlock::default(), Vec::new(), Vec::new()),
+            |(mut rows, mut escaped, mut scratch), c| {
+                if progress.is_cancelled() {
+                    rows.lens.push(0);
+                    escaped.push((0.0, Vec3::ZERO));
+                } else {
+                    escaped.push(cell_row_into(
+                        ctx,
+                        mapper,
+                        nodes,
+                        clusters,
+                        c,
+                        rays,
+                        first,
+                        &mut scratch,
+                        &mut rows,
+                    ));
+                    let r = per_node(rays, clusters.members_of(c).len(), 1);
+                    traced.fetch_add(r as u64 * clusters.members_of(c).len() as u64, Ordering::Relaxed);
+                }
+                (rows, escaped, scratch)
+            },
+        )
+        .map(|(rows, escaped, _)| (rows, escaped))
+        .collect();
+    // Cells are piecewise constant, whatever the nodes' basis.
+    let mut t = Transport::empty(m, crate::settings::Basis::Constant);
+    let nnz: usize = runs.iter().map(|r| r.0.cols.len()).sum();
+    t.cols.reserve_exact(nnz);
+    t.vals.reserve_exact(nnz);
+    let mut first_bounce = Vec::with_capacity(m);
+    for (rows, results) in runs {
+        let escaped = results.iter().map(|r| r.0).collect();
+        first_bounce.extend(results.iter().map(|r| r.1));
+        t.push_block(rows, escaped);
+    }
+    t.rays = traced.into_inner();
+    CoarseRows {
+        matrix: t,
+        first_bounce,
+    }
+}
+
+/// Texels of a cell the refinement oracle gathers at.
+const ORACLE_TEXELS: usize = 4;
+
+/// The refinement oracle: per cell, the power of the detail that its uniform value misses,
+/// A_c·ρ_c²·V_c (lux²·m², ρ_c the luminance of its albedo), with V_c the variance over the
+/// cell's texels of the irradiance gathered from exitance `b` (per node: the fine direct light
+/// plus the coarse indirect light, reflected): what the final gather will see and the cell's
+/// uniform value does not hold. It is estimated from [`ORACLE_TEXELS`] texels spread over the
+/// cell (evenly through its row-major texel order), each gathering with `rays / 4` rays (at
+/// least two) split into two interleaved halves; the halves' difference gives each gather's
+/// noise, which is taken out: V_c = max(0, s² − mean σ²), s² the texels' sample variance and
+/// σ² = (h_a − h_b)²/4 the variance of each one's mean. Cells of level 0, or of one texel,
+/// have nothing to refine (0). Returns the powers and the rays traced.
+pub fn missed_detail(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    clusters: &Clusters,
+    b: &[Vec3],
+    rays: u32,
+) -> (Vec<f64>, u64) {
+    let r = (rays / ORACLE_TEXELS as u32).max(2);
+    let results: Vec<(f64, u64)> = (0..clusters.len())
+        .into_par_iter()
+        .with_min_len(16)
+        .map(|c| {
+            let members = clusters.members_of(c);
+            if clusters.cells[c].level == 0 || members.len() < 2 {
+                return (0.0, 0);
+            }
+            let k = members.len().min(ORACLE_TEXELS);
+            // (mean, variance of the mean) of each sampled texel's gather.
+            let gathers: Vec<(f64, f64)> = (0..k)
+                .map(|s| {
+                    let i = members[(s * members.len() + members.len() / 2) / k] as usize;
+                    let mut half = [(0.0f64, 0.0f64); 2];
+                    let mut sample = 0usize;
+                    for_each_sample(ctx, mapper, nodes, i, r, STREAM_ORACLE, |w, hit| {
+                        let v: f32 = hit
+                            .iter()
+                            .map(|&(j, wj)| wj * luminance(b[j as usize]))
+                            .sum();
+                        let h = &mut half[sample & 1];
+                        h.0 += (w * v) as f64;
+                        h.1 += w as f64;
+                        sample += 1;
+                    });
+                    let mean_of = |(s, w): (f64, f64)| if w > 0.0 { s / w } else { 0.0 };
+                    let (ha, hb) = (mean_of(half[0]), mean_of(half[1]));
+                    (0.5 * (ha + hb), 0.25 * (ha - hb) * (ha - hb))
+                })
+                .collect();
+            let traced = k as u64 * r as u64;
+            let mean = gathers.iter().map(|g| g.0).sum::<f64>() / k as f64;
+            let spread =
+                gathers.iter().map(|g| (g.0 - mean).powi(2)).sum::<f64>() / (k - 1) as f64;
+            let noise = gathers.iter().map(|g| g.1).sum::<f64>() / k as f64;
+            let rho = luminance(clusters.albedo[c]) as f64;
+            (
+                clusters.area[c] as f64 * rho * rho * (spread - noise).max(0.0),
+                traced,
+            )
+        })
+        .collect();
+    let rays = results.iter().map(|r| r.1).sum();
+    (results.into_iter().map(|r| r.0).collect(), rays)
+}

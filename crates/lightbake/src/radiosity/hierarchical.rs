@@ -1,0 +1,340 @@
+//! Hierarchical radiosity for lightmaps: a coarse multi-bounce solve over texel clusters,
+//! refined where it is too coarse, then a per-texel final gather.
+//!
+//! With H_d the direct irradiance of every node (from the direct pass) and C the coarse
+//! solution's reflected irradiance of every cell ([`Clusters`]), the lightmap's reflected
+//! irradiance at node i is the final gather
+//!
+//! H_i = Σ_j F̂_ij·b_j,  b_j = ρ_j·(H_d,j + C_{cell(j)}),
+//!
+//! F̂_i the Monte Carlo row of node i ([`super::monte_carlo::gather`]: the rays of the full
+//! matrix's row i, summed as they come, never stored). Every ray's hit reads the direct light
+//! at full texel resolution, so the first reflection is as sharp as the full matrix's; only
+//! the light reflected twice or more goes through the coarse level. This is the split of
+//! Hanrahan, Salzman & Aupperle (1991; coarse links where the transported light is small)
+//! with a final gather as in production lightmappers (Enlighten's cluster → texel transport):
+//! the coarse level holds O(cells) entries, the gather O(1) per node, so memory is linear in
+//! the texels.
+//!
+//! The coarse level (Cohen & Wallace 1993, ch. 8, adaptive subdivision on texel cells):
+//! 1. start from the cut of [`HierarchyOptions::top_level`] (cells of 2^level texels square);
+//! 2. build the cells' form factors ([`coarse::build`]) and solve the coarse system
+//!    (B_c = S_c + ρ_c·(F·B)_c, S_c the restricted ρ∘H_d) with the matrix solvers;
+//! 3. measure every cell's missed detail ([`coarse::missed_detail`]: the variance of the
+//!    gathered light between its quadrants) and split the cells that carry the most, until
+//!    the rest is within [`HierarchyOptions::tolerance`] of the irradiance, the coarse matrix
+//!    reaches its memory cap, or every cell is one texel; back to 2.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::clusters::Clusters;
+use super::exitance_grid::ExitanceGrid;
+use super::hit_mapper::HitMapper;
+use super::monte_carlo::{self, STREAM_TRANSPORT};
+use super::nodes::Nodes;
+use super::{coarse, residual_tolerance};
+use crate::color::luminance;
+use crate::context::BakeContext;
+use crate::progress::Progress;
+use crate::solve::{self, Solution, SolveOptions, System};
+
+/// How the coarse level is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierarchyOptions {
+    /// Level of the first cut: cells of up to 2^level × 2^level texels.
+    pub top_level: u8,
+    /// Form-factor rays per cell (shared out over its nodes, at least one each); the oracle
+    /// traces as many.
+    pub cell_rays: u32,
+    /// Refinement stops when the missed detail left, as an RMS over the surface, is at most
+    /// this fraction of the RMS irradiance.
+    pub tolerance: f32,
+    /// Cap on the coarse matrix, bytes.
+    pub max_matrix_bytes: u64,
+    /// The coarse solve's relative residual target (see [`SolveOptions::tolerance`]).
+    pub solver_tolerance: f64,
+    /// The coarse solve's iteration cap.
+    pub max_iterations: u32,
+}
+
+/// What the coarse level ended as, for the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CoarseReport {
+    /// Cells of the final cut.
+    pub cells: usize,
+    /// Cells per level of the final cut (index = level; level k is 2ᵏ texels square).
+    pub cells_per_level: Vec<usize>,
+    /// Build–solve–measure rounds.
+    pub rounds: u32,
+    /// Stored entries of the final coarse matrix.
+    pub matrix_entries: usize,
+    /// Bytes of the final coarse matrix.
+    pub matrix_bytes: u64,
+    /// The missed detail left (RMS over the surface of ρ·√V per cell, over the RMS
+    /// irradiance): what the refinement drove below the tolerance.
+    pub missed_detail: f64,
+    /// Why the refinement stopped, in words.
+    pub stop_reason: String,
+    /// The last coarse solve's solver.
+    pub solver: &'static str,
+    /// Rays traced for the coarse rows and the oracle, over all rounds.
+    pub rays: u64,
+}
+
+/// The coarse level's result.
+pub struct Coarse {
+    /// The final cut.
+    pub clusters: Clusters,
+    /// The last coarse solve (per cell: `b` = ρ∘C, `indirect`
+    /// = C, the reflected irradiance).
+    pub solution: Solution,
+    /// What it ended as.
+    pub report: CoarseReport,
+}
+
+/// Most refinement rounds (each takes a cell at most one level down).
+const MAX_ROUNDS: u32 = 4;
+
+/// Builds, solves and refines the coarse level for direct irradiance `direct` per node.
+pub fn coarse_solve(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    direct: &[Vec3],
+    options: &HierarchyOptions,
+    progress: &Progress,
+) -> Coarse {
+    let source_nodes: Vec<Vec3> = nodes.albedo.iter().zip(direct).map(|(r, h)| *r * *h).collect();
+    let total_area: f64 = nodes.area.iter().map(|&a| a as f64).sum();
+    let mut clusters = Clusters::at_level(nodes, ctx.patches, options.top_level);
+    let mut rays = 0u64;
+    let mut round = 0;
+    loop {
+        round += 1;
+        let coarse::CoarseRows {
+            matrix,
+            first_bounce,
+        } = coarse::build(
+            ctx,
+            mapper,
+            nodes,
+            &clusters,
+            options.cell_rays,
+            &source_nodes,
+            progress,
+        );
+        rays += matrix.rays;
+        // C = E₁ + F·(ρ∘C): with B' = ρ∘C the system B' = ρ∘E₁ + ρ∘(F·B').
+        let source: Vec<Vec3> = first_bounce
+            .iter()
+            .zip(&clusters.albedo)
+            .map(|(e, r)| *e * *r)
+            .collect();
+        let system = System {
+            transport: &matrix,
+            albedo: &clusters.albedo,
+            source: &source,
+            area: &clusters.area,
+            progress: None,
+        };
+        let max_albedo = system.max_albedo();
+        let (choice, _) = solve::choose(clusters.len(), max_albedo, |_| true);
+        let solve_options = SolveOptions {
+            tolerance: residual_tolerance(options.solver_tolerance, max_albedo),
+            max_iterations: options.max_iterations,
+        };
+        let mut solution = solve::solve_matrix(choice, &system, &solve_options);
+        for (c, e) in solution.indirect.iter_mut().zip(&first_bounce) {
+            *c += *e;
+        }
+        let b = fine_exitance(nodes, direct, &clusters, &solution.indirect);
+        // A cancelled bake measures nothing more (the caller returns the cancel).
+        let (detail, oracle_rays) = if progress.is_cancelled() {
+            (vec![0.0; clusters.len()], 0)
+        } else {
+            coarse::missed_detail(ctx, mapper, nodes, &clusters, &b, options.cell_rays)
+        };
+        rays += oracle_rays;
+        let value_rms = irradiance_rms(nodes, direct, &clusters, &solution.indirect);
+        let remaining: f64 = detail.iter().sum();
+        let relative = |power: f64| {
+            if value_rms > 0.0 && total_area > 0.0 {
+                (power / total_area).sqrt() / value_rms
+            } else {
+                0.0
+            }
+        };
+        let target = (options.tolerance as f64 * value_rms).powi(2) * total_area;
+        let bytes_per_cell = matrix.bytes() as f64 / clusters.len().max(1) as f64;
+        let max_cells = ((options.max_matrix_bytes as f64 / bytes_per_cell.max(1.0)) as usize)
+            .min(nodes.len());
+        let stop = if remaining <= target {
+            Some(format!(
+                "missed detail {:.2}% within the tolerance {:.2}%",
+                100.0 * relative(remaining),
+                100.0 * options.tolerance
+            ))
+        } else if round >= MAX_ROUNDS {
+            Some(format!("{MAX_ROUNDS} rounds"))
+        } else {
+            None
+        };
+        let picked = if stop.is_none() {
+            pick(&clusters, &detail, target, max_cells)
+        } else {
+            Vec::new()
+        };
+        let stop = stop.or_else(|| {
+            picked.is_empty().then(|| {
+                if clusters.cells.iter().all(|c| c.level == 0) {
+                    "every cell is one texel".to_string()
+                } else {
+                    format!(
+                        "the coarse matrix reached its cap of {:.0} MiB ({max_cells} cells)",
+                        options.max_matrix_bytes as f64 / 1048576.0
+                    )
+                }
+            })
+        });
+        if let Some(stop_reason) = stop {
+            let report = CoarseReport {
+                cells: clusters.len(),
+                cells_per_level: clusters.levels(),
+                rounds: round,
+                matrix_entries: matrix.nnz(),
+                matrix_bytes: matrix.bytes(),
+                missed_detail: relative(remaining),
+                stop_reason,
+                solver: solution.solver,
+                rays,
+            };
+            return Coarse {
+                clusters,
+                solution,
+                report,
+            };
+        }
+        let mut split = vec![false; clusters.len()];
+        for c in picked {
+            split[c] = true;
+        }
+        clusters = clusters.split(nodes, ctx.patches, &split);
+    }
+}
+
+/// The cells to split: those carrying the most missed detail, largest first, until the
+/// rest is within `target` or the cut would exceed `max_cells` (a split adds up to three).
+/// A split is counted as removing three quarters of a cell's detail: the variance of a
+/// smooth field over a cell falls with the square of its size, so its four children keep
+/// about a quarter of it between them.
+fn pick(clusters: &Clusters, detail: &[f64], target: f64, max_cells: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..clusters.len())
+        .filter(|&c| detail[c] > 0.0 && clusters.cells[c].level > 0)
+        .collect();
+    order.sort_by(|&a, &b| detail[b].total_cmp(&detail[a]).then(a.cmp(&b)));
+    let mut remaining: f64 = detail.iter().sum();
+    let mut cells = clusters.len();
+    let mut picked = Vec::new();
+    for c in order {
+        if remaining <= target || cells + 3 > max_cells {
+            break;
+        }
+        remaining -= 0.75 * detail[c];
+        cells += 3;
+        picked.push(c);
+    }
+    picked
+}
+
+/// Per node: b_j = ρ_j·(H_d,j + C_{cell(j)}), the exitance the final gather reads.
+pub fn fine_exitance(
+    nodes: &Nodes,
+    direct: &[Vec3],
+    clusters: &Clusters,
+    cell_indirect: &[Vec3],
+) -> Vec<Vec3> {
+    (0..nodes.len())
+        .map(|i| nodes.albedo[i] * (direct[i] + cell_indirect[clusters.of_node[i] as usize]))
+        .collect()
+}
+
+/// Area-weighted RMS luminance of H_d + C over the nodes, lux.
+fn irradiance_rms(nodes: &Nodes, direct: &[Vec3], clusters: &Clusters, cell_indirect: &[Vec3]) -> f64 {
+    let (mut sum, mut area) = (0.0f64, 0.0f64);
+    for i in 0..nodes.len() {
+        let h = luminance(direct[i] + cell_indirect[clusters.of_node[i] as usize]) as f64;
+        sum += nodes.area[i] as f64 * h * h;
+        area += nodes.area[i] as f64;
+    }
+    if area > 0.0 { (sum / area).sqrt() } else { 0.0 }
+}
+
+/// Which gather [`final_gather`] makes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gather {
+    /// H₁ = F̂·ρ(H_d + C): the rays of the full matrix's rows.
+    Final,
+    /// Δ = F̂'·ρ(H₁ − C): the correction, with rays of their own.
+    Correction,
+}
+
+/// Random-number stream of the correction gather.
+const STREAM_CORRECTION: u32 = 230;
+
+/// What a gather over every node traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GatherRays {
+    /// Closest-hit rays: the gather's own.
+    pub closest: u64,
+    /// Any-hit rays: the visibility tests of start points near geometry.
+    pub visibility: u64,
+}
+
+/// A gather at every node from exitance `b`, with `rays` rays: the final gather H₁, or the
+/// correction Δ (see the module docs). Returns the irradiance per node and the rays traced.
+pub fn final_gather(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    b: &[Vec3],
+    rays: u32,
+    which: Gather,
+    progress: &Progress,
+) -> (Vec<Vec3>, GatherRays) {
+    let stream = match which {
+        Gather::Final => STREAM_TRANSPORT,
+        Gather::Correction => STREAM_CORRECTION,
+    };
+    let grid = ExitanceGrid::new(mapper, b);
+    let visibility = AtomicU64::new(0);
+    let out: Vec<Vec3> = (0..nodes.len())
+        .into_par_iter()
+        .with_min_len(64)
+        .map(|i| {
+            if progress.is_cancelled() {
+                return Vec3::ZERO;
+            }
+            let (h, v) = monte_carlo::gather(ctx, mapper, nodes, i, rays, stream, &grid);
+            visibility.fetch_add(v, Ordering::Relaxed);
+            progress.advance(1);
+            h
+        })
+        .collect();
+    let traced = GatherRays {
+        closest: nodes.len() as u64 * rays as u64,
+        visibility: visibility.into_inner(),
+    };
+    (out, traced)
+}
+
+/// Per node: ρ_j·(H₁,j − C_{cell(j)}), what the correction gathers: the light the coarse
+/// level missed at its second bounce, reflected.
+pub fn missed_exitance(nodes: &Nodes, gathered: &[Vec3], coarse_per_node: &[Vec3]) -> Vec<Vec3> {
+    (0..nodes.len())
+        .map(|i| nodes.albedo[i] * (gathered[i] - coarse_per_node[i]))
+        .collect()
+}
