@@ -362,13 +362,7 @@ fn run(args: Args) -> Result<(), String> {
     .map_err(|e| e.to_string())?;
     println!();
     print!("{}", output.report.table());
-    println!(
-        "{} page(s), {} texel patches ({} moved out of geometry, {} invalid filled)",
-        output.report.texels.pages,
-        output.report.texels.patches,
-        output.report.texels.moved,
-        output.report.texels.filled
-    );
+    println!("{}", output.report.texels.summary());
     if let Some(v) = &output.report.vpl {
         println!(
             "instant radiosity: {} particles ({}), {} VPLs, {} shadow rays in {:.2} s ({:.2} Mrays/s), {:.1}% of the VPL light clamped{}",

@@ -71,10 +71,20 @@ pub struct TexelStats {
     pub patches: usize,
     /// Patches moved out of geometry.
     pub moved: usize,
-    /// Patches found inside geometry.
+    /// Of the moved patches, those whose centre is hidden (inside or behind geometry) but
+    /// whose footprint is partly open: lit from the visible part.
+    pub partly_hidden: usize,
+    /// Hidden patches: no point of their footprint is open surface, so no view can see them
+    /// (filled from their chart for the GPU's bilinear filter, or left black).
     pub invalid: usize,
-    /// Invalid texels filled from their chart.
+    /// Hidden patches in which a second search found open surface after all: visible, but
+    /// not lit by the bake (see `raster::validity`). Zero when the first search is dense
+    /// enough.
+    pub visible_unlit: usize,
+    /// Hidden texels filled from their chart.
     pub filled: usize,
+    /// Hidden texels left black: their chart has no lit texel next to them.
+    pub unfilled: usize,
     /// Padding texels set by dilation.
     pub dilated: usize,
 }
@@ -119,6 +129,24 @@ pub struct BakeReport {
     pub total_seconds: f64,
     /// Files written, relative to the output directory (filled in by the writer).
     pub outputs: Vec<String>,
+}
+
+impl TexelStats {
+    /// One line: patches, the moved and partly hidden ones, the hidden ones and what became
+    /// of them, the visible but unlit ones.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} page(s), {} texel patches ({} moved out of geometry, {} of them lit from the visible part of their footprint; hidden: {} ({} filled from their chart, {} left black); visible but unlit: {})",
+            self.pages,
+            self.patches,
+            self.moved,
+            self.partly_hidden,
+            self.invalid,
+            self.filled,
+            self.unfilled,
+            self.visible_unlit
+        )
+    }
 }
 
 impl BakeReport {

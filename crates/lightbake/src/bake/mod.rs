@@ -221,13 +221,24 @@ fn light_scene(
     })?;
     stages.run("validity", patches.patches.len() as u64, || {
         patches.fix_validity(scene, layout, &rays);
-        let note = format!("{} moved, {} invalid", patches.moved, patches.invalid);
+        let note = format!(
+            "{} moved ({} seen only in part), {} hidden, {} visible but unlit",
+            patches.moved, patches.rescued, patches.invalid, patches.visible_unlit
+        );
         Ok(((), patches.rays, note))
     })?;
     stages.annotate(RayKind::Shadow, None);
     lit.texels.patches = patches.patches.len();
     lit.texels.moved = patches.moved;
+    lit.texels.partly_hidden = patches.rescued;
     lit.texels.invalid = patches.invalid;
+    lit.texels.visible_unlit = patches.visible_unlit;
+    if patches.visible_unlit > 0 {
+        warnings.push(format!(
+            "{} texels were judged hidden (inside or behind geometry), yet a second look found part of them open: they are filled from their chart, not lit",
+            patches.visible_unlit
+        ));
+    }
     let emitters = Emitters::collect(scene, &rays);
     warnings.extend(emitter_warnings(&emitters, &rays, scene));
     let ctx = BakeContext {
@@ -272,12 +283,7 @@ fn light_scene(
         let (pages, st) = assemble(layout, &patches, &irradiance, settings.padding + 2);
         lit.texels.filled = st.filled;
         lit.texels.dilated = st.dilated;
-        if st.unfilled > 0 {
-            warnings.push(format!(
-                "{} texels inside geometry had no valid neighbour in their chart and were left black",
-                st.unfilled
-            ));
-        }
+        lit.texels.unfilled = st.unfilled;
         let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
         Ok((pages, 0, note))
     })?;

@@ -515,11 +515,7 @@ fn hierarchical_round(
     let (correction, visibility) = correction;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
-    let indirect: Vec<Vec3> = gathered
-        .iter()
-        .zip(&correction)
-        .map(|(h, d)| *h + *d)
-        .collect();
+    let (indirect, clamped) = hierarchical::corrected(&gathered, &correction);
     let (error, bias) = stages.run(&format!("error estimate{suffix}"), 1, || {
         let (e, bias, rays) = radiosity::hierarchical_error(
             ctx,
@@ -558,7 +554,7 @@ fn hierarchical_round(
         iterations: c.iterations,
         rays: 0,
         stop_reason: format!(
-            "coarse level of {} cells ({}): {}; final gather of {} rays per node, correction of {correction_rays}",
+            "coarse level of {} cells ({}): {}; final gather of {} rays per node, correction of {correction_rays} ({clamped} node(s) held at zero)",
             report.cells, c.solver, c.stop_reason, s.transport_rays
         ),
     };

@@ -331,6 +331,24 @@ pub fn final_gather(
     (out, traced)
 }
 
+/// The reflected irradiance per node, H₁ + Δ, each channel held at zero or above, and how many
+/// nodes were. The correction's rays are not the final gather's, so where the coarse level
+/// overstates a dark corner's light a few correction rays can take more than the gather
+/// found; the true value is never negative, so holding it at zero only moves it closer.
+pub fn corrected(gathered: &[Vec3], correction: &[Vec3]) -> (Vec<Vec3>, usize) {
+    let mut clamped = 0;
+    let out = gathered
+        .iter()
+        .zip(correction)
+        .map(|(h, d)| {
+            let v = *h + *d;
+            clamped += usize::from(v.min_element() < 0.0);
+            v.max(Vec3::ZERO)
+        })
+        .collect();
+    (out, clamped)
+}
+
 /// Per node: ρ_j·(H₁,j − C_{cell(j)}), what the correction gathers: the light the coarse
 /// level missed at its second bounce, reflected.
 pub fn missed_exitance(nodes: &Nodes, gathered: &[Vec3], coarse_per_node: &[Vec3]) -> Vec<Vec3> {

@@ -48,7 +48,7 @@ pub struct Patch {
     pub triangle: u32,
     /// Chart of the owning triangle within its mesh.
     pub chart: u32,
-    /// `VALID`, `NEAR_GEOMETRY`, `MOVED` bits.
+    /// `VALID`, `NEAR_GEOMETRY`, `MOVED`, `PARTLY_HIDDEN` bits.
     pub flags: u8,
     /// First entry of this patch's triangles in [`Patches::footprint`].
     pub footprint_start: u32,
@@ -66,6 +66,9 @@ impl Patch {
     pub const NEAR_GEOMETRY: u8 = 2;
     /// The representative point was moved out of geometry.
     pub const MOVED: u8 = 4;
+    /// The texel's centre is hidden (inside or behind geometry) and its point was moved to
+    /// the open part of its footprint, which lights it.
+    pub const PARTLY_HIDDEN: u8 = 8;
 
     /// Whether the patch has its own value.
     pub fn is_valid(&self) -> bool {
@@ -103,8 +106,14 @@ pub struct Patches {
     pub page_index: Vec<Vec<u32>>,
     /// Patches whose point was moved out of geometry.
     pub moved: usize,
-    /// Patches marked invalid (inside geometry).
+    /// Patches whose centre is hidden (inside or behind geometry) but whose footprint is
+    /// partly open surface: their point moved to the open part (counted in `moved` too).
+    pub rescued: usize,
+    /// Patches marked invalid: no point of their footprint is open surface (*hidden*).
     pub invalid: usize,
+    /// Hidden patches in which a second, independent search of the footprint found open
+    /// surface (visible, yet not lit by the bake; see [`validity`]).
+    pub visible_unlit: usize,
     /// Rays traced by the validity pass.
     pub rays: u64,
 }

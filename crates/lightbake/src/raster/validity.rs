@@ -1,17 +1,24 @@
 //! Validity: texels inside or behind geometry. Probe rays along the surface find single-sided
 //! back faces within a texel — the sign that the point is inside or behind geometry (a floor
-//! texel under a wall). The point is moved out past the nearest such face; if most hemisphere
-//! probes still see back faces the patch is marked invalid and later filled from its chart
-//! neighbours. Patches with geometry that close are flagged [`Patch::NEAR_GEOMETRY`], and
-//! footprint samples of such patches are only used when they see the representative point
-//! (so a texel straddling a thin wall does not mix in light from the far side).
+//! texel under a wall). The point is moved out past the nearest such face. If most hemisphere
+//! probes still see back faces, the texel's footprint is searched for open surface (a point
+//! whose hemisphere is mostly not the inside of a solid): a texel whose centre lies under a
+//! wall but whose rim shows in the room takes the most central open point as its
+//! representative, and is lit from the visible part of its footprint. Only a texel with no
+//! open point is marked invalid — *hidden*: no view can see it — and later filled from its
+//! chart neighbours. A second, independent search over other points of every hidden texel's
+//! footprint counts those of which it finds an eighth or more clearly open after all
+//! (*visible but unlit*: zero when the first search is dense enough). Patches with geometry that close are flagged
+//! [`Patch::NEAR_GEOMETRY`], and footprint samples of such patches are only used when they see
+//! the representative point (so a texel straddling a thin wall does not mix in light from the
+//! far side).
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::{Patch, Patches, Surface, SurfacePoint};
 use crate::bvh::RayScene;
-use crate::sampling::{basis, cosine_hemisphere, sobol_02};
+use crate::sampling::{basis, cosine_hemisphere, hash_words, sobol_02};
 use crate::scene::Scene;
 use crate::unwrap::Layout;
 
@@ -27,11 +34,25 @@ const TANGENT_RAYS: u32 = 8;
 const HEMISPHERE_RAYS: u32 = 16;
 /// Short probes along the normal for geometry hanging just above a patch.
 const NORMAL_PROBES: u32 = 4;
+/// Footprint points searched for open surface when a texel's centre is hidden; where one of
+/// them is only just closed (open surface may be near), [`RESCUE_MORE_POINTS`] in all.
+const RESCUE_POINTS: u32 = 64;
+/// Footprint points searched in a texel where open surface may be near.
+const RESCUE_MORE_POINTS: u32 = 256;
+/// Footprint points of the second search over the hidden texels: it counts a texel as
+/// visible when 2 of them are clearly open (an eighth of the texel or so; smaller slivers of
+/// open surface are below what it resolves).
+const CHECK_POINTS: u32 = 16;
+/// Rays of a fan after which a point all of whose rays saw back faces is taken to be inside
+/// a solid (most points of a hidden texel are, and need no more).
+const PRETEST_RAYS: u32 = 4;
 
 /// One patch after its probes.
 struct Probed {
     position: Vec3,
     flags: u8,
+    /// The open point of the footprint that stands for a texel whose centre is hidden.
+    rescued: Option<SurfacePoint>,
     rays: u64,
 }
 
@@ -60,6 +81,60 @@ fn nearest_back_face(
         }
     }
     exit
+}
+
+/// What [`is_open`] found at a point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Openness {
+    /// At most the allowed share of the fan sees back faces.
+    Open,
+    /// More does, but not all of the first rays: open surface may be near.
+    Closed,
+    /// All of the first [`PRETEST_RAYS`] rays see back faces: deep inside a solid.
+    Inside,
+}
+
+/// Back faces a point of a hidden texel's footprint may see and be open: a quarter of its fan.
+/// A point in a room sees none (it sees the front of what stands around it); a point on the
+/// line where a wall meets the floor sees about half (its fan is half inside the wall), and
+/// a texel whose only open points lie on that line is hidden, not lit from a sliver of no
+/// width.
+const OPEN_BACK: u32 = HEMISPHERE_RAYS / 4;
+/// Back faces a point's fan may see to be *clearly* open, for the second search over the
+/// hidden texels: an eighth of it. The margin to [`OPEN_BACK`] keeps points that are open to
+/// one fan and closed to the next out of the count.
+const CLEARLY_OPEN_BACK: u32 = HEMISPHERE_RAYS / 8;
+
+/// Whether a point at `at` with geometric normal `g` is open surface: at most `max_back` rays
+/// of a cosine fan of [`HEMISPHERE_RAYS`] (scrambled by `key`: each point of a footprint its
+/// own, so no one set of directions decides for all of them) see the back of a single-sided
+/// surface. A point whose first [`PRETEST_RAYS`] rays all do is taken to be inside a solid
+/// without the rest.
+fn is_open(
+    (at, g): (Vec3, Vec3),
+    key: u32,
+    rays: &RayScene,
+    max_back: u32,
+    used: &mut u64,
+) -> Openness {
+    let origin = rays.offset(at, g);
+    let mut back = 0;
+    for s in 0..HEMISPHERE_RAYS {
+        if s == PRETEST_RAYS && back == PRETEST_RAYS {
+            return Openness::Inside;
+        }
+        let dir = cosine_hemisphere(g, sobol_02(s, key));
+        *used += 1;
+        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
+            if !h.front_face && !rays.triangles[h.triangle as usize].double_sided {
+                back += 1;
+                if back > max_back {
+                    return Openness::Closed;
+                }
+            }
+        }
+    }
+    Openness::Open
 }
 
 /// How many of a cosine-distributed fan of rays from `at` (about `p`'s normal) see the back
@@ -114,12 +189,39 @@ impl Patches {
             .collect();
         self.moved = 0;
         self.invalid = 0;
+        self.rescued = 0;
         for (p, r) in self.patches.iter_mut().zip(results) {
             p.position = r.position;
             p.flags = r.flags;
+            if let Some(sp) = r.rescued {
+                p.position = sp.position;
+                p.normal = sp.normal;
+                p.geometric_normal = sp.geometric_normal;
+                p.triangle = sp.triangle;
+                self.rescued += 1;
+            }
             self.rays += r.rays;
             self.moved += usize::from(r.flags & Patch::MOVED != 0);
             self.invalid += usize::from(r.flags & Patch::VALID == 0);
+        }
+        // The second search over the hidden texels (see the module docs).
+        let second: Vec<(bool, u64)> = self
+            .patches
+            .par_iter()
+            .map(|p| {
+                if p.is_valid() {
+                    return (false, 0);
+                }
+                let mut used = 0;
+                let key = p.rng(VALIDITY_SEED, 0x5ec0_2d);
+                let found = self.partly_open(p, (layout, &surface, rays), key, &mut used);
+                (found, used)
+            })
+            .collect();
+        self.visible_unlit = 0;
+        for (found, used) in second {
+            self.visible_unlit += usize::from(found);
+            self.rays += used;
         }
         // 2. Texels next to an invalid texel (geometry hides the surface there) are near
         // geometry too, even where the probes missed it.
@@ -178,8 +280,18 @@ impl Patches {
             // Does the moved point still see mostly back faces?
             back = back_faces(p, position, rays, reach, &mut near, &mut used);
         }
+        let mut rescued = None;
         if 2 * back > HEMISPHERE_RAYS {
-            flags &= !Patch::VALID;
+            // The centre is hidden: is any of the footprint open surface?
+            let key = p.rng(VALIDITY_SEED, 0x0e5c);
+            rescued = self.open_footprint_point(p, (layout, surface, rays), key, &mut used);
+            if rescued.is_some() {
+                // Lit from the visible part of its footprint, which the rest of it cannot see.
+                flags |= Patch::MOVED | Patch::PARTLY_HIDDEN;
+                near = true;
+            } else {
+                flags &= !Patch::VALID;
+            }
         }
         if near {
             flags |= Patch::NEAR_GEOMETRY;
@@ -187,8 +299,89 @@ impl Patches {
         Probed {
             position,
             flags,
+            rescued,
             rays: used,
         }
+    }
+
+    /// Points of `p`'s footprint on the surface, with their index: stratified points `range`
+    /// of the sequence scrambled by `key`, from the texel's centre outwards.
+    fn footprint_points(
+        &self,
+        p: &Patch,
+        (layout, surface): (&Layout, &Surface<'_>),
+        key: u32,
+        range: std::ops::Range<u32>,
+    ) -> Vec<(u32, SurfacePoint)> {
+        let Some(rect) = layout.instances[p.instance as usize] else {
+            return Vec::new();
+        };
+        let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+        let footprint = self.footprint_of(p);
+        let centre = Vec2::splat(0.5);
+        let mut offsets: Vec<(u32, Vec2)> = range.map(|s| (s, sobol_02(s, key))).collect();
+        offsets.sort_by(|a, b| {
+            a.1.distance_squared(centre)
+                .total_cmp(&b.1.distance_squared(centre))
+        });
+        offsets
+            .into_iter()
+            .filter_map(|(s, u)| {
+                footprint
+                    .iter()
+                    .find_map(|&t| surface.point(t, texel + u, 0.0))
+                    .map(|sp| (s, sp))
+            })
+            .collect()
+    }
+
+    /// The most central open point of `p`'s footprint ([`is_open`]: the test the texel's
+    /// centre failed) among [`RESCUE_POINTS`] (scrambled by `key`); when none is open but one
+    /// was only just closed, among [`RESCUE_MORE_POINTS`].
+    fn open_footprint_point(
+        &self,
+        p: &Patch,
+        (layout, surface, rays): (&Layout, &Surface<'_>, &RayScene),
+        key: u32,
+        used: &mut u64,
+    ) -> Option<SurfacePoint> {
+        let mut near_open = false;
+        for range in [0..RESCUE_POINTS, RESCUE_POINTS..RESCUE_MORE_POINTS] {
+            if range.start > 0 && !near_open {
+                break;
+            }
+            for (s, sp) in self.footprint_points(p, (layout, surface), key, range) {
+                let fan = hash_words(&[key, s]);
+                match is_open((sp.position, sp.geometric_normal), fan, rays, OPEN_BACK, used) {
+                    Openness::Open => return Some(sp),
+                    Openness::Closed => near_open = true,
+                    Openness::Inside => {}
+                }
+            }
+        }
+        None
+    }
+
+    /// Whether at least 2 of [`CHECK_POINTS`] points of `p`'s footprint (scrambled by
+    /// `key`) are clearly open ([`CLEARLY_OPEN_BACK`]): at least about an eighth of it is
+    /// visible.
+    fn partly_open(
+        &self,
+        p: &Patch,
+        (layout, surface, rays): (&Layout, &Surface<'_>, &RayScene),
+        key: u32,
+        used: &mut u64,
+    ) -> bool {
+        let points = self.footprint_points(p, (layout, surface), key, 0..CHECK_POINTS);
+        points
+            .iter()
+            .filter(|(s, sp)| {
+                let fan = hash_words(&[key, *s]);
+                is_open((sp.position, sp.geometric_normal), fan, rays, CLEARLY_OPEN_BACK, used) == Openness::Open
+            })
+            .take(2)
+            .count()
+            == 2
     }
 
     /// Whether geometry hangs within `reach` above points of the patch's footprint (short

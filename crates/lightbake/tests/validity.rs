@@ -1,0 +1,169 @@
+//! Texels whose centre is inside or behind geometry: where part of the footprint is open
+//! surface, the texel is lit from that part; only texels no view can see stay unlit. Checked
+//! on the real house of the corpus and the sunlit room with a visibility test of the test's
+//! own.
+
+use std::path::Path;
+
+use glam::Vec2;
+use lightbake::analysis::reference::irradiance;
+use lightbake::color::luminance;
+use lightbake::context::Prepared;
+use lightbake::lights::Emitters;
+use lightbake::progress::Progress;
+use lightbake::raster::{Patch, Surface, SurfacePoint};
+use lightbake::sampling::{cosine_hemisphere, hash_words, sobol_02, unit_float};
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::sunlit_room;
+use lightbake::settings::{BakeSettings, LightConvention};
+
+/// The architectural house of the corpus (`assets/corpus`).
+fn house() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/house.gltf");
+    lightbake::import_gltf(&path, LightConvention::GltfSpec)
+        .unwrap()
+        .scene
+}
+
+/// Points of `p`'s footprint seen from a room, by this test's own check (not the baker's):
+/// of 16 random points of the texel square that lie on the surface, those from which at most an
+/// eighth of 32 cosine-distributed rays meet the back of a single-sided surface (a point
+/// inside a solid meets backs in every direction, a point in a room none).
+fn visible_points(prep: &Prepared, surface: &Surface<'_>, p: &Patch) -> Vec<SurfacePoint> {
+    let Some(rect) = prep.layout.instances[p.instance as usize] else {
+        return Vec::new();
+    };
+    let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+    let footprint = prep.patches.footprint_of(p);
+    let key = hash_words(&[p.key, 0x7e57]);
+    (0..16u32)
+        .filter_map(|s| {
+            let u = Vec2::new(
+                unit_float(hash_words(&[key, s, 1])),
+                unit_float(hash_words(&[key, s, 2])),
+            );
+            footprint
+                .iter()
+                .find_map(|&t| surface.point(t, texel + u, 0.0))
+        })
+        .filter(|sp| {
+            let origin = prep.rays.offset(sp.position, sp.geometric_normal);
+            let backs = (0..32u32)
+                .filter(|&k| {
+                    let dir = cosine_hemisphere(sp.geometric_normal, sobol_02(k, key));
+                    prep.rays
+                        .closest_hit(origin, dir, 0.0, f32::INFINITY)
+                        .is_some_and(|h| {
+                            !h.front_face && !prep.rays.triangles[h.triangle as usize].double_sided
+                        })
+                })
+                .count();
+            backs <= 4
+        })
+        .collect()
+}
+
+#[test]
+fn no_texel_that_can_be_seen_is_left_unlit_in_the_house_and_the_sunlit_room() {
+    for (scene, least_partly_hidden, least_seen) in [(house(), 500, 100), (sunlit_room(), 0, 0)] {
+        let prep = Prepared::new(&scene, &BakeSettings::medium()).unwrap();
+        let patches = &prep.patches;
+        let surface = Surface::new(&prep.scene, &prep.layout, &prep.rays);
+        let hidden: Vec<&Patch> = patches.patches.iter().filter(|p| !p.is_valid()).collect();
+        let partly: Vec<&Patch> = patches
+            .patches
+            .iter()
+            .filter(|p| p.flags & Patch::PARTLY_HIDDEN != 0)
+            .collect();
+        // Hidden texels this test sees into: two or more of 16 points visible.
+        let seen: Vec<(u32, u32, usize)> = hidden
+            .iter()
+            .map(|p| (p.x, p.y, visible_points(&prep, &surface, p).len()))
+            .filter(|h| h.2 >= 2)
+            .collect();
+        // The texels lit from the visible part of their footprint: this test sees into them
+        // too, so were they left hidden, the check above would find them.
+        let partly_seen = partly
+            .iter()
+            .filter(|p| !visible_points(&prep, &surface, p).is_empty())
+            .count();
+        println!(
+            "{}: {} patches, {} hidden ({} of them seen into), {} lit from part of their footprint ({} seen into), the bake's own count of visible but unlit: {}",
+            scene.name,
+            patches.patches.len(),
+            hidden.len(),
+            seen.len(),
+            partly.len(),
+            partly_seen,
+            patches.visible_unlit
+        );
+        assert_eq!(patches.visible_unlit, 0, "{}", scene.name);
+        assert!(
+            seen.is_empty(),
+            "{}: hidden texels with visible points (x, y, points): {:?}",
+            scene.name,
+            &seen[..seen.len().min(20)]
+        );
+        assert!(
+            partly.len() >= least_partly_hidden,
+            "{}: {} texels lit from part of their footprint",
+            scene.name,
+            partly.len()
+        );
+        assert!(
+            partly_seen >= least_seen,
+            "{}: {partly_seen} of {} partly hidden texels seen into",
+            scene.name,
+            partly.len()
+        );
+    }
+}
+
+#[test]
+fn texels_lit_from_the_visible_part_of_their_footprint_get_the_light_there() {
+    // The house's texels whose centre is hidden against the path tracer at the points of
+    // their footprint this test sees into: the light they hold is the light of their visible
+    // part (were they filled from their neighbours or left black, the sums would differ).
+    let scene = house();
+    let settings = BakeSettings::preview();
+    let prep = Prepared::new(&scene, &settings).unwrap();
+    let out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
+    let surface = Surface::new(&prep.scene, &prep.layout, &prep.rays);
+    let ctx = prep.ctx();
+    let emitters = Emitters::collect(&prep.scene, &prep.rays);
+    let (mut baked, mut traced, mut texels) = (0.0f64, 0.0f64, 0);
+    for p in prep
+        .patches
+        .patches
+        .iter()
+        .filter(|p| p.flags & Patch::PARTLY_HIDDEN != 0)
+    {
+        let points = visible_points(&prep, &surface, p);
+        if points.is_empty() {
+            continue;
+        }
+        let e: f64 = points
+            .iter()
+            .enumerate()
+            .map(|(k, sp)| {
+                let r = irradiance(&ctx, &emitters, sp, 64, hash_words(&[p.key, k as u32, 9]));
+                luminance(r.direct + r.indirect) as f64
+            })
+            .sum::<f64>()
+            / points.len() as f64;
+        let v = out.pages[p.page as usize].get(p.x, p.y);
+        assert!(v.is_finite() && v.min_element() >= 0.0, "{v}");
+        baked += luminance(v) as f64 * std::f64::consts::PI;
+        traced += e;
+        texels += 1;
+    }
+    let ratio = baked / traced;
+    println!(
+        "{texels} partly hidden texels: baked {baked:.0} lux in all, path traced {traced:.0}, ratio {ratio:.3}"
+    );
+    assert!(texels > 100, "{texels}");
+    assert!(
+        (0.75..1.33).contains(&ratio),
+        "baked / path traced = {ratio:.3}"
+    );
+}
