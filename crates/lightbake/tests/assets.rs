@@ -1,11 +1,12 @@
-//! The shipped scenes in `assets/` are exactly what `cargo run --example make_assets` writes
-//! from `lightbake::scene::testscenes`, and they import cleanly.
+//! The shipped scenes in `assets/` (and the generated office of the corpus) are exactly what
+//! `cargo run --example make_assets` writes from `lightbake::scene::testscenes`, and they
+//! import cleanly.
 
 use std::path::Path;
 
 use lightbake::scene::gltf_import::import_gltf;
 use lightbake::scene::gltf_write::scene_to_gltf;
-use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
+use lightbake::scene::testscenes::{CornellLight, cornell_box, office_level, sunlit_room};
 use lightbake::settings::LightConvention;
 
 #[test]
@@ -15,8 +16,10 @@ fn committed_assets_match_their_generators() {
         (cornell_box(CornellLight::Area), "cornell_box"),
         (cornell_box(CornellLight::Point), "cornell_box_point"),
         (sunlit_room(), "sunlit_room"),
+        (office_level(8, 6), "corpus/office"),
     ] {
-        let (json, bin) = scene_to_gltf(&scene, &format!("{stem}.bin"));
+        let file_name = stem.rsplit('/').next().expect("a file name");
+        let (json, bin) = scene_to_gltf(&scene, &format!("{file_name}.bin"));
         let gltf_path = assets.join(format!("{stem}.gltf"));
         let on_disk = std::fs::read(&gltf_path).unwrap();
         assert!(

@@ -13,6 +13,8 @@ mod stages;
 
 use std::time::Instant;
 
+use glam::Vec3;
+
 use crate::bvh::RayScene;
 use crate::bvh::workload::{RayRates, calibrate};
 use crate::context::BakeContext;
@@ -25,6 +27,7 @@ use crate::plan::BakePlan;
 use crate::progress::{Progress, RayKind};
 use crate::raster::Patches;
 use crate::report::{BakeReport, Floor, TexelStats};
+use crate::sampling::hash_words;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
 use crate::unwrap::{Layout, unwrap_scene};
@@ -259,7 +262,12 @@ fn light_scene(
     }
     // The rates the floor is measured at: a short calibration on the same pool.
     lit.rates = stages.run("calibrate", 1, || {
-        let r = calibrate(&rays, CALIBRATION_RAYS, settings.seed);
+        let r = calibrate(
+            &rays,
+            &calibration_origins(&patches, settings.seed),
+            CALIBRATION_RAYS,
+            settings.seed,
+        );
         let note = format!(
             "BVH rates for the floor: {:.2} Mrays/s closest, {:.2} shadow",
             r.closest_per_second / 1e6,
@@ -288,6 +296,23 @@ fn light_scene(
         Ok((pages, 0, note))
     })?;
     Ok(lit)
+}
+
+/// Points the calibration's rays start from: the points of valid texel patches picked at
+/// random (as many as the calibration's rays, at most), where the lighting passes' rays
+/// start. The rays then meet what the bake's rays meet: an open ground plane at a low
+/// texel density, say, makes up most of the scene's area but few of its rays.
+fn calibration_origins(patches: &Patches, seed: u32) -> Vec<(Vec3, Vec3)> {
+    let n = patches.patches.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    (0..CALIBRATION_RAYS as u32)
+        .filter_map(|i| {
+            let p = &patches.patches[hash_words(&[seed, 0xca1b, i]) as usize % n];
+            p.is_valid().then_some((p.position, p.geometric_normal))
+        })
+        .collect()
 }
 
 /// Warnings about emissive triangles that lie on each other.

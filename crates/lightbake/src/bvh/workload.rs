@@ -107,21 +107,73 @@ pub struct RayRates {
     pub shadow_per_second: f64,
 }
 
-/// Times `count` gather rays and `count` shadow rays (to random surface points) through
-/// `rays` on the current rayon pool: the rates the bake's ray-tracing floor is computed with.
-pub fn calibrate(rays: &RayScene, count: usize, seed: u32) -> RayRates {
+/// Gather rays from `origins` (points and their unit normals, picked at random), offset
+/// along the normal, with cosine-distributed directions; and shadow rays from one picked
+/// origin to another, ending just short of it.
+pub fn rays_from(
+    rays: &RayScene,
+    origins: &[(Vec3, Vec3)],
+    count: usize,
+    seed: u32,
+) -> (Vec<BenchRay>, Vec<BenchRay>) {
+    let pick = |key: u32| origins[(key as usize) % origins.len()];
+    let gather = (0..count as u32)
+        .map(|i| {
+            let key = hash_words(&[seed, i]);
+            let (p, n) = pick(key);
+            let u = glam::Vec2::new(
+                unit_float(hash_words(&[key, 4])),
+                unit_float(hash_words(&[key, 5])),
+            );
+            BenchRay {
+                origin: rays.offset(p, n),
+                direction: cosine_hemisphere(n, u),
+                tmax: f32::INFINITY,
+            }
+        })
+        .collect();
+    let shadow = (0..count as u32)
+        .filter_map(|i| {
+            let key = hash_words(&[seed ^ 0x5bd1_e995, i]);
+            let (p, n) = pick(key);
+            let (q, m) = pick(hash_words(&[key, 9]));
+            let (o, target) = (rays.offset(p, n), rays.offset(q, m));
+            let d = target - o;
+            let len = d.length();
+            (len > 0.0).then(|| BenchRay {
+                origin: o,
+                direction: d / len,
+                tmax: len,
+            })
+        })
+        .collect();
+    (gather, shadow)
+}
+
+/// Times `count` gather rays and `count` shadow rays through `rays` on the current rayon
+/// pool: the rates the bake's ray-tracing floor is computed with. The rays start at
+/// `origins` ([`rays_from`]: the points the bake's own rays start from, so the rates are
+/// those of rays like the bake's), or at area-weighted surface points when there are none
+/// ([`gather_rays`], [`shadow_rays`]).
+pub fn calibrate(rays: &RayScene, origins: &[(Vec3, Vec3)], count: usize, seed: u32) -> RayRates {
     use rayon::prelude::*;
     if rays.triangles.iter().all(|t| t.area <= 0.0) || count == 0 {
         return RayRates::default();
     }
-    let gather = gather_rays(rays, count, seed);
-    let shadow = shadow_rays(rays, count, seed ^ 0x5bd1_e995, |_| true);
-    let time = |f: &dyn Fn() -> usize| {
+    let (gather, shadow) = if origins.is_empty() {
+        (
+            gather_rays(rays, count, seed),
+            shadow_rays(rays, count, seed ^ 0x5bd1_e995, |_| true),
+        )
+    } else {
+        rays_from(rays, origins, count, seed)
+    };
+    let time = |n: usize, f: &dyn Fn() -> usize| {
         let start = std::time::Instant::now();
         std::hint::black_box(f());
-        count as f64 / start.elapsed().as_secs_f64().max(1e-9)
+        n as f64 / start.elapsed().as_secs_f64().max(1e-9)
     };
-    let closest = time(&|| {
+    let closest = time(gather.len(), &|| {
         gather
             .par_iter()
             .with_min_len(256)
@@ -131,7 +183,7 @@ pub fn calibrate(rays: &RayScene, count: usize, seed: u32) -> RayRates {
             })
             .count()
     });
-    let shadow = time(&|| {
+    let shadow = time(shadow.len(), &|| {
         shadow
             .par_iter()
             .with_min_len(256)

@@ -6,11 +6,16 @@
 //!   side faces +Z as a glTF camera expects), lit by its ceiling area light or by a point light.
 //! * [`sunlit_room`]: a room with thick walls, a window, two pillars and a thin partition,
 //!   lit by the sun and the sky through the window.
+//! * [`office_level`]: a generated office floor, the corpus's large scene (many instances,
+//!   200 000+ triangles; [`office`]).
 //! * [`plane`], [`quad`], [`cuboid`], [`grid`]: mesh builders.
 
 use glam::{Affine3A, Vec2, Vec3};
 
 use super::{Instance, Light, LightKind, Material, Mesh, Scene};
+
+pub mod office;
+pub use office::office_level;
 
 /// A flat quad with corners `c` (any winding), triangulated as (0,1,2),(0,2,3) and wound so
 /// its front face looks along `facing`.
