@@ -194,15 +194,16 @@ pub struct BakeSettings {
     pub basis: Basis,
     /// Monte Carlo form-factor rays per texel node: a row of the full matrix, or the final
     /// gather of the hierarchical solve. Range 1..=65 536.
-    /// Default 128 (medium), 32 (preview), 512 (high).
+    /// Default 128 (medium), 32 (preview), 256 (high: four times the texels, each with twice
+    /// the rays).
     pub transport_rays: u32,
     /// Hierarchical solve: edge of the first cut's cells, texels (a power of two,
     /// 1..=256); refinement splits them where the coarse solution is too coarse.
     /// Default 16 (preview), 8 (medium, high).
     pub cluster_texels: u32,
     /// Hierarchical solve: form-factor rays per cell of the coarse level (shared out over its
-    /// texels, at least one each). Range 1..=65 536. Default 64 (preview), 128 (medium),
-    /// 256 (high).
+    /// texels, at least one each). Range 1..=65 536. Default 64 (preview), 128 (medium,
+    /// high).
     pub cluster_rays: u32,
     /// Hierarchical solve: refine the coarse level until the light its cells miss (the RMS
     /// over the surface of the spread between a cell's quadrants, reflected) is at most this
@@ -264,11 +265,11 @@ pub struct BakeSettings {
     pub max_page_size: u32,
     /// Samples per texel for direct light: each is a point in the texel's footprint and one
     /// sample of every light, so shadow edges are antialiased. Range 1..=4096.
-    /// Default 32 (medium), 8 (preview), 128 (high); chosen from the convergence study
+    /// Default 32 (medium), 8 (preview), 64 (high); chosen from the convergence study
     /// (`docs/convergence.md`).
     pub samples_per_texel: u32,
     /// Cosine-distributed rays per texel towards the uniform sky (only when the sky is not
-    /// black). Range 1..=65 536. Default 64 (medium), 16 (preview), 256 (high).
+    /// black). Range 1..=65 536. Default 64 (medium), 16 (preview), 128 (high).
     pub sky_samples: u32,
     /// Emitters (emissive triangles) up to which each texel evaluates the closed-form,
     /// unoccluded point-to-polygon irradiance and uses the shadow rays only for the visible
@@ -320,12 +321,12 @@ impl BakeSettings {
                 // of the Cornell box's error at 128 form-factor rays.
                 Quality::Preview => (1 << 16, 8, 16, 32, 256),
                 Quality::Medium => (1 << 18, 32, 64, 128, 1024),
-                Quality::High => (1 << 20, 128, 256, 512, 4096),
+                Quality::High => (1 << 20, 64, 128, 256, 4096),
             };
         let (cluster_texels, cluster_rays, cluster_tolerance) = match quality {
             Quality::Preview => (16, 64, 0.02),
             Quality::Medium => (8, 128, 0.01),
-            Quality::High => (8, 256, 0.005),
+            Quality::High => (8, 128, 0.005),
         };
         Self {
             method: Method::Radiosity,

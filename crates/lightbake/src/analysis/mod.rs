@@ -1,5 +1,7 @@
 //! Analysis: the brute-force path tracer that error measurements compare against
-//! ([`reference`](mod@reference)), and the convergence study of error against run time ([`study`]).
+//! ([`reference`](mod@reference)), bakes of any layout scored against it at surface points
+//! ([`points`]), and the convergence study of error against run time ([`study`]).
 
+pub mod points;
 pub mod reference;
 pub mod study;

@@ -213,7 +213,7 @@ impl Patches {
                     return (false, 0);
                 }
                 let mut used = 0;
-                let key = p.rng(VALIDITY_SEED, 0x5ec0_2d);
+                let key = p.rng(VALIDITY_SEED, 0x005e_c02d);
                 let found = self.partly_open(p, (layout, &surface, rays), key, &mut used);
                 (found, used)
             })

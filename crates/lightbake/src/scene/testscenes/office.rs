@@ -208,7 +208,7 @@ pub fn office_level(rooms_x: u32, rooms_z: u32) -> Scene {
     let ground = s.add_material(Material::diffuse("ground", Vec3::new(0.2, 0.3, 0.1)));
     let furniture = Furniture::add(&mut s);
     let (w, h, d) = (ROOM.x * rooms_x as f32, ROOM.y, ROOM.z * rooms_z as f32);
-    let mut solid = |s: &mut Scene, name: String, lo: Vec3, hi: Vec3, material: usize| {
+    let solid = |s: &mut Scene, name: String, lo: Vec3, hi: Vec3, material: usize| {
         let m = s.add_mesh(Mesh {
             material: Some(material),
             ..cuboid(&name, lo, hi, lo.y == 0.0)
