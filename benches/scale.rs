@@ -1,9 +1,17 @@
-//! How bake time and memory grow with the atlas size and the triangle count: the Cornell box
-//! baked with radiosity at the preview preset's sample counts (direct 4 spp, 32 form-factor
-//! rays per node), (a) at texel densities that give atlases of about 64² … 2048² texels and
-//! (b) with every quad split so the scene has about 10k … 1M triangles at a fixed density.
-//! Each case runs in a child process of this binary so that its peak resident memory
-//! (`VmHWM`) is its own. Prints a Markdown table for `docs/benchmarks.md`.
+//! How bake time and memory grow with the texels and the triangles.
+//!
+//! * **Texels.** The Cornell box and the generated office floor of the corpus
+//!   (`testscenes::office_level(8, 6)`: 336 846 triangles, 988 instances) at the medium preset
+//!   with texel budgets of 256 k, 1 M, 4 M and 16 M texels (`--quick`: 256 k and 1 M), so the
+//!   density follows the budget; the solver is `auto` (the hierarchical solve at these sizes).
+//! * **Triangles.** The Cornell box with every quad split n × n (about 10 k … 1 M triangles)
+//!   at a fixed density with its own lightmap UVs (no xatlas, which would dominate at a
+//!   million triangles and is measured in its own bench), at the preview preset.
+//!
+//! Each case runs in a child process of this binary, so its peak resident memory (`VmHWM`) is
+//! its own; "planned" is the memory the bake's plan admitted it with (the estimate after the
+//! unwrap plus the solver's), and bytes per patch are the peak over the covered texels. Prints
+//! Markdown tables for `docs/benchmarks.md`.
 //!
 //! `cargo bench -p lightbake --bench scale` (add `-- --quick` for the smaller half)
 
@@ -11,14 +19,14 @@ use std::process::Command;
 use std::time::Instant;
 
 use glam::Vec2;
+use lightbake::BakeOutput;
 use lightbake::progress::Progress;
 use lightbake::scene::Scene;
-use lightbake::scene::testscenes::{CornellLight, cornell_box, subdivide_quads};
+use lightbake::scene::testscenes::{CornellLight, cornell_box, office_level, subdivide_quads};
 use lightbake::settings::BakeSettings;
 
 /// The Cornell box with every quad split `n` × `n` and its own lightmap UVs: quad k of a mesh
-/// gets cell k of a grid over [0, 1]², inset so charts do not touch (no xatlas, which would
-/// dominate at a million triangles and is measured in its own bench).
+/// gets cell k of a grid over [0, 1]², inset so charts do not touch.
 fn dense_with_uv1(n: u32) -> Scene {
     let mut s = cornell_box(CornellLight::Area);
     for m in &mut s.meshes {
@@ -45,14 +53,6 @@ fn dense_with_uv1(n: u32) -> Scene {
     s
 }
 
-fn settings(density: f32) -> BakeSettings {
-    let mut s = BakeSettings::preview();
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
-    s.formats.png_preview = false;
-    s
-}
-
 /// Peak resident set of this process, MiB.
 fn peak_rss_mib() -> f64 {
     std::fs::read_to_string("/proc/self/status")
@@ -65,46 +65,97 @@ fn peak_rss_mib() -> f64 {
         .map_or(0.0, |kib| kib / 1024.0)
 }
 
-/// Runs one case and prints one Markdown row.
-fn run_case(kind: &str, value: f64) {
-    let (scene, density) = match kind {
-        "texels" => (cornell_box(CornellLight::Area), value as f32),
-        _ => (dense_with_uv1(value as u32), 96.0),
+/// Seconds of the stages whose names start with one of `names`.
+fn stage(out: &BakeOutput, names: &[&str]) -> f64 {
+    out.report
+        .stages
+        .iter()
+        .filter(|st| names.iter().any(|n| st.name.starts_with(n)))
+        .map(|st| st.seconds)
+        .sum()
+}
+
+/// The memory the bake was admitted with, MiB: its estimate after the unwrap and the
+/// solver's.
+fn planned_mib(out: &BakeOutput) -> f64 {
+    out.report.memory.mib()
+        + out.report.radiosity.as_ref().map_or(0.0, |r| {
+            (r.transport_estimate_bytes + r.solver_working_bytes) as f64 / 1048576.0
+        })
+}
+
+/// One texel-budget case: `scene` ("cornell" or "office") at the medium preset.
+fn texel_case(scene: &str, budget: f64) {
+    let scene = match scene {
+        "office" => office_level(8, 6),
+        _ => cornell_box(CornellLight::Area),
     };
-    let s = settings(density);
+    let mut s = BakeSettings::medium();
+    s.texel_budget = budget as u64;
+    s.texel_density_from_scene = false;
+    s.formats.png_preview = false;
+    // A 16 M-texel bake plans about 6 GiB; the budget is this machine's, not the default.
+    s.memory_budget_mib = 20_000;
     let start = Instant::now();
     let out = lightbake::bake(&scene, &s, &Progress::new()).expect("bake");
     let seconds = start.elapsed().as_secs_f64();
-    let stage = |name: &str| {
-        out.report
-            .stages
-            .iter()
-            .filter(|st| st.name == name)
-            .map(|st| st.seconds)
-            .sum::<f64>()
-    };
+    let floor = out.report.floor.clone().unwrap_or_default();
+    let gather_ratio = floor
+        .stages
+        .iter()
+        .find(|(n, _)| n == "final gather")
+        .map_or(f64::NAN, |s| s.1);
+    let patches = out.report.texels.patches;
+    let rss = peak_rss_mib();
     println!(
-        "| {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.1} | {:.0} | {:.0} |",
-        if kind == "texels" {
-            format!("{density} texels/m")
-        } else {
-            format!("split {value}")
-        },
+        "| {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} |",
+        scene.name,
+        budget,
         scene.instanced_triangle_count(),
-        out.report.texels.page_texels,
+        patches,
+        seconds,
+        stage(&out, &["unwrap", "raster", "validity", "bvh", "nodes"]),
+        stage(&out, &["direct"]),
+        stage(&out, &["coarse solve", "transport", "solve"]),
+        stage(&out, &["final gather", "correction"]),
+        stage(&out, &["error estimate", "calibrate", "dilate"]),
+        floor.ratio,
+        gather_ratio,
+        planned_mib(&out),
+        rss,
+        rss * 1048576.0 / patches as f64,
+    );
+}
+
+/// One triangle-count case: the Cornell box split `n` × `n` at the preview preset.
+fn triangle_case(n: f64) {
+    let scene = dense_with_uv1(n as u32);
+    let mut s = BakeSettings::preview();
+    s.texel_density = Some(96.0);
+    s.texel_density_from_scene = false;
+    s.formats.png_preview = false;
+    let start = Instant::now();
+    let out = lightbake::bake(&scene, &s, &Progress::new()).expect("bake");
+    let seconds = start.elapsed().as_secs_f64();
+    println!(
+        "| split {n} × {n} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.0} | {:.0} |",
+        scene.instanced_triangle_count(),
         out.report.texels.patches,
         seconds,
-        stage("unwrap") + stage("raster") + stage("validity"),
-        stage("bvh"),
-        stage("transport"),
-        stage("solve"),
-        out.report.total_rays(),
-        out.report.floor.as_ref().map_or(f64::NAN, |f| f.seconds),
+        stage(&out, &["bvh"]),
+        stage(&out, &["direct"]),
+        stage(
+            &out,
+            &[
+                "coarse solve",
+                "transport",
+                "solve",
+                "final gather",
+                "correction"
+            ]
+        ),
         out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),
-        out.report.memory.mib()
-            + out.report.radiosity.as_ref().map_or(0.0, |i| {
-                (i.transport_estimate_bytes + i.solver_working_bytes) as f64 / 1048576.0
-            }),
+        planned_mib(&out),
         peak_rss_mib(),
     );
 }
@@ -112,35 +163,53 @@ fn run_case(kind: &str, value: f64) {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--case") {
-        run_case(&args[i + 1], args[i + 2].parse().expect("case value"));
+        let value: f64 = args[i + 2].parse().expect("case value");
+        match args[i + 1].as_str() {
+            "triangles" => triangle_case(value),
+            scene => texel_case(scene, value),
+        }
         return;
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // The Cornell box's atlas at 256 texels/m is about 362²; density ∝ side.
-    let texels: &[f64] = if quick {
-        &[45.0, 90.0, 180.0]
+    let budgets: &[f64] = if quick {
+        &[262_144.0, 1_048_576.0]
     } else {
-        &[45.0, 90.0, 180.0, 360.0, 720.0, 1440.0]
+        &[262_144.0, 1_048_576.0, 4_194_304.0, 16_777_216.0]
     };
     let splits: &[f64] = if quick {
         &[18.0, 56.0]
     } else {
         &[18.0, 56.0, 125.0, 177.0]
     };
-    println!(
-        "| case | triangles | atlas texels | patches | bake (s) | unwrap+raster+validity (s) | BVH (s) | transport (s) | solve (s) | rays | ray floor (s) | bake / floor | planned (MiB) | peak RSS (MiB) |"
-    );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let exe = std::env::current_exe().expect("own path");
-    for (kind, values) in [("texels", texels), ("triangles", splits)] {
-        for &v in values {
-            let status = Command::new(&exe)
-                .args(["--case", kind, &v.to_string()])
-                .status()
-                .expect("run a case");
-            if !status.success() {
-                println!("| {kind} {v} | failed: {status} |");
-            }
+    let run = |kind: &str, v: f64| {
+        let status = Command::new(&exe)
+            .args(["--case", kind, &v.to_string()])
+            .status()
+            .expect("run a case");
+        if !status.success() {
+            println!("| {kind} {v} | failed: {status} |");
         }
+    };
+    println!(
+        "| scene | texel budget | triangles | patches | bake (s) | unwrap, raster, validity, BVH, nodes (s) | direct (s) | coarse solve (s) | final gather + correction (s) | estimate, calibrate, dilate (s) | bake / floor | final gather / its floor | planned (MiB) | peak RSS (MiB) | bytes per patch |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for scene in ["cornell", "office"] {
+        for &b in budgets {
+            // The office at 16 M texels takes most of an hour; the Cornell box shows the scale.
+            if scene == "office" && b > 5e6 {
+                continue;
+            }
+            run(scene, b);
+        }
+    }
+    println!();
+    println!(
+        "| case | triangles | patches | bake (s) | BVH (s) | direct (s) | radiosity (s) | bake / floor | planned (MiB) | peak RSS (MiB) |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for &n in splits {
+        run("triangles", n);
     }
 }

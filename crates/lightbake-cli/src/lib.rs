@@ -71,7 +71,7 @@ struct Args {
     /// Hierarchical solve: refine the coarse level until the light its clusters miss is at
     /// most this fraction of the irradiance.
     #[arg(long)]
-    cluster_tolerance: Option<f32>,
+    cluster_tolerance: Option<f64>,
     /// Largest transport matrix plus the solver's vectors beside it, MiB (above it `auto` takes
     /// the hierarchical solve); what the memory budget leaves beside the rest of the bake also
     /// bounds it.

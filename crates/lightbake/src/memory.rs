@@ -1,26 +1,33 @@
 //! Memory planning: estimate what a bake will allocate before allocating it, and refuse with
 //! the estimate in the message when it exceeds `memory_budget_mib`.
 //!
-//! The per-item costs are the sizes of the structures involved (measured with
-//! `size_of`), with the transient peaks of rasterisation and image encoding included.
+//! The per-item costs are the sizes of the structures involved (`size_of`), counted at the
+//! bake's peak: while the lighting passes run, with the patches, the pages' index and the
+//! ray-tracing structure alive. The radiosity pass adds its own working memory when it plans
+//! its solver (`radiosity::plan_solver`: nodes, the hit mapper's grid, the solver's vectors,
+//! the matrix or the coarse level), and the plan compares the sum with the peak resident
+//! memory in `tests/memory.rs`.
 
 use serde::Serialize;
 
 use crate::error::{BakeError, Result};
 use crate::raster::Patch;
 use crate::scene::Scene;
-use crate::unwrap::Layout;
+use crate::unwrap::{Layout, MeshUnwrap};
 
-/// Bytes per covered texel: the patch, its footprint list, the irradiance, and the transient
-/// rasterisation entry.
-pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 12 + 48;
-/// Bytes per page texel: index, RGB f32, coverage and fill state, half-float and PNG encode
-/// buffers.
-pub const BYTES_PER_PAGE_TEXEL: u64 = 4 + 12 + 2 + 8 + 8;
+/// Bytes per covered texel (patch) through the lighting passes: the patch, its footprint
+/// list (two triangles on average), its node index and its direct irradiance.
+pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 4 + 12;
+/// Bytes per page texel: its patch index, the finished page (RGB f32 and coverage) and its
+/// fill state.
+pub const BYTES_PER_PAGE_TEXEL: u64 = 4 + 12 + 1 + 1;
 /// Bytes per triangle in the ray-tracing structures: triangle data (48) and info (40), the
 /// four-wide BVH's nodes and leaf packets, and the binary builder's temporaries (312, from
 /// the peak RSS of a million-triangle bake in `benches/scale.rs`).
 pub const BYTES_PER_TRIANGLE: u64 = 48 + 40 + 312;
+/// The program itself: code, thread stacks and the allocator's own (the peak resident memory
+/// of a bake of a few texels is 14 MiB).
+pub const PROGRAM_BYTES: u64 = 16 << 20;
 
 /// An itemised estimate.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -68,7 +75,7 @@ impl MemoryEstimate {
 }
 
 /// Before unwrapping: texels from the baked world area at `density` (with 1/0.6 for chart
-/// packing and padding), pages sized to match.
+/// packing and padding), pages sized to match: a first guard against a density far too high.
 pub fn estimate_from_area(scene: &Scene, density: f32) -> MemoryEstimate {
     let texels: f64 = scene
         .instances
@@ -82,6 +89,7 @@ pub fn estimate_from_area(scene: &Scene, density: f32) -> MemoryEstimate {
         .sum();
     let page_texels = texels / 0.6;
     MemoryEstimate::from_items(vec![
+        ("program".into(), PROGRAM_BYTES),
         (
             "texel patches".into(),
             (texels * BYTES_PER_PATCH as f64) as u64,
@@ -97,17 +105,27 @@ pub fn estimate_from_area(scene: &Scene, density: f32) -> MemoryEstimate {
     ])
 }
 
-/// After unwrapping, from the actual pages and mesh rectangles (covered texels are bounded
-/// by the rectangles' areas).
+/// After unwrapping, from the actual pages and the covered texels each mesh's charts will
+/// give ([`covered_texels`]).
 pub fn estimate_from_layout(scene: &Scene, layout: &Layout) -> MemoryEstimate {
-    let rect_texels: u64 = layout
+    let covered: Vec<f64> = layout
+        .meshes
+        .iter()
+        .map(|u| u.as_ref().map_or(0.0, covered_texels))
+        .collect();
+    let patches: f64 = scene
         .instances
         .iter()
-        .flatten()
-        .map(|r| r.width as u64 * r.height as u64)
+        .enumerate()
+        .filter(|(i, _)| layout.instances[*i].is_some())
+        .map(|(_, inst)| covered[inst.mesh])
         .sum();
     MemoryEstimate::from_items(vec![
-        ("texel patches".into(), rect_texels * BYTES_PER_PATCH),
+        ("program".into(), PROGRAM_BYTES),
+        (
+            "texel patches".into(),
+            (patches * BYTES_PER_PATCH as f64) as u64,
+        ),
         (
             "lightmap pages".into(),
             layout.page_texels() * BYTES_PER_PAGE_TEXEL,
@@ -117,6 +135,35 @@ pub fn estimate_from_layout(scene: &Scene, layout: &Layout) -> MemoryEstimate {
             scene.instanced_triangle_count() as u64 * BYTES_PER_TRIANGLE,
         ),
     ])
+}
+
+/// The texels conservative rasterisation will cover in a mesh's rectangle, estimated from its
+/// charts: their area in texels, plus half of each chart border edge's |Δx| + |Δy| in texels
+/// (the partly covered texels along it), plus one per chart. Exact for a rectangle at any
+/// sub-texel offset ((w + 1)·(h + 1)); charts of a few texels are mostly border.
+pub fn covered_texels(unwrap: &MeshUnwrap) -> f64 {
+    let scale = glam::Vec2::new(unwrap.width as f32, unwrap.height as f32);
+    let mut area = 0.0f64;
+    // Edges used by one triangle (xatlas splits vertices along chart seams, so a chart's
+    // border is made of them), keyed by their vertex pair.
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for tri in unwrap.indices.chunks_exact(3) {
+        let p = [tri[0], tri[1], tri[2]].map(|i| unwrap.uv1[i as usize] * scale);
+        area += 0.5 * (p[1] - p[0]).perp_dot(p[2] - p[0]).abs() as f64;
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let border: f64 = edges
+        .iter()
+        .filter(|&(_, &n)| n == 1)
+        .map(|(&(a, b), _)| {
+            let d = (unwrap.uv1[a as usize] - unwrap.uv1[b as usize]) * scale;
+            0.5 * (d.x.abs() + d.y.abs()) as f64
+        })
+        .sum();
+    area + border + unwrap.chart_count as f64
 }
 
 #[cfg(test)]

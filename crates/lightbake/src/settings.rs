@@ -209,7 +209,7 @@ pub struct BakeSettings {
     /// over the surface of the spread between a cell's quadrants, reflected) is at most this
     /// fraction of the RMS irradiance. Range (0, 1). Default 0.02 (preview), 0.01 (medium),
     /// 0.005 (high).
-    pub cluster_tolerance: f32,
+    pub cluster_tolerance: f64,
     /// Largest transport matrix plus the solver's working memory beside it
     /// (`SolverChoice::working_bytes`), MiB; beyond it `Auto` takes the hierarchical solve
     /// (which must fit it too) and the matrix solvers refuse. The smaller of this and

@@ -325,7 +325,7 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
         r.solver = SolverChoice::Hierarchical;
         r.transport_rays = 256;
         r.cluster_texels = 64;
-        r.cluster_tolerance = tolerance as f32;
+        r.cluster_tolerance = tolerance;
         cases.push(case(
             "hierarchical-coarse",
             "cluster tolerance",

@@ -305,7 +305,7 @@ fn radiosity(
                 // The final gather's rays set its noise; the coarse level's tolerance its
                 // bias: both are tightened by the same factor of error.
                 let next = scaled(s.transport_rays, factor, 65_536);
-                let tolerance = (s.cluster_tolerance / (factor as f32).sqrt()).max(1e-4);
+                let tolerance = (s.cluster_tolerance / factor.sqrt()).max(1e-4);
                 let changed = next != s.transport_rays || tolerance != s.cluster_tolerance;
                 (s.transport_rays, s.cluster_tolerance) = (next, tolerance);
                 return changed;
@@ -325,7 +325,7 @@ fn radiosity(
     let Solved {
         plan,
         transport,
-        solution,
+        mut solution,
         error,
         coarse,
     } = rounds.value;
@@ -343,6 +343,9 @@ fn radiosity(
         ));
     }
     let reflected = radiosity::per_patch(&nodes, &solution.indirect, ctx.patches.patches.len());
+    // The report outlives the lighting passes: it keeps no per-node vectors.
+    solution.b = Vec::new();
+    solution.indirect = Vec::new();
     let report = RadiosityReport {
         solver: solution.solver,
         solver_reason: plan.reason.clone(),
@@ -456,12 +459,11 @@ fn hierarchical_round(
 ) -> Result<Solved> {
     let s = ctx.settings;
     let progress = stages.progress();
-    let direct_nodes: Vec<Vec3> = nodes.patch.iter().map(|&p| direct[p as usize]).collect();
     let mapper = HitMapper::new(*ctx, nodes, s.basis);
     // The plan admitted the coarse matrix at its per-node cap.
     let options = radiosity::hierarchy_options(ctx, nodes, u64::MAX);
     let coarse = stages.run(&format!("coarse solve{suffix}"), 0, || {
-        let c = hierarchical::coarse_solve(ctx, &mapper, nodes, &direct_nodes, &options, progress);
+        let c = hierarchical::coarse_solve(ctx, &mapper, nodes, direct, &options, progress);
         let r = &c.report;
         let note = format!(
             "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
@@ -477,8 +479,7 @@ fn hierarchical_round(
         Ok((c, rays, note))
     })?;
     let cell_indirect = &coarse.solution.indirect;
-    let b = hierarchical::fine_exitance(nodes, &direct_nodes, &coarse.clusters, cell_indirect);
-    drop(direct_nodes);
+    let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
     let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
         let (h, rays) = hierarchical::final_gather(
             ctx,

@@ -44,7 +44,7 @@ fn cell_row_into(
     clusters: &Clusters,
     c: usize,
     rays: u32,
-    first: &[Vec3],
+    direct: &[Vec3],
     scratch: &mut Vec<u64>,
     out: &mut RowBlock,
 ) -> (f32, Vec3) {
@@ -64,7 +64,8 @@ fn cell_row_into(
             total += weight;
             for &(j, wj) in hit {
                 hits.push((clusters.of_node[j as usize], wj * weight));
-                sum += first[j as usize] * (wj * weight);
+                let j = j as usize;
+                sum += nodes.albedo[j] * direct[nodes.patch[j] as usize] * (wj * weight);
             }
         });
         if total <= 0.0 {
@@ -104,13 +105,13 @@ fn cell_row_into(
 pub struct CoarseRows {
     /// F between the cells.
     pub matrix: Transport,
-    /// Per cell: the irradiance its rays gather from the per-node exitance `first` given to
-    /// [`build`], read at full node resolution at every hit (lux).
+    /// Per cell: the irradiance its rays gather from the reflected direct light ρ∘H_d, read
+    /// at full node resolution at every hit (lux).
     pub first_bounce: Vec<Vec3>,
 }
 
 /// Builds the coarse matrix of `clusters` with about `rays` rays per cell, and gathers with
-/// the same rays the per-node exitance `first` (the reflected direct light): the cells' first
+/// the same rays the reflected direct light ρ∘H_d (`direct` per patch): the cells' first
 /// bounce at full resolution on the emitting side.
 pub fn build(
     ctx: &BakeContext<'_>,
@@ -118,7 +119,7 @@ pub fn build(
     nodes: &Nodes,
     clusters: &Clusters,
     rays: u32,
-    first: &[Vec3],
+    direct: &[Vec3],
     progress: &Progress,
 ) -> CoarseRows {
     let m = clusters.len();
@@ -140,7 +141,7 @@ pub fn build(
                         clusters,
                         c,
                         rays,
-                        first,
+                        direct,
                         &mut scratch,
                         &mut rows,
                     ));

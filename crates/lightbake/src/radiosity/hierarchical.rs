@@ -52,7 +52,7 @@ pub struct HierarchyOptions {
     pub cell_rays: u32,
     /// Refinement stops when the missed detail left, as an RMS over the surface, is at most
     /// this fraction of the RMS irradiance.
-    pub tolerance: f32,
+    pub tolerance: f64,
     /// Cap on the coarse matrix, bytes.
     pub max_matrix_bytes: u64,
     /// The coarse solve's relative residual target (see [`SolveOptions::tolerance`]).
@@ -96,10 +96,30 @@ pub struct Coarse {
     pub report: CoarseReport,
 }
 
+/// Bytes the hierarchical solve holds at its peak beside the nodes and the hit mapper, for
+/// `nodes` nodes, `page_texels` page texels and `triangles` triangles: the largest of its
+/// phases. The coarse level holds the cells of every node (8 bytes: its cell and its place
+/// in the cell order), the fine exitance its oracle reads (12), the transient of a split (the
+/// cells and the sort order, 28) and its matrix (at most
+/// [`solve::COARSE_BYTES_PER_NODE`]); the correction holds the exitance, the gathered light,
+/// the missed light and its result (12 each) and the exitance grid ([`ExitanceGrid`]); the
+/// error estimate the same four, the corrected result and the reflected correction.
+pub fn planned_bytes(nodes: usize, page_texels: u64, triangles: usize) -> u64 {
+    let n = nodes as u64;
+    let clusters = 8 * n;
+    let coarse = clusters + (12 + 28 + solve::COARSE_BYTES_PER_NODE) * n;
+    let correction = clusters
+        + 4 * 12 * n
+        + page_texels * ExitanceGrid::BYTES_PER_PAGE_TEXEL
+        + triangles as u64 * ExitanceGrid::BYTES_PER_TRIANGLE;
+    let estimate = clusters + 6 * 12 * n;
+    coarse.max(correction).max(estimate)
+}
+
 /// Most refinement rounds (each takes a cell at most one level down).
 const MAX_ROUNDS: u32 = 4;
 
-/// Builds, solves and refines the coarse level for direct irradiance `direct` per node.
+/// Builds, solves and refines the coarse level for direct irradiance `direct` per patch.
 pub fn coarse_solve(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -108,7 +128,6 @@ pub fn coarse_solve(
     options: &HierarchyOptions,
     progress: &Progress,
 ) -> Coarse {
-    let source_nodes: Vec<Vec3> = nodes.albedo.iter().zip(direct).map(|(r, h)| *r * *h).collect();
     let total_area: f64 = nodes.area.iter().map(|&a| a as f64).sum();
     let mut clusters = Clusters::at_level(nodes, ctx.patches, options.top_level);
     let mut rays = 0u64;
@@ -124,7 +143,7 @@ pub fn coarse_solve(
             nodes,
             &clusters,
             options.cell_rays,
-            &source_nodes,
+            direct,
             progress,
         );
         rays += matrix.rays;
@@ -168,7 +187,7 @@ pub fn coarse_solve(
                 0.0
             }
         };
-        let target = (options.tolerance as f64 * value_rms).powi(2) * total_area;
+        let target = (options.tolerance * value_rms).powi(2) * total_area;
         let bytes_per_cell = matrix.bytes() as f64 / clusters.len().max(1) as f64;
         let max_cells = ((options.max_matrix_bytes as f64 / bytes_per_cell.max(1.0)) as usize)
             .min(nodes.len());
@@ -250,7 +269,8 @@ fn pick(clusters: &Clusters, detail: &[f64], target: f64, max_cells: usize) -> V
     picked
 }
 
-/// Per node: b_j = ρ_j·(H_d,j + C_{cell(j)}), the exitance the final gather reads.
+/// Per node: b_j = ρ_j·(H_d,j + C_{cell(j)}), the exitance the final gather reads (`direct`
+/// per patch).
 pub fn fine_exitance(
     nodes: &Nodes,
     direct: &[Vec3],
@@ -258,15 +278,19 @@ pub fn fine_exitance(
     cell_indirect: &[Vec3],
 ) -> Vec<Vec3> {
     (0..nodes.len())
-        .map(|i| nodes.albedo[i] * (direct[i] + cell_indirect[clusters.of_node[i] as usize]))
+        .map(|i| {
+            let h = direct[nodes.patch[i] as usize];
+            nodes.albedo[i] * (h + cell_indirect[clusters.of_node[i] as usize])
+        })
         .collect()
 }
 
-/// Area-weighted RMS luminance of H_d + C over the nodes, lux.
+/// Area-weighted RMS luminance of H_d + C over the nodes, lux (`direct` per patch).
 fn irradiance_rms(nodes: &Nodes, direct: &[Vec3], clusters: &Clusters, cell_indirect: &[Vec3]) -> f64 {
     let (mut sum, mut area) = (0.0f64, 0.0f64);
     for i in 0..nodes.len() {
-        let h = luminance(direct[i] + cell_indirect[clusters.of_node[i] as usize]) as f64;
+        let d = direct[nodes.patch[i] as usize];
+        let h = luminance(d + cell_indirect[clusters.of_node[i] as usize]) as f64;
         sum += nodes.area[i] as f64 * h * h;
         area += nodes.area[i] as f64;
     }

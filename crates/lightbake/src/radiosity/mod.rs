@@ -53,7 +53,6 @@ use crate::settings::{Basis, SolverChoice};
 use crate::solve::transport::Transport;
 use crate::solve::{self, AUTO_MATRIX_NODES, DIRECT_MAX_NODES, Solution, SolveOptions, System};
 pub use error_estimate::{gather_error, hierarchical_error};
-use exitance_grid::ExitanceGrid;
 use hierarchical::{CoarseReport, HierarchyOptions};
 pub use hit_mapper::HitMapper;
 pub use nodes::Nodes;
@@ -68,7 +67,8 @@ pub struct SolverPlan {
     pub reason: String,
     /// Estimated bytes of the transport matrix (0 when not estimated).
     pub transport_estimate_bytes: u64,
-    /// Bytes the solver allocates beside the matrix ([`SolverChoice::working_bytes`]).
+    /// Bytes the solver allocates beside the matrix, with the nodes and the hit mapper
+    /// ([`SolverChoice::working_bytes`], [`hierarchical::planned_bytes`]).
     pub solver_working_bytes: u64,
 }
 
@@ -91,10 +91,10 @@ pub struct RadiosityReport {
     pub transport_bytes: u64,
     /// Transport matrix: estimate made before building it.
     pub transport_estimate_bytes: u64,
-    /// Bytes planned for the solver beside the matrix.
+    /// Bytes planned for the solver beside the matrix (with the nodes and the hit mapper).
     pub solver_working_bytes: u64,
     /// The solver's result (history, iterations, stop reason; for the hierarchical solve,
-    /// the last coarse solve's).
+    /// the last coarse solve's), without its per-node vectors.
     pub solution: Solution,
     /// The hierarchical solve's coarse level (none for the other solvers).
     pub coarse: Option<CoarseReport>,
@@ -146,9 +146,11 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     } else {
         0
     };
-    // The budget holds the matrix and the solver's own vectors and matrix copies.
+    // The budget holds the matrix and the solver's own vectors and matrix copies, beside the
+    // nodes and the hit mapper every solver has.
     let n = nodes.len();
-    let fits_with = |c: SolverChoice| estimate + c.working_bytes(n, estimate) <= budget;
+    let common = common_bytes(ctx, n);
+    let fits_with = |c: SolverChoice| common + estimate + c.working_bytes(n, estimate) <= budget;
     let (choice, reason) = match s.solver {
         SolverChoice::Auto if n > AUTO_MATRIX_NODES => (
             SolverChoice::Hierarchical,
@@ -162,12 +164,15 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
         c => (c, "chosen in the settings".to_string()),
     };
     let estimate = if choice.needs_matrix() { estimate } else { 0 };
-    let mut working = choice.working_bytes(n, estimate);
-    if choice == SolverChoice::Hierarchical {
-        // Its gathers read the field from the page grid (see `exitance_grid`).
-        working += ctx.layout.page_texels() * ExitanceGrid::BYTES_PER_PAGE_TEXEL
-            + ctx.rays.triangles.len() as u64 * ExitanceGrid::BYTES_PER_TRIANGLE;
-    }
+    let working = common
+        + match choice {
+            SolverChoice::Hierarchical => hierarchical::planned_bytes(
+                n,
+                ctx.layout.page_texels(),
+                ctx.rays.triangles.len(),
+            ),
+            c => c.working_bytes(n, estimate),
+        };
     if choice == SolverChoice::Hierarchical && working > budget {
         return Err(BakeError::OverMemoryBudget {
             needed_mib: working as f64 / MIB as f64,
@@ -208,6 +213,15 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
         transport_estimate_bytes: estimate,
         solver_working_bytes: working,
     })
+}
+
+/// Bytes every radiosity solve holds beside its solver's: the nodes (their patch, area,
+/// albedo and two flags: 22 bytes each) and the hit mapper (a node and owner per page texel,
+/// UVs and owner per triangle).
+fn common_bytes(ctx: &BakeContext<'_>, nodes: usize) -> u64 {
+    nodes as u64 * (4 + 4 + 12 + 1 + 1)
+        + ctx.layout.page_texels() * 12
+        + ctx.rays.triangles.len() as u64 * 32
 }
 
 /// S = ρ∘H_d per node, from per-patch direct irradiance.

@@ -145,6 +145,17 @@ impl Patches {
                 .collect(),
             ..Patches::default()
         };
+        // Sized once: patches and footprints grown by doubling would hold up to twice
+        // their bytes, and copy them, at the peak of the bake's memory.
+        let (texels, pieces) = scene
+            .instances
+            .iter()
+            .enumerate()
+            .filter(|(ii, _)| layout.instances[*ii].is_some())
+            .filter_map(|(_, inst)| rasters[inst.mesh].as_ref())
+            .fold((0, 0), |(t, p), r| (t + r.texels.len(), p + r.pieces.len()));
+        out.patches.reserve_exact(texels);
+        out.footprint.reserve_exact(pieces);
         for (ii, inst) in scene.instances.iter().enumerate() {
             let (Some(rect), Some(raster)) = (layout.instances[ii], &rasters[inst.mesh]) else {
                 continue;
@@ -153,23 +164,23 @@ impl Patches {
                 .as_ref()
                 .expect("rect implies unwrap");
             let first = rays.instance_first_triangle[ii];
-            let built: Vec<(Patch, Vec<u32>)> = raster
+            let built: Vec<Option<Patch>> = raster
                 .texels
                 .par_iter()
-                .filter_map(|t| {
+                .map(|t| {
                     let owner = first + t.owner;
                     let sp = surface.point(owner, t.point, 1e-3)?;
                     // World area: texel-space pieces scaled by each triangle's world/texel ratio.
                     let mut area = 0.0f32;
                     let mut owner_ratio = 0.0f32;
-                    for &(lt, a) in &t.triangles {
+                    for &(lt, a) in raster.pieces_of(t) {
                         let ratio = world_per_texel_area(scene, layout, rays, first + lt);
                         area += a * ratio;
                         if lt == t.owner {
                             owner_ratio = ratio;
                         }
                     }
-                    let patch = Patch {
+                    Some(Patch {
                         instance: ii as u32,
                         page: rect.page,
                         x: rect.x + t.x,
@@ -183,18 +194,18 @@ impl Patches {
                         chart: unwrap.triangle_charts[t.owner as usize],
                         flags: Patch::VALID,
                         footprint_start: 0,
-                        footprint_len: t.triangles.len() as u32,
+                        footprint_len: t.len,
                         key: hash_words(&[ii as u32, t.x, t.y]),
-                    };
-                    Some((
-                        patch,
-                        t.triangles.iter().map(|&(lt, _)| first + lt).collect(),
-                    ))
+                    })
                 })
                 .collect();
-            for (mut patch, tris) in built {
+            for (t, patch) in raster.texels.iter().zip(built) {
+                let Some(mut patch) = patch else {
+                    continue;
+                };
                 patch.footprint_start = out.footprint.len() as u32;
-                out.footprint.extend(tris);
+                out.footprint
+                    .extend(raster.pieces_of(t).iter().map(|&(lt, _)| first + lt));
                 let page = &mut out.page_index[patch.page as usize];
                 let w = layout.pages[patch.page as usize].width;
                 page[(patch.y * w + patch.x) as usize] = out.patches.len() as u32;

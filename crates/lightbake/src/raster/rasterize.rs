@@ -13,8 +13,9 @@ use glam::Vec2;
 pub(crate) struct LocalTexel {
     pub(crate) x: u32,
     pub(crate) y: u32,
-    /// Local triangles overlapping the texel, with their clipped areas (texel² units).
-    pub(crate) triangles: Vec<(u32, f32)>,
+    /// Its pieces: `MeshRaster::pieces[start..start + len]`.
+    pub(crate) start: u32,
+    pub(crate) len: u32,
     /// Owner triangle and the texel-space point to represent the texel.
     pub(crate) owner: u32,
     pub(crate) point: Vec2,
@@ -24,6 +25,17 @@ pub(crate) struct LocalTexel {
 #[derive(Clone, Debug, Default)]
 pub struct MeshRaster {
     pub(crate) texels: Vec<LocalTexel>,
+    /// Per texel, in texel order: the local triangles overlapping it with their clipped
+    /// areas (texel² units). One flat array, not one small vector per texel: a million
+    /// texels' pieces would otherwise cost a million allocations.
+    pub(crate) pieces: Vec<(u32, f32)>,
+}
+
+impl MeshRaster {
+    /// The pieces of texel `t`.
+    pub(crate) fn pieces_of(&self, t: &LocalTexel) -> &[(u32, f32)] {
+        &self.pieces[t.start as usize..(t.start + t.len) as usize]
+    }
 }
 
 /// Area and centroid of the part of triangle `t` inside the unit square at (x, y).
@@ -114,6 +126,7 @@ pub fn rasterize_mesh(uv1: &[Vec2], indices: &[u32], width: u32, height: u32) ->
     }
     entries.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut texels = Vec::new();
+    let mut pieces = Vec::with_capacity(entries.len());
     let mut i = 0;
     while i < entries.len() {
         let texel = entries[i].0;
@@ -146,13 +159,16 @@ pub fn rasterize_mesh(uv1: &[Vec2], indices: &[u32], width: u32, height: u32) ->
         texels.push(LocalTexel {
             x,
             y,
-            triangles: group.iter().map(|e| (e.1, e.2)).collect(),
+            start: pieces.len() as u32,
+            len: group.len() as u32,
             owner,
             point,
         });
+        pieces.extend(group.iter().map(|e| (e.1, e.2)));
         i = j;
     }
-    MeshRaster { texels }
+    texels.shrink_to_fit();
+    MeshRaster { texels, pieces }
 }
 
 #[cfg(test)]
@@ -188,7 +204,7 @@ mod tests {
         let r = rasterize_mesh(&uv, &[0, 1, 2], 8, 8);
         assert!(r.texels.len() >= 7, "{}", r.texels.len());
         for t in &r.texels {
-            assert!(t.triangles[0].1 > 0.0);
+            assert!(r.pieces_of(t)[0].1 > 0.0);
             // The representative point is inside the texel.
             assert!(t.point.x >= t.x as f32 - 1e-4 && t.point.x <= (t.x + 1) as f32 + 1e-4);
         }

@@ -38,20 +38,16 @@ impl SolverChoice {
     /// nodes: its double-precision RGB vectors (24 bytes per node each, counted from the
     /// solvers' code, with the final residual and F·B products), plus the copies of the
     /// matrix that shooting (the transpose) and CG (transpose, symmetrised rows and the packed
-    /// result) build. 0 for `Auto`, and for stochastic Jacobi, which builds no matrix (its
-    /// per-node vectors are small, and it merges its ray deposits in bounded blocks).
+    /// result) build. 0 for `Auto`, for stochastic Jacobi, which builds no matrix (its
+    /// per-node vectors are small, and it merges its ray deposits in bounded blocks), and for
+    /// the hierarchical solve, which `radiosity::plan_solver` plans.
     pub fn working_bytes(self, n: usize, matrix_bytes: u64) -> u64 {
         let vector = n as u64 * size_of::<DVec3>() as u64;
         match self {
             Self::Auto | Self::StochasticJacobi => 0,
-            // The hierarchical solve builds no full matrix: its per-node vectors (direct
-            // light, source, exitance, gathered light, the coarse light and missed detail
-            // of the error estimate: 12 bytes each; the cells' indices and sort keys 32) and
-            // its coarse matrix, capped per node. (The page grid its gathers read is per
-            // page texel: `radiosity::plan_solver` adds it.)
-            Self::Hierarchical => {
-                n as u64 * (7 * 12 + 32 + COARSE_BYTES_PER_NODE)
-            }
+            // The hierarchical solve builds no full matrix; its working memory depends on the
+            // page grid too (`radiosity::hierarchical::planned_bytes`).
+            Self::Hierarchical => 0,
             Self::Jacobi => 5 * vector,
             Self::GaussSeidel => 4 * vector,
             Self::Shooting => matrix_bytes + 4 * vector,
@@ -289,8 +285,8 @@ pub const AUTO_DIRECT_NODES: usize = 1500;
 /// per node); beyond, the hierarchical solve.
 pub const AUTO_MATRIX_NODES: usize = 32_768;
 /// Bytes of coarse matrix the hierarchical solve may hold per node: its refinement stops at
-/// this cap.
-pub const COARSE_BYTES_PER_NODE: u64 = 128;
+/// this cap (the shipped and corpus scenes reach their tolerance at 2–22).
+pub const COARSE_BYTES_PER_NODE: u64 = 32;
 
 /// Resolves `Auto`: (choice, reason). `fits` says whether the matrix and a solver's working
 /// memory ([`SolverChoice::working_bytes`]) fit the transport budget together.

@@ -108,6 +108,12 @@ mod ffi {
         Option<unsafe extern "C" fn(*const f32, *mut f32, u32, *const u32, u32, bool)>;
     pub type PrintFunc = Option<unsafe extern "C" fn(*const c_char, ...) -> c_int>;
 
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    unsafe extern "C" {
+        /// glibc: returns the free memory of every malloc arena to the system.
+        pub fn malloc_trim(pad: usize) -> c_int;
+    }
+
     unsafe extern "C" {
         #[link_name = "_ZN6xatlas6CreateEv"]
         pub fn create() -> *mut Atlas;
@@ -307,6 +313,14 @@ impl Drop for AtlasHandle {
             // SAFETY: the pointer came from `xatlas::Create` and is destroyed exactly once here;
             // the handle that owned it is being dropped.
             unsafe { ffi::destroy(doomed.0) };
+            // xatlas allocates on its worker threads, so glibc gives them arenas of their
+            // own, which keep what xatlas freed resident for the rest of the bake (60 MiB of
+            // the house's 1.2 M-texel bake, above what the memory plan counts).
+            #[cfg(all(target_os = "linux", target_env = "gnu"))]
+            // SAFETY: malloc_trim only returns free pages; no pointer is involved.
+            unsafe {
+                ffi::malloc_trim(0);
+            }
         };
         // No thread to spare (spawn fails): the atlas leaks rather than risk the hang.
         let _ = std::thread::Builder::new()

@@ -1,0 +1,107 @@
+//! The corpus at every preset: the house (`assets/corpus/house.gltf`) and the generated
+//! office floor, each baked at preview, medium and high with the defaults (automatic texel
+//! density, `auto` solver), scored against the in-tree path tracer at 256 surface points
+//! (4096 paths each; `analysis::points`), with the bake's own estimate, its time and its peak
+//! memory. Each case runs in a child process of this binary, so its peak resident memory
+//! (`VmHWM`) is its own. Prints a Markdown table for `docs/benchmarks.md`.
+//!
+//! `cargo bench -p lightbake --bench corpus` (add `-- --quick` for the house alone)
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+use lightbake::analysis::points::{score, score_points};
+use lightbake::progress::Progress;
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::office_level;
+use lightbake::settings::{BakeSettings, LightConvention, Quality};
+
+/// Peak resident set of this process, MiB.
+fn peak_rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
+        .map_or(0.0, |kib| kib / 1024.0)
+}
+
+fn scene(name: &str) -> Scene {
+    match name {
+        "office" => office_level(8, 6),
+        _ => {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/house.gltf");
+            lightbake::import_gltf(&path, LightConvention::GltfSpec)
+                .expect("the house")
+                .scene
+        }
+    }
+}
+
+/// One case: `name` at `quality`, one Markdown row.
+fn run_case(name: &str, quality: Quality) {
+    let scene = scene(name);
+    let start = Instant::now();
+    let points = score_points(&scene, 256, 4096, 7);
+    let reference_seconds = start.elapsed().as_secs_f64();
+    let settings = BakeSettings::preset(quality);
+    let start = Instant::now();
+    let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
+    let seconds = start.elapsed().as_secs_f64();
+    let measured = score(&points, &out);
+    let radiosity = out.report.radiosity.as_ref();
+    println!(
+        "| {name} | {quality:?} | {} | {:.1} | {:.2}% | {:.2}% | {:.2}% | {} | {:.2} | {:.0} | {:.1} |",
+        out.report.texels.patches,
+        seconds,
+        100.0
+            * out
+                .report
+                .error
+                .as_ref()
+                .map_or(f64::NAN, |e| e.relative_rms),
+        100.0 * measured.relative_rms,
+        100.0 * measured.reference_noise,
+        radiosity.map_or("-", |r| r.solver),
+        out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),
+        peak_rss_mib(),
+        reference_seconds,
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--case") {
+        let quality = match args[i + 2].as_str() {
+            "preview" => Quality::Preview,
+            "high" => Quality::High,
+            _ => Quality::Medium,
+        };
+        run_case(&args[i + 1], quality);
+        return;
+    }
+    let scenes: &[&str] = if args.iter().any(|a| a == "--quick") {
+        &["house"]
+    } else {
+        &["house", "office"]
+    };
+    println!(
+        "| scene | preset | patches | bake (s) | estimated error | measured error | reference noise | solver | bake / floor | peak RSS (MiB) | reference (s) |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|");
+    let exe = std::env::current_exe().expect("own path");
+    for name in scenes {
+        for quality in ["preview", "medium", "high"] {
+            let status = Command::new(&exe)
+                .args(["--case", name, quality])
+                .status()
+                .expect("run a case");
+            if !status.success() {
+                println!("| {name} | {quality} | failed: {status} |");
+            }
+        }
+    }
+}
