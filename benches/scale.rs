@@ -1,7 +1,7 @@
 //! How bake time and memory grow with the texels and the triangles.
 //!
 //! * **Texels.** The Cornell box and the generated office floor of the corpus
-//!   (`testscenes::office_level(8, 6)`: 336 846 triangles, 988 instances) at the medium preset
+//!   (`testscenes::office_level(8, 6)`: 336 846 triangles, 939 instances) at the medium preset
 //!   with texel budgets of 256 k, 1 M, 4 M and 16 M texels (`--quick`: 256 k and 1 M), so the
 //!   density follows the budget; the solver is `auto` (the hierarchical solve at these sizes).
 //! * **Triangles.** The Cornell box with every quad split n × n (about 10 k … 1 M triangles)

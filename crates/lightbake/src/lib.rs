@@ -44,13 +44,13 @@
 //! | 7 | `context` | what every lighting pass reads |
 //! | 8 | `direct` | direct light at every texel |
 //! | 9 | `solve` | the matrix F and the linear solvers (pure linear algebra) |
-//! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, the radiosity pass |
+//! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, hierarchical radiosity, the radiosity pass |
 //! | 11 | `vpl` | instant radiosity: walks, gather, bias compensation |
 //! | 12 | [`lightmap`] | pages of E/π, filled and dilated |
 //! | 13 | [`report`] | what a bake records about itself |
 //! | 14 | [`bake`](mod@bake) | the driver and [`BakeHandle`] |
 //! | 15 | [`output`] | EXR/HDR/KTX2 + PNG, baked glTF, manifest, report; atomically |
-//! | 16 | [`analysis`] | the reference path tracer and the convergence study |
+//! | 16 | [`analysis`] | the reference path tracer, bakes scored against it at surface points, the convergence study |
 //!
 //! Modules without a link are the stages' internals: crate-private, and public with the
 //! `internals` feature (for the benchmarks and the core's tests). The scenes of the core's

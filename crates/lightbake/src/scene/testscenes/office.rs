@@ -195,7 +195,7 @@ impl Furniture {
 }
 
 /// An office floor of `rooms_x` × `rooms_z` rooms (see the module docs). 8 × 6 rooms give
-/// about 290 000 triangles in about 800 instances.
+/// 336 846 triangles in 939 instances, and 49 point lights.
 pub fn office_level(rooms_x: u32, rooms_z: u32) -> Scene {
     let mut s = Scene {
         name: format!("office_{rooms_x}x{rooms_z}"),
