@@ -199,7 +199,7 @@ pub fn calibrate(rays: &RayScene, origins: &[(Vec3, Vec3)], count: usize, seed: 
 /// The ray benchmark's workload (`benches/trace.rs`, `examples/ray_workload.rs`): the Cornell
 /// box with every quad split 80 × 80 (204 800 triangles), `count` gather rays (seed 1) and
 /// `count` shadow rays towards the ceiling light (seed 2).
-#[cfg(feature = "testscenes")]
+#[cfg(all(feature = "testscenes", feature = "internals"))]
 pub fn cornell_workload(count: usize) -> (RayScene, Vec<BenchRay>, Vec<BenchRay>) {
     use crate::scene::testscenes::{CornellLight, cornell_box_dense};
     let scene = cornell_box_dense(CornellLight::Area, 80);
