@@ -53,16 +53,9 @@ fn dense_with_uv1(n: u32) -> Scene {
     s
 }
 
-/// Peak resident set of this process, MiB.
+/// Peak resident set of this process, MiB (0 where the system does not say).
 fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        })
-        .map_or(0.0, |kib| kib / 1024.0)
+    lightbake::memory::peak_resident_bytes().map_or(0.0, |b| b as f64 / 1048576.0)
 }
 
 /// Seconds of the stages whose names start with one of `names`.

@@ -166,6 +166,22 @@ pub fn covered_texels(unwrap: &MeshUnwrap) -> f64 {
     area + border + unwrap.chart_count as f64
 }
 
+/// This process's peak resident memory so far (`VmHWM` in `/proc/self/status`), bytes; `None`
+/// where the system has no such file. The benches and `tests/memory.rs` compare it with the
+/// plan.
+#[cfg(feature = "internals")]
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: u64 = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some(kib * 1024)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,17 +12,6 @@ use lightbake::settings::{BakeSettings, LightConvention};
 /// The child's variable: which scene to bake.
 const CASE: &str = "LIGHTBAKE_MEMORY_CASE";
 
-/// Peak resident set of this process, bytes.
-fn peak_rss() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
-    let kib: u64 = status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
-        .expect("VmHWM");
-    kib * 1024
-}
-
 /// In the child: bakes `case` at about a million texels and prints its plan and peak.
 fn child(case: &str) {
     let scene = match case {
@@ -45,7 +34,7 @@ fn child(case: &str) {
     println!(
         "MEMORY {case} patches {} planned {planned} peak {}",
         out.report.texels.patches,
-        peak_rss()
+        lightbake::memory::peak_resident_bytes().expect("VmHWM in /proc/self/status")
     );
 }
 
