@@ -1,7 +1,8 @@
 //! A four-wide BVH (the layout of Embree's SSE `BVH4`; Wald et al., "Embree: a kernel
 //! framework for efficient CPU ray tracing", 2014) collapsed from obvhs' binary PLOC tree,
 //! traversed four child boxes and four triangles at a time with glam's `Vec4` (SSE on x86-64,
-//! no `unsafe`).
+//! no `unsafe`); the triangles are tested with the watertight test of
+//! [`super::watertight`].
 //!
 //! Why not obvhs' own compressed wide BVH: its child boxes are quantised to bytes for GPUs,
 //! and decoding them (48 byte-to-float conversions per node) cost more than the slab tests on
@@ -16,6 +17,8 @@
 
 use glam::{Vec3, Vec4};
 use obvhs::bvh2::Bvh2;
+
+use super::watertight::{Shear, edge_functions_f64};
 
 /// Most triangles in a leaf (in packets of four).
 pub const LEAF_SIZE: usize = 8;
@@ -48,24 +51,26 @@ pub struct Node4 {
     child: [u32; 4],
 }
 
-/// Four triangles, structure of arrays: vertex 0 and the two edges from it.
+/// Four triangles, structure of arrays: their three vertices, exactly as given (the
+/// watertight test needs the bits two triangles share on an edge to be the same).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 pub struct Tri4 {
-    v0: [Vec4; 3],
-    e1: [Vec4; 3],
-    e2: [Vec4; 3],
-    /// Primitive index of each lane (`u32::MAX` for padding lanes, whose edges are zero).
+    v: [[Vec4; 3]; 3],
+    /// Primitive index of each lane (`u32::MAX` for padding lanes, whose vertices are zero).
     id: [u32; 4],
 }
 
-/// A ray prepared for the slab tests.
+/// A ray prepared for the slab tests and the watertight triangle test.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray4 {
     /// 1 / direction; ±`f32::MAX` where that overflows.
     inv: [Vec4; 3],
     org: [Vec4; 3],
-    dir4: [Vec4; 3],
+    /// The ray's frame for the triangle test.
+    shear: Shear,
+    /// The shear's factors, splatted.
+    s4: [Vec4; 3],
     /// Per axis: the direction is negative (near planes are the upper corners).
     neg: [bool; 3],
     /// Entry bound.
@@ -86,10 +91,12 @@ impl Ray4 {
                 f32::MAX.copysign(d)
             }
         };
+        let shear = Shear::new(dir);
         Self {
             inv: [dir.x, dir.y, dir.z].map(|d| Vec4::splat(inv(d))),
             org: [origin.x, origin.y, origin.z].map(Vec4::splat),
-            dir4: [dir.x, dir.y, dir.z].map(Vec4::splat),
+            shear,
+            s4: shear.s.map(Vec4::splat),
             neg: [dir.x < 0.0, dir.y < 0.0, dir.z < 0.0],
             tmin,
             tmax,
@@ -444,23 +451,19 @@ fn collect_prims(bvh2: &Bvh2, b: usize, out: &mut Vec<u32>) {
     }
 }
 
-/// Packs up to four triangles; unused lanes have zero edges (their determinant is zero, so
-/// they never hit).
+/// Packs up to four triangles; unused lanes have zero vertices (their edge functions are all
+/// zero, so they never hit).
 fn pack(prims: &[u32], tris: &[[Vec3; 3]]) -> Tri4 {
     debug_assert!(!prims.is_empty() && prims.len() <= LEAF_SIZE);
     let mut t = Tri4 {
-        v0: [Vec4::ZERO; 3],
-        e1: [Vec4::ZERO; 3],
-        e2: [Vec4::ZERO; 3],
+        v: [[Vec4::ZERO; 3]; 3],
         id: [u32::MAX; 4],
     };
     for (lane, &p) in prims.iter().enumerate() {
-        let [a, b, c] = tris[p as usize];
-        let (e1, e2) = (b - a, c - a);
-        for axis in 0..3 {
-            t.v0[axis][lane] = a[axis];
-            t.e1[axis][lane] = e1[axis];
-            t.e2[axis][lane] = e2[axis];
+        for (k, vertex) in tris[p as usize].iter().enumerate() {
+            for axis in 0..3 {
+                t.v[k][axis][lane] = vertex[axis];
+            }
         }
         t.id[lane] = p;
     }
@@ -469,9 +472,7 @@ fn pack(prims: &[u32], tris: &[[Vec3; 3]]) -> Tri4 {
 
 /// World vertices of lane `lane`.
 fn lane_vertices(t: &Tri4, lane: usize) -> [Vec3; 3] {
-    let get = |v: &[Vec4; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-    let (a, e1, e2) = (get(&t.v0), get(&t.e1), get(&t.e2));
-    [a, a + e1, a + e2]
+    t.v.map(|v| Vec3::new(v[0][lane], v[1][lane], v[2][lane]))
 }
 
 /// Slab test of the four child boxes: entry distances and the mask of boxes whose
@@ -497,50 +498,53 @@ fn node_hits(node: &Node4, ray: &Ray4) -> (Vec4, u32) {
     (enter, enter.cmple(exit).bitmask())
 }
 
-/// Möller–Trumbore (Möller & Trumbore 1997) against four triangles at once: the nearest hit
-/// with t in [tmin, tmax], as (primitive id, t, u, v).
+/// The watertight test ([`super::watertight`]) against four triangles at once: the nearest
+/// hit with t in [tmin, tmax], as (primitive id, t, u, v).
 #[inline(always)]
 fn intersect4(tri: &Tri4, ray: &Ray4) -> Option<Hit4> {
-    let [dx, dy, dz] = ray.dir4;
-    let [e1x, e1y, e1z] = tri.e1;
-    let [e2x, e2y, e2z] = tri.e2;
-    // p = d × e2, det = e1 · p.
-    let px = dy * e2z - dz * e2y;
-    let py = dz * e2x - dx * e2z;
-    let pz = dx * e2y - dy * e2x;
-    let det = e1x * px + e1y * py + e1z * pz;
-    // The tests run on values scaled by |det| (signs folded in), so only lanes that hit
-    // pay for the division (as Embree's `MoellerTrumboreIntersector` does).
+    let [kx, ky, kz] = ray.shear.axes;
+    let [sx, sy, sz] = ray.s4;
+    // The vertices relative to the origin, sheared into the ray's frame.
+    let rel = |k: usize| {
+        let v = &tri.v[k];
+        let z = v[kz] - ray.org[kz];
+        (v[kx] - ray.org[kx] - sx * z, v[ky] - ray.org[ky] - sy * z, z)
+    };
+    let (ax, ay, az) = rel(0);
+    let (bx, by, bz) = rel(1);
+    let (cx, cy, cz) = rel(2);
+    // The edge functions; exact zeros (a ray through an edge or a vertex) are redone in
+    // double precision.
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    let zero = (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask();
+    if zero != 0 {
+        (u, v, w) = redo_in_f64(tri, ray, zero, (u, v, w));
+    }
+    let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
+    let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
+    let det = u + v + w;
+    // t·det, compared scaled by |det| (signs folded in), so only lanes that hit pay for the
+    // division (as Embree's intersectors do).
+    let t = (u * az + v * bz + w * cz) * sz;
     let sign = det.signum();
     let abs_det = det.abs();
-    // s = o − v0, u·|det| = (s · p)·sign(det).
-    let sx = ray.org[0] - tri.v0[0];
-    let sy = ray.org[1] - tri.v0[1];
-    let sz = ray.org[2] - tri.v0[2];
-    let u = (sx * px + sy * py + sz * pz) * sign;
-    // q = s × e1, v·|det| = (d · q)·sign, t·|det| = (e2 · q)·sign.
-    let qx = sy * e1z - sz * e1y;
-    let qy = sz * e1x - sx * e1z;
-    let qz = sx * e1y - sy * e1x;
-    let v = (dx * qx + dy * qy + dz * qz) * sign;
-    let t = (e2x * qx + e2y * qy + e2z * qz) * sign;
-    // A zero determinant (padding lanes, triangles seen edge-on) or a non-finite one never hits.
+    let t_abs = t * sign;
+    let inside = (negative & positive).bitmask() ^ 0b1111;
     let ok = abs_det.cmpgt(Vec4::ZERO)
         & abs_det.cmplt(Vec4::INFINITY)
-        & u.cmpge(Vec4::ZERO)
-        & v.cmpge(Vec4::ZERO)
-        & (u + v).cmple(abs_det)
-        & t.cmpge(abs_det * ray.tmin)
-        & t.cmple(abs_det * ray.tmax);
-    let mask = ok.bitmask();
+        & t_abs.cmpge(abs_det * ray.tmin)
+        & t_abs.cmple(abs_det * ray.tmax);
+    let mask = ok.bitmask() & inside;
     if mask == 0 {
         return None;
     }
-    let inv = Vec4::ONE / abs_det;
+    let inv = Vec4::ONE / det;
     let (t, u, v) = (
         (t * inv).to_array(),
-        (u * inv).to_array(),
         (v * inv).to_array(),
+        (w * inv).to_array(),
     );
     let mut best: Option<Hit4> = None;
     for lane in 0..4 {
@@ -551,6 +555,23 @@ fn intersect4(tri: &Tri4, ray: &Ray4) -> Option<Hit4> {
         }
     }
     best
+}
+
+/// The edge functions of the lanes in `lanes` (a bit mask) recomputed in double precision;
+/// padding lanes keep theirs (zero: they never hit).
+#[cold]
+#[inline(never)]
+fn redo_in_f64(tri: &Tri4, ray: &Ray4, lanes: u32, uvw: (Vec4, Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
+    let (mut u, mut v, mut w) = (uvw.0.to_array(), uvw.1.to_array(), uvw.2.to_array());
+    let origin = Vec3::new(ray.org[0].x, ray.org[1].x, ray.org[2].x);
+    for lane in 0..4 {
+        if lanes & (1 << lane) == 0 || tri.id[lane] == u32::MAX {
+            continue;
+        }
+        let [a, b, c] = lane_vertices(tri, lane).map(|p| p - origin);
+        [u[lane], v[lane], w[lane]] = edge_functions_f64(&ray.shear, a, b, c);
+    }
+    (Vec4::from_array(u), Vec4::from_array(v), Vec4::from_array(w))
 }
 
 #[cfg(test)]
