@@ -143,6 +143,19 @@ struct Args {
     /// Unwrap every mesh with xatlas, even those with their own TEXCOORD_1.
     #[arg(long)]
     reunwrap: bool,
+    /// Leave out the contact fit (texels next to geometry fitted so the bilinear
+    /// reconstruction is right on the visible surface).
+    #[arg(long)]
+    no_contact_fit: bool,
+    /// Leave out the seam stitch (both sides of a seam made to agree).
+    #[arg(long)]
+    no_stitch: bool,
+    /// The edge-aware denoiser (default: off for preview, on for medium and high).
+    #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
+    denoise: Option<bool>,
+    /// The denoiser's radius, texels (default 3).
+    #[arg(long)]
+    denoise_radius: Option<u32>,
     /// Worker threads (0 = every core). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -312,6 +325,12 @@ fn settings_from(args: &Args) -> BakeSettings {
     set(&mut s.max_page_size, args.max_page_size);
     s.formats = OutputFormats::of(&args.format, !args.no_preview);
     s.reunwrap = args.reunwrap;
+    s.contact_fit = !args.no_contact_fit;
+    s.stitch_seams = !args.no_stitch;
+    if let Some(v) = args.denoise {
+        s.denoise = v;
+    }
+    set(&mut s.denoise_radius, args.denoise_radius);
     s.threads = args.threads;
     s.seed = args.seed;
     if let Some(v) = args.memory_budget {
@@ -320,6 +339,15 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.target_error = args.target_error;
     s.light_convention = args.light_convention;
     s
+}
+
+/// `on` or `off`.
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("expected on or off, not {s:?}")),
+    }
 }
 
 fn run(args: Args) -> Result<(), String> {
@@ -524,6 +552,10 @@ mod tests {
             "--format=hdr",
             "--no-preview",
             "--reunwrap",
+            "--no-contact-fit",
+            "--no-stitch",
+            "--denoise=off",
+            "--denoise-radius=5",
             "--threads=1",
             "--seed=37",
             "--memory-budget=41",

@@ -133,6 +133,14 @@ impl BakePlan {
         }
     }
 
+    /// Marks the named stage skipped, with the reason (found once the bake knows it).
+    pub fn skip(&mut self, name: &str, reason: String) {
+        if let Some(s) = self.stages.iter_mut().find(|s| s.name == name) {
+            s.run = false;
+            s.reason = reason;
+        }
+    }
+
     /// Whether the named stage runs.
     pub fn runs(&self, name: &str) -> bool {
         self.stages.iter().any(|s| s.name == name && s.run)
@@ -489,9 +497,35 @@ impl Facts<'_> {
         stage("indirect", run, why)
     }
 
-    /// Dilation and writing.
+    /// The finishing steps on the pages, dilation and writing.
     fn output_stages(&self) -> Vec<PlannedStage> {
+        let s = self.settings;
+        let step = |name: &str, on: bool, off: &str, what: &str| {
+            let reason = if !self.work {
+                self.when_lit(String::new())
+            } else if on {
+                what.to_string()
+            } else {
+                off.to_string()
+            };
+            stage(name, self.work && on, reason)
+        };
         vec![
+            step(
+                "denoise",
+                s.denoise,
+                "turned off in the settings (denoise; the preview preset's default is off, medium's and high's on)",
+                &format!(
+                    "edge-aware filter of {} texels' radius, as strong as each texel's noise warrants",
+                    s.denoise_radius
+                ),
+            ),
+            step(
+                "contact fit",
+                s.contact_fit,
+                "turned off in the settings (contact_fit)",
+                "texels next to geometry fitted so the bilinear reconstruction is right on the visible surface",
+            ),
             stage(
                 "dilate",
                 self.work,
@@ -499,6 +533,12 @@ impl Facts<'_> {
                     "fill invalid texels and {} texels of padding",
                     self.settings.padding
                 )),
+            ),
+            step(
+                "stitch",
+                s.stitch_seams,
+                "turned off in the settings (stitch_seams)",
+                "both sides of every seam made to agree after bilinear filtering",
             ),
             stage(
                 "write",

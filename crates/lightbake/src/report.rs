@@ -6,6 +6,10 @@ use serde::Serialize;
 
 pub use crate::bvh::workload::RayRates;
 pub use crate::error_estimate::ErrorEstimate;
+pub use crate::lightmap::contacts::ContactStats;
+pub use crate::lightmap::denoise::DenoiseStats;
+pub use crate::lightmap::seams::SeamJumps;
+pub use crate::lightmap::stitch::StitchStats;
 pub use crate::memory::MemoryEstimate;
 pub use crate::plan::{BakePlan, LightReach, PlannedStage};
 pub use crate::progress::{RayKind, StageStats};
@@ -114,6 +118,15 @@ pub struct BakeReport {
     /// The instant-radiosity pass, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub vpl: Option<VplReport>,
+    /// The contact fit, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact_fit: Option<ContactStats>,
+    /// The denoiser, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub denoise: Option<DenoiseStats>,
+    /// The seams and their stitch (the jumps across them before and after), when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seams: Option<StitchStats>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// The bake's estimate of its own error: the stages' estimates added in quadrature,
@@ -204,6 +217,16 @@ impl BakeReport {
                 "estimated error: {:.2}% RMS, {:.2}% at the 95th percentile (relative to the RMS texel)\n",
                 100.0 * e.relative_rms,
                 100.0 * e.p95
+            ));
+        }
+        if let Some(st) = &self.seams {
+            s.push_str(&format!(
+                "seams: {} edge(s), jump across them {:.2}% mean, {:.2}% max before the stitch; {:.2}% mean, {:.2}% max after\n",
+                st.before.seams,
+                100.0 * st.before.mean,
+                100.0 * st.before.max,
+                100.0 * st.after.mean,
+                100.0 * st.after.max
             ));
         }
         if let Some(f) = &self.floor {

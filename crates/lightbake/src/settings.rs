@@ -279,6 +279,20 @@ pub struct BakeSettings {
     /// Unwrap every mesh again with xatlas, even those that carry their own `TEXCOORD_1`.
     /// Default false.
     pub reunwrap: bool,
+    /// Fit the texels next to geometry so that the lightmap's bilinear reconstruction is right
+    /// on the visible surface (a floor texel whose centre is under a thin wall, a texel
+    /// under a rug, padding beside a contact; [`crate::lightmap::contacts`]). Default true.
+    pub contact_fit: bool,
+    /// Filter each chart's texels with an edge-aware denoiser, as strongly as each texel's
+    /// estimated noise warrants, and carry the error estimate through it
+    /// ([`crate::lightmap::denoise`]). Default off (preview), on (medium, high).
+    pub denoise: bool,
+    /// The denoiser's radius, texels. Range 1..=8. Default 3.
+    pub denoise_radius: u32,
+    /// Make the two sides of every seam (a surface split between charts) agree after
+    /// bilinear filtering, by a least-squares stitch of the texels along it
+    /// ([`crate::lightmap::stitch`]). Default true.
+    pub stitch_seams: bool,
     /// Seed of every Monte Carlo estimate (numbers are indexed by texel, sample and this seed,
     /// never by thread). The validity pass, which decides geometry (which texels are inside
     /// solids and where their points move), uses a fixed seed instead, so two seeds differ by
@@ -356,6 +370,10 @@ impl BakeSettings {
             sky_samples,
             max_closed_form_emitters: 256,
             reunwrap: false,
+            contact_fit: true,
+            denoise: quality != Quality::Preview,
+            denoise_radius: 3,
+            stitch_seams: true,
             seed: 0,
             threads: 0,
             memory_budget_mib: 8192,
@@ -406,6 +424,13 @@ impl BakeSettings {
                 "texel_budget",
                 self.texel_budget,
                 "must be 1000..=100000000 texels",
+            ));
+        }
+        if !(1..=8).contains(&self.denoise_radius) {
+            return Err(bad(
+                "denoise_radius",
+                self.denoise_radius,
+                "must be 1..=8 texels",
             ));
         }
         if !(1..=16).contains(&self.padding) {

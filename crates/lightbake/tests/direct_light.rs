@@ -10,6 +10,7 @@ use std::f32::consts::PI;
 
 use common::{add, bake, rel, settings, texels, uv_plane};
 use glam::{Affine3A, Vec3};
+use lightbake::analysis::points::{ScorePoint, sample_bake};
 use lightbake::scene::testscenes::{cuboid, quad};
 use lightbake::scene::{Light, LightKind, Material, Mesh, Scene};
 
@@ -322,11 +323,18 @@ fn sky_irradiance_on_an_open_plane_is_pi_l() {
 /// A wall standing on a floor, lit from one side by a point light below the wall's top: floor
 /// texels entirely on the far side get no light (no leak under the wall), and texels touching
 /// the wall's foot on the lit side are not black (their sample points are moved out from under
-/// the wall), for a wall thicker than a texel and one thinner than a texel.
+/// the wall), for a wall thicker than a texel and one thinner than a texel. Behind the wall
+/// thicker than a texel, the floor as the GPU shows it (bilinearly) is dark right up to the
+/// wall, for one 3 and one 1.5 texels thick: the texels hidden under the wall are fitted to
+/// the visible floor on each side (`lightmap::contacts`), not filled with both sides' light.
+/// (A wall thinner than a texel shares a valid texel between its sides, which shows a little
+/// of the lit side behind it.)
 #[test]
 fn walls_do_not_leak_and_their_feet_are_not_black() {
     let texel = 1.0 / 32.0;
-    for thickness in [0.1f32, 0.01] {
+    // (thickness, centre): the 1.5-texel wall is off the texel grid by half a texel, so one
+    // floor texel lies wholly under it between a lit and a dark neighbour.
+    for (thickness, c) in [(0.1f32, 0.0f32), (1.5 * texel, 0.5 * texel), (0.01, 0.0)] {
         let mut s = Scene::default();
         let floor = add(
             &mut s,
@@ -338,17 +346,21 @@ fn walls_do_not_leak_and_their_feet_are_not_black() {
         let h = thickness / 2.0;
         let wall = cuboid(
             "wall",
-            Vec3::new(-h, 0.0, -1.2),
-            Vec3::new(h, 1.0, 1.2),
+            Vec3::new(c - h, 0.0, -1.2),
+            Vec3::new(c + h, 1.0, 1.2),
             true,
         );
         add(&mut s, wall, Vec3::ONE, Affine3A::IDENTITY, true);
         let light = point_light(Vec3::new(-0.6, 0.5, 0.0), 10.0);
         s.lights.push(light.clone());
         let out = bake(&s, &settings(32.0, 16));
+        let lit_at = |x: f32, z: f32| {
+            let to = light.position - Vec3::new(x, 0.0, z);
+            light.color.x * light.intensity * to.normalize().y / to.length_squared() / PI
+        };
         let (mut dark, mut foot) = (0, 0);
         for t in texels(&out, floor) {
-            let x = t.position.x;
+            let x = t.position.x - c;
             if x - texel / 2.0 > h {
                 assert_eq!(
                     t.value,
@@ -358,9 +370,7 @@ fn walls_do_not_leak_and_their_feet_are_not_black() {
                 dark += 1;
             } else if x + texel / 2.0 > -h && x - texel / 2.0 < -h {
                 // The texel straddles the lit face of the wall.
-                let to = light.position - Vec3::new(-h, 0.0, t.position.z);
-                let expected =
-                    light.color.x * light.intensity * to.normalize().y / to.length_squared() / PI;
+                let expected = lit_at(c - h, t.position.z);
                 assert!(
                     t.value.x > 0.5 * expected,
                     "wall {thickness}: texel at x = {x} at the wall's foot is {} (lit floor there: {expected})",
@@ -370,5 +380,39 @@ fn walls_do_not_leak_and_their_feet_are_not_black() {
             }
         }
         assert!(dark > 1000 && foot >= 60, "{dark} {foot}");
+        if thickness < texel {
+            continue;
+        }
+        // The floor as the GPU shows it, along lines across the wall.
+        let shown = |x: f32, z: f32| {
+            sample_bake(
+                &out,
+                &ScorePoint {
+                    instance: floor as u32,
+                    position: Vec3::new(x, 0.0, z),
+                    normal: Vec3::Y,
+                    reference: Vec3::ZERO,
+                    variance: 0.0,
+                },
+            )
+            .expect("the floor is baked")
+            .x
+        };
+        for k in 0..40 {
+            let z = -0.8 + 1.6 * k as f32 / 39.0;
+            let near = lit_at(c - h, z);
+            let behind = shown(c + h + 0.05 * texel, z);
+            assert!(
+                behind < 0.05 * near,
+                "wall {thickness}: the floor just behind the wall at z = {z} shows {behind} (the lit foot: {near})"
+            );
+            let x = c - h - 0.2 * texel;
+            let front = shown(x, z);
+            assert!(
+                front > 0.5 * lit_at(x, z),
+                "wall {thickness}: the lit floor at x = {x}, z = {z} shows {front} (lit: {})",
+                lit_at(x, z)
+            );
+        }
     }
 }

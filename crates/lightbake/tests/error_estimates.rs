@@ -28,6 +28,8 @@ fn reference(scene: &Scene, method: Method) -> lightbake::BakeOutput {
     s.transport_rays = 2048;
     s.solver = SolverChoice::Krylov;
     s.solver_tolerance = 1e-7;
+    // Converged, not filtered.
+    s.denoise = false;
     bake(scene, &s)
 }
 

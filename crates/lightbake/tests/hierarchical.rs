@@ -18,6 +18,9 @@ fn settings(density: f32, solver: SolverChoice) -> BakeSettings {
     s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s.solver = solver;
+    // The solves compared as they are: the denoiser would filter the hierarchical solve's
+    // noise (it has a per-texel estimate) and not the full matrix's.
+    s.denoise = false;
     s
 }
 
@@ -176,4 +179,85 @@ fn auto_takes_the_hierarchical_solve_beyond_the_full_matrix_limit_and_says_why()
         "{}",
         radiosity.solver_reason
     );
+}
+
+/// Two closed rooms on one floor slab, split by a 20 cm wall standing on it, a lamp in one:
+/// the other room gets no light at all. The floor is one chart that runs under the wall, so
+/// a coarse cell of 64 × 64 texels spans both rooms; its nodes fall into the two pieces the
+/// wall leaves connected (`radiosity::clusters::Links`), each with a value of its own, and
+/// the lamp's light does not reach the dark room through a shared coarse value.
+#[test]
+fn coarse_cells_do_not_carry_light_under_a_wall() {
+    use glam::{Affine3A, Vec3};
+    use lightbake::scene::testscenes::cuboid;
+    use lightbake::scene::{Instance, Light, LightKind, Material, Mesh};
+    let mut scene = Scene {
+        name: "two_rooms".into(),
+        ..Scene::default()
+    };
+    let white = scene.add_material(Material::diffuse("white", Vec3::splat(0.8)));
+    let (t, h) = (0.2, 2.5);
+    let boxes = [
+        ("floor", Vec3::new(-3.2, -t, -1.7), Vec3::new(3.2, 0.0, 1.7)),
+        (
+            "ceiling",
+            Vec3::new(-3.2, h, -1.7),
+            Vec3::new(3.2, h + t, 1.7),
+        ),
+        ("west", Vec3::new(-3.2, 0.0, -1.7), Vec3::new(-3.0, h, 1.7)),
+        ("east", Vec3::new(3.0, 0.0, -1.7), Vec3::new(3.2, h, 1.7)),
+        ("north", Vec3::new(-3.0, 0.0, -1.7), Vec3::new(3.0, h, -1.5)),
+        ("south", Vec3::new(-3.0, 0.0, 1.5), Vec3::new(3.0, h, 1.7)),
+        ("wall", Vec3::new(-0.1, 0.0, -1.5), Vec3::new(0.1, h, 1.5)),
+    ];
+    for (name, lo, hi) in boxes {
+        let m = scene.add_mesh(Mesh {
+            material: Some(white),
+            ..cuboid(name, lo, hi, lo.y == 0.0)
+        });
+        scene
+            .instances
+            .push(Instance::new(name, m, Affine3A::IDENTITY));
+    }
+    scene.lights.push(Light {
+        name: "lamp".into(),
+        kind: LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 100.0,
+        range: None,
+        position: Vec3::new(-1.5, 2.0, 0.0),
+        direction: Vec3::NEG_Y,
+    });
+    let mut s = settings(16.0, SolverChoice::Hierarchical);
+    s.cluster_texels = 64;
+    let out = common::bake(&scene, &s);
+    let coarse = out
+        .report
+        .radiosity
+        .as_ref()
+        .unwrap()
+        .coarse
+        .as_ref()
+        .unwrap();
+    println!("{} cells", coarse.cells);
+    let texel = 1.0 / 16.0;
+    let floor = common::texels(&out, 0);
+    let (mut dark, mut lit) = (0, 0);
+    for t in &floor {
+        if t.position.y < -0.01 || t.position.x.abs() > 3.0 || t.position.z.abs() > 1.5 {
+            continue; // the slab's other faces
+        }
+        if t.position.x > 0.1 + 1.5 * texel {
+            assert_eq!(
+                t.value,
+                Vec3::ZERO,
+                "floor texel at {:?} of the dark room is lit",
+                t.position
+            );
+            dark += 1;
+        } else if t.position.x < -0.1 - 1.5 * texel {
+            lit += usize::from(t.value.x > 0.0);
+        }
+    }
+    assert!(dark > 1000 && lit > 1000, "{dark} {lit}");
 }

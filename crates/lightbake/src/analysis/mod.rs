@@ -1,7 +1,9 @@
 //! Analysis: the brute-force path tracer that error measurements compare against
 //! ([`reference`](mod@reference)), bakes of any layout scored against it at surface points
-//! ([`points`]), and the convergence study of error against run time ([`study`]).
+//! ([`points`]) and densely next to contacts and seams ([`edges`]), and the convergence study
+//! of error against run time ([`study`]).
 
+pub mod edges;
 pub mod points;
 pub mod reference;
 pub mod study;

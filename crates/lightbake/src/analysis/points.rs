@@ -79,6 +79,24 @@ const OPEN_BACK: u32 = 2;
 pub fn score_points(scene: &Scene, count: usize, paths: u32, seed: u32) -> ScorePoints {
     let start = std::time::Instant::now();
     let rays = RayScene::build(scene);
+    let candidates = sample_surface(scene, &rays, count, seed, |_| true);
+    let points = references(scene, &rays, &candidates, paths, seed);
+    ScorePoints {
+        points,
+        paths: 2 * paths.div_ceil(2),
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// The path tracer's reference at `candidates` (see the module docs): two independent halves
+/// of `paths` paths each point, numbers from `seed`.
+pub fn references(
+    scene: &Scene,
+    rays: &RayScene,
+    candidates: &[SurfacePoint],
+    paths: u32,
+    seed: u32,
+) -> Vec<ScorePoint> {
     // The path tracer reads the scene, the rays and the lights; it needs no layout.
     let settings = BakeSettings::default();
     let plan = BakePlan::new(scene, &settings);
@@ -86,14 +104,13 @@ pub fn score_points(scene: &Scene, count: usize, paths: u32, seed: u32) -> Score
     let ctx = BakeContext {
         scene,
         layout: &layout,
-        rays: &rays,
+        rays,
         patches: &patches,
         settings: &settings,
         plan: &plan,
     };
-    let emitters = Emitters::collect(scene, &rays);
-    let candidates = sample_surface(scene, &rays, count, seed);
-    let points = candidates
+    let emitters = Emitters::collect(scene, rays);
+    candidates
         .par_iter()
         .enumerate()
         .map(|(k, sp)| {
@@ -117,16 +134,55 @@ pub fn score_points(scene: &Scene, count: usize, paths: u32, seed: u32) -> Score
                 variance: 0.25 * d * d,
             }
         })
-        .collect();
-    ScorePoints {
-        points,
-        paths: 2 * paths.div_ceil(2),
-        seconds: start.elapsed().as_secs_f64(),
+        .collect()
+}
+
+/// Whether a point with geometric normal `normal` is open surface: at most [`OPEN_BACK`] of
+/// a cosine fan of 16 rays (scrambled by `key`) see the back of a single-sided surface.
+pub fn is_open(rays: &RayScene, position: Vec3, normal: Vec3, key: u32) -> bool {
+    let origin = rays.offset(position, normal);
+    let backs = (0..16)
+        .filter(|&s| {
+            let dir = cosine_hemisphere(normal, sobol_02(s, key));
+            rays.closest_hit(origin, dir, 0.0, f32::INFINITY)
+                .is_some_and(|h| !h.front_face && !rays.triangles[h.triangle as usize].double_sided)
+        })
+        .count() as u32;
+    backs <= OPEN_BACK
+}
+
+/// The surface point of global triangle `g` at barycentrics `b`, with the shading normal
+/// the bake's texels use (interpolated, turned to the front side).
+pub fn surface_point(scene: &Scene, rays: &RayScene, g: u32, b: Vec2) -> SurfacePoint {
+    let info = rays.triangles[g as usize];
+    let [v0, v1, v2] = rays.triangle_vertices(g);
+    let position = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
+    let inst = &scene.instances[info.instance as usize];
+    let mesh = &scene.meshes[inst.mesh];
+    let [i0, i1, i2] = mesh.triangle(info.local as usize);
+    let local =
+        mesh.normals[i0] * (1.0 - b.x - b.y) + mesh.normals[i1] * b.x + mesh.normals[i2] * b.y;
+    let mut normal = (inst.normal_matrix() * local).normalize_or_zero();
+    if normal.dot(info.normal) <= 0.0 {
+        normal = info.normal;
+    }
+    SurfacePoint {
+        position,
+        normal,
+        geometric_normal: info.normal,
+        triangle: g,
+        bary: b,
     }
 }
 
-/// `count` open points of the baked surfaces (see the module docs).
-fn sample_surface(scene: &Scene, rays: &RayScene, count: usize, seed: u32) -> Vec<SurfacePoint> {
+/// `count` open points of the baked surfaces (see the module docs) that `keep` accepts.
+pub fn sample_surface(
+    scene: &Scene,
+    rays: &RayScene,
+    count: usize,
+    seed: u32,
+    keep: impl Fn(&SurfacePoint) -> bool + Sync,
+) -> Vec<SurfacePoint> {
     let mut cdf = Vec::with_capacity(rays.triangles.len());
     let mut total = 0.0f64;
     for t in &rays.triangles {
@@ -139,51 +195,30 @@ fn sample_surface(scene: &Scene, rays: &RayScene, count: usize, seed: u32) -> Ve
     }
     let mut out = Vec::with_capacity(count);
     let mut attempt = 0u32;
-    while out.len() < count && total > 0.0 && attempt < 64 * count as u32 {
-        attempt += 1;
-        let key = hash_words(&[seed, 0x5c0e, attempt]);
-        let u = unit_float(hash_words(&[key, 1])) as f64 * total;
-        let g = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
-        let info = rays.triangles[g];
-        if info.area <= 0.0 {
-            continue;
-        }
-        let b = uniform_triangle(Vec2::new(
-            unit_float(hash_words(&[key, 2])),
-            unit_float(hash_words(&[key, 3])),
-        ));
-        let [v0, v1, v2] = rays.triangle_vertices(g as u32);
-        let position = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
-        let origin = rays.offset(position, info.normal);
-        let backs = (0..16)
-            .filter(|&s| {
-                let dir = cosine_hemisphere(info.normal, sobol_02(s, key));
-                rays.closest_hit(origin, dir, 0.0, f32::INFINITY)
-                    .is_some_and(|h| {
-                        !h.front_face && !rays.triangles[h.triangle as usize].double_sided
-                    })
+    // Candidates in parallel batches, kept in attempt order (the same points on any thread
+    // count).
+    const BATCH: u32 = 4096;
+    let limit = 256 * count as u32;
+    while out.len() < count && total > 0.0 && attempt < limit {
+        let batch: Vec<Option<SurfacePoint>> = (attempt..attempt + BATCH)
+            .into_par_iter()
+            .map(|a| {
+                let key = hash_words(&[seed, 0x5c0e, a + 1]);
+                let u = unit_float(hash_words(&[key, 1])) as f64 * total;
+                let g = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+                if rays.triangles[g].area <= 0.0 {
+                    return None;
+                }
+                let b = uniform_triangle(Vec2::new(
+                    unit_float(hash_words(&[key, 2])),
+                    unit_float(hash_words(&[key, 3])),
+                ));
+                let sp = surface_point(scene, rays, g as u32, b);
+                (keep(&sp) && is_open(rays, sp.position, sp.geometric_normal, key)).then_some(sp)
             })
-            .count() as u32;
-        if backs > OPEN_BACK {
-            continue;
-        }
-        // The shading normal, as the bake's texels use it (turned to the front side).
-        let inst = &scene.instances[info.instance as usize];
-        let mesh = &scene.meshes[inst.mesh];
-        let [i0, i1, i2] = mesh.triangle(info.local as usize);
-        let local =
-            mesh.normals[i0] * (1.0 - b.x - b.y) + mesh.normals[i1] * b.x + mesh.normals[i2] * b.y;
-        let mut normal = (inst.normal_matrix() * local).normalize_or_zero();
-        if normal.dot(info.normal) <= 0.0 {
-            normal = info.normal;
-        }
-        out.push(SurfacePoint {
-            position,
-            normal,
-            geometric_normal: info.normal,
-            triangle: g as u32,
-            bary: b,
-        });
+            .collect();
+        attempt += BATCH;
+        out.extend(batch.into_iter().flatten().take(count - out.len()));
     }
     out
 }
@@ -218,6 +253,13 @@ pub fn score(points: &ScorePoints, out: &BakeOutput) -> Score {
 /// The bake's E/π at `p`: its lightmap UV on the nearest triangle of its instance's baked
 /// mesh, sampled bilinearly from the page. `None` when the instance has no lightmap.
 pub fn sample_bake(out: &BakeOutput, p: &ScorePoint) -> Option<Vec3> {
+    let (page, q) = baked_uv(out, p)?;
+    let page = &out.pages[page as usize];
+    Some(page.sample_bilinear(q.x / page.width as f32, q.y / page.height as f32))
+}
+
+/// Where the lightmap shows `p`: its page and page texel point (see [`sample_bake`]).
+pub fn baked_uv(out: &BakeOutput, p: &ScorePoint) -> Option<(u32, Vec2)> {
     let i = p.instance as usize;
     let rect = out.layout.instances.get(i).copied().flatten()?;
     let inst = out.baked_scene.instances.get(i)?;
@@ -240,10 +282,9 @@ pub fn sample_bake(out: &BakeOutput, p: &ScorePoint) -> Option<Vec3> {
     }
     let (_, [a, b, c], bary) = best?;
     let uv = uv1[a] * (1.0 - bary.x - bary.y) + uv1[b] * bary.x + uv1[c] * bary.y;
-    let page = &out.pages[rect.page as usize];
     let x = rect.x as f32 + uv.x * rect.width as f32;
     let y = rect.y as f32 + uv.y * rect.height as f32;
-    Some(page.sample_bilinear(x / page.width as f32, y / page.height as f32))
+    Some((rect.page, Vec2::new(x, y)))
 }
 
 /// The point of triangle `t` nearest `p`, and its barycentrics (of the second and third

@@ -16,8 +16,9 @@
 //! The curves: direct light over footprint samples; each radiosity solver (Jacobi,
 //! Gauss–Seidel, shooting, BiCGStab, CG, stochastic Jacobi) over its tolerance at a fixed
 //! matrix; Monte Carlo form factors over rays per node for the piecewise-linear and the
-//! piecewise-constant basis; the hierarchical solve over its final gather's rays per node and
-//! over its refinement tolerance (from a coarse first cut, where its bias shows); hemicube
+//! piecewise-constant basis; the hierarchical solve over its final gather's rays per node
+//! (without and with the denoiser) and over its refinement tolerance (from a coarse first
+//! cut, where its bias shows); hemicube
 //! form factors over resolution (piecewise constant); and instant radiosity (hybrid) over
 //! particle counts.
 
@@ -208,6 +209,8 @@ fn reference_settings(base: &BakeSettings, size: StudySize) -> BakeSettings {
     reference.solver = SolverChoice::Krylov;
     reference.solver_tolerance = 1e-7;
     reference.target_error = None;
+    // A reference is converged, not filtered: the denoiser's bias would be in it.
+    reference.denoise = false;
     reference
 }
 
@@ -239,8 +242,10 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
             StudySize::Quick => quick.to_vec(),
         }
     };
+    // Every curve measures its method as it is, unfiltered, but for the denoised one.
     let s = BakeSettings {
         target_error: None,
+        denoise: false,
         ..base.clone()
     };
     let case = |curve: &str, parameter, budget, settings, against| Case {
@@ -317,7 +322,22 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
         r.method = Method::Radiosity;
         r.solver = SolverChoice::Hierarchical;
         r.transport_rays = rays as u32;
-        cases.push(case("hierarchical", "rays/node", rays, r, Against::Full));
+        cases.push(case(
+            "hierarchical",
+            "rays/node",
+            rays,
+            r.clone(),
+            Against::Full,
+        ));
+        // The same bakes through the denoiser, scored the same way.
+        r.denoise = true;
+        cases.push(case(
+            "hierarchical-denoised",
+            "rays/node",
+            rays,
+            r,
+            Against::Full,
+        ));
     }
     for tolerance in pick(&[0.3, 0.1, 0.03, 0.01, 0.003], &[0.3, 0.01]) {
         let mut r = s.clone();

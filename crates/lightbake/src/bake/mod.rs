@@ -20,7 +20,11 @@ use crate::bvh::workload::{RayRates, calibrate};
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
-use crate::lightmap::{HALF_MAX, LightmapPage, assemble};
+use crate::lightmap::contacts::{ContactStats, contact_fit};
+use crate::lightmap::denoise::{DenoiseStats, denoise, denoise_parts};
+use crate::lightmap::seams::find_seams;
+use crate::lightmap::stitch::{StitchStats, stitch};
+use crate::lightmap::{Assembly, HALF_MAX, LightmapPage};
 use crate::lights::Emitters;
 use crate::memory;
 use crate::plan::BakePlan;
@@ -92,6 +96,11 @@ struct Lit {
     indirect_reason: Option<String>,
     error: Option<ErrorEstimate>,
     rates: RayRates,
+    contact: Option<ContactStats>,
+    seams: Option<StitchStats>,
+    denoise: Option<DenoiseStats>,
+    /// Stages the plan meant to run that the bake found it could not, with why.
+    skipped: Vec<(&'static str, String)>,
 }
 
 fn bake_in_pool(
@@ -152,6 +161,9 @@ fn bake_in_pool(
     if let Some(reason) = lit.indirect_reason.take() {
         plan.set_reason("indirect", reason);
     }
+    for (name, reason) in lit.skipped.drain(..) {
+        plan.skip(name, reason);
+    }
     let total_seconds = start.elapsed().as_secs_f64();
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
@@ -163,6 +175,9 @@ fn bake_in_pool(
         stages: stages.list,
         radiosity: lit.radiosity,
         vpl: lit.vpl,
+        contact_fit: lit.contact,
+        seams: lit.seams,
+        denoise: lit.denoise,
         texels: lit.texels,
         triangles: scene.instanced_triangle_count(),
         threads,
@@ -287,15 +302,177 @@ fn light_scene(
             ),
         });
     }
-    lit.pages = stages.run("dilate", 1, || {
-        let (pages, st) = assemble(layout, &patches, &irradiance, settings.padding + 2);
+    let mut assembly = Assembly::new(layout, &patches, &irradiance);
+    if plan.runs("denoise") {
+        let covers = light.indirect.is_some() || !plan.runs("indirect");
+        if covers {
+            let (st, error) = stages.run("denoise", 1, || {
+                let radius = settings.denoise_radius;
+                let (st, error) = match &light.indirect {
+                    // Direct and indirect light apart, each with its own noise (scaled as the
+                    // sum is to the bake's estimate).
+                    Some((indirect, indirect_noise)) => {
+                        let total: Vec<f32> = light
+                            .texel_error
+                            .iter()
+                            .zip(indirect_noise)
+                            .map(|(d, i)| d.hypot(*i))
+                            .collect();
+                        let scale = calibration(&patches, &total, lit.error.as_ref(), light.coarse_bias);
+                        let scaled = |n: &[f32]| n.iter().map(|&v| v * scale).collect::<Vec<f32>>();
+                        let direct: Vec<Vec3> =
+                            irradiance.iter().zip(indirect).map(|(t, i)| *t - *i).collect();
+                        let (a, st, error) = denoise_parts(
+                            layout,
+                            &patches,
+                            [
+                                (&direct, &scaled(&light.texel_error)),
+                                (indirect, &scaled(indirect_noise)),
+                            ],
+                            radius,
+                        );
+                        assembly = a;
+                        (st, error)
+                    }
+                    None => {
+                        let noise = &light.texel_error;
+                        let scale = calibration(&patches, noise, lit.error.as_ref(), light.coarse_bias);
+                        let noise: Vec<f32> = noise.iter().map(|&v| v * scale).collect();
+                        denoise(&mut assembly, &patches, &noise, radius)
+                    }
+                };
+                let note = format!(
+                    "radius {} texels, {} texels, mean strength {:.2}; noise {:.3} → {:.3} lux RMS, bias added {:.3} lux RMS{}",
+                    st.radius,
+                    st.texels,
+                    st.mean_strength,
+                    st.noise_before,
+                    st.noise_after,
+                    st.bias,
+                    if light.indirect.is_some() { "; direct and indirect light filtered apart" } else { "" }
+                );
+                Ok(((st, error), 0, note))
+            })?;
+            if let Some(e) = &lit.error {
+                lit.error = Some(denoised_error(&patches, &error, e, light.coarse_bias));
+            }
+            lit.denoise = Some(st);
+        } else {
+            lit.skipped.push((
+                "denoise",
+                "the indirect pass gives no per-texel noise estimate (only the hierarchical solve's gathers do)".to_string(),
+            ));
+        }
+    }
+    drop(irradiance);
+    assembly.fill_hidden(&patches);
+    if plan.runs("contact fit") {
+        let st = stages.run("contact fit", 1, || {
+            let st = contact_fit(&mut assembly, scene, layout, &patches, &rays);
+            let note = if st.texels == 0 {
+                "no texel next to geometry shows light of the wrong side".to_string()
+            } else {
+                format!(
+                    "{} texels next to geometry ({} samples cut), {} values fitted, {} CG iterations",
+                    st.texels, st.cut_samples, st.unknowns, st.iterations
+                )
+            };
+            Ok((st, st.rays, note))
+        })?;
+        stages.annotate(RayKind::Shadow, None);
+        lit.contact = Some(st);
+    }
+    stages.run("dilate", 1, || {
+        assembly.dilate(settings.padding + 2);
+        let st = assembly.stats;
         lit.texels.filled = st.filled;
         lit.texels.dilated = st.dilated;
         lit.texels.unfilled = st.unfilled;
         let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
-        Ok((pages, 0, note))
+        Ok(((), 0, note))
     })?;
+    if plan.runs("stitch") {
+        let st = stages.run("stitch", 1, || {
+            let seams = find_seams(scene, layout);
+            let st = stitch(&mut assembly, &patches, &seams, &rays);
+            let note = if seams.is_empty() {
+                "no seams: no smooth surface is split between charts (chart borders lie on hard edges)"
+                    .to_string()
+            } else {
+                format!(
+                    "{} seam edges, jump {:.2}% mean / {:.2}% max before, {:.2}% / {:.2}% after",
+                    st.before.seams,
+                    100.0 * st.before.mean,
+                    100.0 * st.before.max,
+                    100.0 * st.after.mean,
+                    100.0 * st.after.max
+                )
+            };
+            Ok((st, 0, note))
+        })?;
+        lit.seams = Some(st);
+    }
+    lit.pages = assembly.pages;
     Ok(lit)
+}
+
+/// The factor that scales the per-patch noise so its RMS over the valid patches matches the
+/// sampling stages' own estimate (`estimate`, less the hierarchical solve's coarse bias
+/// `coarse_bias`, relative): the per-texel figures give the shape, the stage estimates
+/// (independent re-gathers for radiosity) the scale.
+fn calibration(
+    patches: &Patches,
+    noise: &[f32],
+    estimate: Option<&ErrorEstimate>,
+    coarse_bias: Option<f64>,
+) -> f32 {
+    let Some(e) = estimate else {
+        return 1.0;
+    };
+    let bias = coarse_bias.unwrap_or(0.0) * e.value_rms;
+    let target = (e.rms * e.rms - bias * bias).max(0.0).sqrt();
+    let own = rms_of(&valid(patches, noise));
+    if own > 0.0 {
+        (target / own) as f32
+    } else {
+        1.0
+    }
+}
+
+/// RMS of `values`.
+fn rms_of(values: &[f32]) -> f64 {
+    let n = values.len().max(1) as f64;
+    (values.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// The bake's error estimate after the denoiser: its per-texel errors (noise and the bias it
+/// added, lux) with the hierarchical solve's coarse bias added in quadrature, relative to the
+/// value `before` was.
+fn denoised_error(
+    patches: &Patches,
+    error: &[f32],
+    before: &ErrorEstimate,
+    coarse_bias: Option<f64>,
+) -> ErrorEstimate {
+    let filtered = ErrorEstimate::from_standard_errors(
+        &valid(patches, error),
+        before.value_rms,
+        "denoised texels: their noise after the filter and the bias it added",
+    );
+    let bias = coarse_bias.unwrap_or(0.0) * before.value_rms;
+    let coarse = ErrorEstimate {
+        rms: bias,
+        p95_abs: bias,
+        texels: filtered.texels,
+        method: "the coarse level's bias".into(),
+        ..ErrorEstimate::default()
+    };
+    ErrorEstimate {
+        method:
+            "the denoised texels' noise and the bias the filter added, with the coarse level's bias"
+                .into(),
+        ..ErrorEstimate::combine([&filtered, &coarse], before.value_rms)
+    }
 }
 
 /// Points the calibration's rays start from: the points of valid texel patches picked at

@@ -16,6 +16,7 @@ use crate::progress::RayKind;
 use crate::radiosity::error_estimate::HierarchicalFields;
 use crate::radiosity::hierarchical::{self, Coarse, CoarseReport, Gather};
 use crate::radiosity::{self, HitMapper, Nodes, RadiosityReport};
+use crate::raster::Patch;
 use crate::settings::{MAX_VPL_DEPTH, Method, SolverChoice};
 use crate::solve::{Solution, Transport};
 use crate::vpl::{VplReport, instant_radiosity};
@@ -26,6 +27,14 @@ pub(super) struct Light {
     pub(super) irradiance: Vec<Vec3>,
     /// The sampling stages' error estimates.
     pub(super) errors: Vec<ErrorEstimate>,
+    /// Per patch, the standard error of its direct irradiance (luminance, lux).
+    pub(super) texel_error: Vec<f32>,
+    /// The indirect irradiance per patch (lux, a part of `irradiance`) and its standard
+    /// error (luminance, lux), kept for the denoiser when the indirect pass estimates its
+    /// noise texel by texel (the hierarchical solve's gathers) and the denoiser runs.
+    pub(super) indirect: Option<(Vec<Vec3>, Vec<f32>)>,
+    /// The hierarchical solve's estimated bias from its coarse level (relative RMS).
+    pub(super) coarse_bias: Option<f64>,
     pub(super) radiosity: Option<RadiosityReport>,
     pub(super) vpl: Option<VplReport>,
     /// How the indirect light was computed, for the plan.
@@ -49,13 +58,17 @@ pub(super) fn lighting(
     let mut light = Light {
         irradiance: vec![Vec3::ZERO; ctx.patches.patches.len()],
         errors: Vec::new(),
+        texel_error: vec![0.0; ctx.patches.patches.len()],
+        indirect: None,
+        coarse_bias: None,
         radiosity: None,
         vpl: None,
         indirect_reason: None,
     };
     if direct_runs {
-        let (irradiance, error) = direct(ctx, emitters, share, stages, warnings)?;
+        let (irradiance, texel_error, error) = direct(ctx, emitters, share, stages, warnings)?;
         light.irradiance = irradiance;
+        light.texel_error = texel_error;
         light.errors.extend(error);
     }
     if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
@@ -70,11 +83,17 @@ pub(super) fn lighting(
         ));
         light.vpl = Some(report);
     } else if indirect_runs {
-        let (reflected, report, error) =
+        let (reflected, reflected_error, report, error) =
             radiosity(ctx, &light.irradiance, share, stages, warnings)?;
         for (e, r) in light.irradiance.iter_mut().zip(&reflected) {
             *e += *r;
         }
+        if let Some(re) = reflected_error
+            && ctx.plan.runs("denoise")
+        {
+            light.indirect = Some((reflected, re));
+        }
+        light.coarse_bias = report.coarse_bias;
         light.errors.extend(error);
         light.indirect_reason = Some(format!(
             "radiosity, solver {}: {}",
@@ -92,7 +111,7 @@ fn direct(
     share: Option<f64>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, Option<ErrorEstimate>)> {
+) -> Result<(Vec<Vec3>, Vec<f32>, Option<ErrorEstimate>)> {
     let patches = ctx.patches;
     let progress = stages.progress();
     let mut pilot = ctx.settings.clone();
@@ -127,7 +146,7 @@ fn direct(
                     )
                 });
                 let relative = est.as_ref().map(|e| e.relative_rms);
-                Ok(((r.irradiance, est, s.clone()), relative))
+                Ok(((r.irradiance, r.standard_error, est, s.clone()), relative))
             },
             |s, _, factor| {
                 let next = (
@@ -139,7 +158,7 @@ fn direct(
                 changed
             },
         )?;
-        let s = &rounds.value.2;
+        let s = &rounds.value.3;
         let note = format!(
             "{} spp, {} light(s), {} emitter triangle(s){}{}",
             s.samples_per_texel,
@@ -158,7 +177,7 @@ fn direct(
         );
         Ok((rounds, rays, note))
     })?;
-    let (irradiance, error, _) = rounds.value;
+    let (irradiance, texel_error, error, _) = rounds.value;
     if let Some(e) = error.as_ref().filter(|_| rounds.missed) {
         warnings.push(format!(
             "direct light stopped at an estimated {:.2}% error, above its share {:.2}% of the target (sample counts capped or rounds used up)",
@@ -167,7 +186,7 @@ fn direct(
         ));
     }
     stages.annotate(RayKind::Shadow, error.clone());
-    Ok((irradiance, error))
+    Ok((irradiance, texel_error, error))
 }
 
 /// The instant-radiosity stage: irradiance per patch from the VPLs (all of it for method
@@ -262,17 +281,29 @@ struct Solved {
     error: ErrorEstimate,
     /// The hierarchical solve's coarse level and its estimated bias (relative RMS).
     coarse: Option<(CoarseReport, f64)>,
+    /// Per node, the standard error of its reflected irradiance (luminance, lux), where the
+    /// solver estimates it node by node (the hierarchical solve's gathers).
+    node_error: Option<Vec<f32>>,
 }
 
+/// Per-patch reflected irradiance and its per-patch standard error (when the solver gives
+/// one), the report and the error estimate.
+type RadiosityResult = (
+    Vec<Vec3>,
+    Option<Vec<f32>>,
+    RadiosityReport,
+    Option<ErrorEstimate>,
+);
+
 /// The radiosity stages (nodes, transport, solve, error estimate): reflected irradiance per
-/// patch, the report and the error estimate.
+/// patch, its standard error per patch, the report and the error estimate.
 fn radiosity(
     ctx: &BakeContext<'_>,
     direct: &[Vec3],
     share: Option<f64>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, RadiosityReport, Option<ErrorEstimate>)> {
+) -> Result<RadiosityResult> {
     let settings = ctx.settings;
     let nodes = stages.run("nodes", 1, || {
         let nodes = Nodes::new(ctx, settings.basis);
@@ -328,6 +359,7 @@ fn radiosity(
         mut solution,
         error,
         coarse,
+        node_error,
     } = rounds.value;
     if rounds.missed {
         warnings.push(format!(
@@ -343,6 +375,13 @@ fn radiosity(
         ));
     }
     let reflected = radiosity::per_patch(&nodes, &solution.indirect, ctx.patches.patches.len());
+    let reflected_error = node_error.map(|e| {
+        let mut out = vec![0.0f32; ctx.patches.patches.len()];
+        for (n, &p) in nodes.patch.iter().enumerate() {
+            out[p as usize] = e[n];
+        }
+        out
+    });
     // The report outlives the lighting passes: it keeps no per-node vectors.
     solution.b = Vec::new();
     solution.indirect = Vec::new();
@@ -360,7 +399,7 @@ fn radiosity(
         coarse_bias: coarse.as_ref().map(|c| c.1),
         coarse: coarse.map(|c| c.0),
     };
-    Ok((reflected, report, Some(error)))
+    Ok((reflected, reflected_error, report, Some(error)))
 }
 
 /// One round of radiosity at `ctx`'s counts: the solver plan, the transport matrix (when the
@@ -429,6 +468,7 @@ fn radiosity_round(
         solution,
         error,
         coarse: None,
+        node_error: None,
     })
 }
 
@@ -481,19 +521,24 @@ fn hierarchical_round(
     let cell_indirect = &coarse.solution.indirect;
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
     let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
-        let (h, rays) = hierarchical::final_gather(
+        let (h, se, rays) = hierarchical::final_gather(
             ctx,
             &mapper,
             nodes,
             &b,
             s.transport_rays,
             Gather::Final,
+            None,
             progress,
         );
         let note = gather_note(s.transport_rays, rays);
-        Ok(((h, rays.visibility), rays.closest + rays.visibility, note))
+        Ok((
+            (h, se, rays.visibility),
+            rays.closest + rays.visibility,
+            note,
+        ))
     })?;
-    let (gathered, visibility) = gathered;
+    let (gathered, mut node_error, visibility) = gathered;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
     let coarse_per_node = coarse.clusters.prolong(cell_indirect);
@@ -501,21 +546,65 @@ fn hierarchical_round(
     drop(coarse_per_node);
     let correction_rays = correction_rays(s.transport_rays);
     let correction = stages.run(&format!("correction{suffix}"), nodes.len() as u64, || {
-        let (d, rays) = hierarchical::final_gather(
+        let (d, se, rays) = hierarchical::final_gather(
             ctx,
             &mapper,
             nodes,
             &missed,
             correction_rays,
             Gather::Correction,
+            None,
             progress,
         );
         let note = gather_note(correction_rays, rays);
-        Ok(((d, rays.visibility), rays.closest + rays.visibility, note))
+        Ok((
+            (d, se, rays.visibility),
+            rays.closest + rays.visibility,
+            note,
+        ))
     })?;
-    let (correction, visibility) = correction;
+    let (mut correction, correction_error, visibility) = correction;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
+    // The light the coarse level misses is largest next to geometry (a corner darkens
+    // within a few texels, inside a cell of one value), and reaches there through two more
+    // reflections: near geometry the correction's own reflection is gathered too.
+    let near: Vec<bool> = (0..nodes.len())
+        .map(|i| ctx.patches.patches[nodes.patch[i] as usize].flags & Patch::NEAR_GEOMETRY != 0)
+        .collect();
+    let near_count = near.iter().filter(|&&n| n).count() as u64;
+    let reflected: Vec<Vec3> = (0..nodes.len())
+        .map(|i| nodes.albedo[i] * correction[i])
+        .collect();
+    let reflection = stages.run(&format!("reflection{suffix}"), near_count, || {
+        let (d, _, rays) = hierarchical::final_gather(
+            ctx,
+            &mapper,
+            nodes,
+            &reflected,
+            correction_rays,
+            Gather::Reflection,
+            Some(&near),
+            progress,
+        );
+        let note = format!(
+            "{near_count} nodes near geometry, {}",
+            gather_note(correction_rays, rays)
+        );
+        Ok(((d, rays.visibility), rays.closest + rays.visibility, note))
+    })?;
+    let (reflection, visibility) = reflection;
+    stages.annotate(RayKind::Closest, None);
+    stages.shadow_rays(visibility);
+    drop(reflected);
+    for ((c, d), (e, ce)) in correction
+        .iter_mut()
+        .zip(&reflection)
+        .zip(node_error.iter_mut().zip(&correction_error))
+    {
+        *c += *d;
+        *e = e.hypot(*ce);
+    }
     let (indirect, clamped) = hierarchical::corrected(&gathered, &correction);
     let (error, bias) = stages.run(&format!("error estimate{suffix}"), 1, || {
         let (e, bias, rays) = radiosity::hierarchical_error(
@@ -565,5 +654,6 @@ fn hierarchical_round(
         solution,
         error,
         coarse: Some((report, bias)),
+        node_error: Some(node_error),
     })
 }

@@ -9,6 +9,12 @@
 //! `lightmap_exposure = 1` the game shows exactly the baked light. A white floor 1 m under a
 //! 1 cd point light stores 1/π ≈ 0.318.
 
+pub mod contacts;
+pub mod denoise;
+pub mod least_squares;
+pub mod seams;
+pub mod stitch;
+
 use glam::Vec3;
 
 use crate::raster::Patches;
@@ -94,96 +100,153 @@ pub struct AssembleStats {
     pub dilated: usize,
 }
 
+/// What a page texel holds while the pages are assembled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TexelState {
+    /// No surface: padding, set by dilation (or by a step that solves for it).
+    Empty,
+    /// An invalid patch (hidden), to be filled from its chart.
+    Hidden,
+    /// Holds its value.
+    Set,
+}
+
+/// Pages being assembled: the texels and what each holds. The steps run in order:
+/// [`Assembly::new`] writes the valid patches, [`Assembly::fill_hidden`] the invalid ones,
+/// later steps adjust values (and may set padding texels they solve for, [`Assembly::set`]),
+/// and [`Assembly::dilate`] fills the padding that is left.
+#[derive(Clone, Debug)]
+pub struct Assembly {
+    /// The pages (E/π).
+    pub pages: Vec<LightmapPage>,
+    /// Per page, per texel.
+    pub state: Vec<Vec<TexelState>>,
+    /// Counts of the steps so far.
+    pub stats: AssembleStats,
+}
+
+impl Assembly {
+    /// Writes E/π of every valid patch into its page (`irradiance` per patch, lux).
+    pub fn new(layout: &Layout, patches: &Patches, irradiance: &[Vec3]) -> Self {
+        let mut pages: Vec<LightmapPage> = layout
+            .pages
+            .iter()
+            .map(|p| LightmapPage::black(p.width, p.height))
+            .collect();
+        let mut state: Vec<Vec<TexelState>> = pages
+            .iter()
+            .map(|p| vec![TexelState::Empty; p.texels.len()])
+            .collect();
+        for (i, p) in patches.patches.iter().enumerate() {
+            let page = &mut pages[p.page as usize];
+            let k = (p.y * page.width + p.x) as usize;
+            page.covered[k] = true;
+            if p.is_valid() {
+                page.texels[k] = irradiance[i] / std::f32::consts::PI;
+                state[p.page as usize][k] = TexelState::Set;
+            } else {
+                state[p.page as usize][k] = TexelState::Hidden;
+            }
+        }
+        Self {
+            pages,
+            state,
+            stats: AssembleStats::default(),
+        }
+    }
+
+    /// Fills the invalid texels from set neighbours of the same instance and chart, in waves;
+    /// those of a chart with no valid texel stay black.
+    pub fn fill_hidden(&mut self, patches: &Patches) {
+        for (pi, page) in self.pages.iter_mut().enumerate() {
+            let index = &patches.page_index[pi];
+            let st = &mut self.state[pi];
+            loop {
+                let mut updates = Vec::new();
+                for k in 0..st.len() {
+                    if st[k] != TexelState::Hidden {
+                        continue;
+                    }
+                    let me = &patches.patches[index[k] as usize];
+                    let (sum, n) = neighbours(page.width, page.height, k, |j| {
+                        if st[j] != TexelState::Set || index[j] == u32::MAX {
+                            return false;
+                        }
+                        let other = &patches.patches[index[j] as usize];
+                        other.instance == me.instance && other.chart == me.chart
+                    })
+                    .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
+                    if n > 0 {
+                        updates.push((k, sum / n as f32));
+                    }
+                }
+                if updates.is_empty() {
+                    break;
+                }
+                self.stats.filled += updates.len();
+                for (k, v) in updates {
+                    page.texels[k] = v;
+                    st[k] = TexelState::Set;
+                }
+            }
+            for s in st.iter_mut() {
+                if *s == TexelState::Hidden {
+                    self.stats.unfilled += 1;
+                    *s = TexelState::Set; // left black, but set so dilation does not overwrite it
+                }
+            }
+        }
+    }
+
+    /// Sets texel `k` of page `page` to `value` (a step that solves for padding texels marks
+    /// them set, so dilation keeps them).
+    pub fn set(&mut self, page: usize, k: usize, value: Vec3) {
+        self.pages[page].texels[k] = value;
+        self.state[page][k] = TexelState::Set;
+    }
+
+    /// Dilates `passes` texels into the empty space around every chart.
+    pub fn dilate(&mut self, passes: u32) {
+        for (page, st) in self.pages.iter_mut().zip(&mut self.state) {
+            for _ in 0..passes {
+                let mut updates = Vec::new();
+                for k in 0..st.len() {
+                    if st[k] != TexelState::Empty {
+                        continue;
+                    }
+                    let (sum, n) =
+                        neighbours(page.width, page.height, k, |j| st[j] == TexelState::Set)
+                            .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
+                    if n > 0 {
+                        updates.push((k, sum / n as f32));
+                    }
+                }
+                if updates.is_empty() {
+                    break;
+                }
+                self.stats.dilated += updates.len();
+                for (k, v) in updates {
+                    page.texels[k] = v;
+                    st[k] = TexelState::Set;
+                }
+            }
+        }
+    }
+}
+
 /// Writes E/π of every valid patch into its page, fills the invalid ones from valid
 /// neighbours of the same instance and chart, then dilates `dilate_passes` texels into the
-/// empty space around every chart.
+/// empty space around every chart (the steps of [`Assembly`] with nothing in between).
 pub fn assemble(
     layout: &Layout,
     patches: &Patches,
     irradiance: &[Vec3],
     dilate_passes: u32,
 ) -> (Vec<LightmapPage>, AssembleStats) {
-    let mut stats = AssembleStats::default();
-    let mut pages: Vec<LightmapPage> = layout
-        .pages
-        .iter()
-        .map(|p| LightmapPage::black(p.width, p.height))
-        .collect();
-    // state: 0 = empty, 1 = invalid patch (to fill), 2 = has a value
-    let mut state: Vec<Vec<u8>> = pages.iter().map(|p| vec![0u8; p.texels.len()]).collect();
-    for (i, p) in patches.patches.iter().enumerate() {
-        let page = &mut pages[p.page as usize];
-        let k = (p.y * page.width + p.x) as usize;
-        page.covered[k] = true;
-        if p.is_valid() {
-            page.texels[k] = irradiance[i] / std::f32::consts::PI;
-            state[p.page as usize][k] = 2;
-        } else {
-            state[p.page as usize][k] = 1;
-        }
-    }
-    for (pi, page) in pages.iter_mut().enumerate() {
-        let index = &patches.page_index[pi];
-        let st = &mut state[pi];
-        // Fill invalid texels from filled neighbours of the same instance and chart, in waves.
-        loop {
-            let mut updates = Vec::new();
-            for k in 0..st.len() {
-                if st[k] != 1 {
-                    continue;
-                }
-                let me = &patches.patches[index[k] as usize];
-                let (sum, n) = neighbours(page.width, page.height, k, |j| {
-                    if st[j] != 2 {
-                        return false;
-                    }
-                    let other = &patches.patches[index[j] as usize];
-                    other.instance == me.instance && other.chart == me.chart
-                })
-                .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
-                if n > 0 {
-                    updates.push((k, sum / n as f32));
-                }
-            }
-            if updates.is_empty() {
-                break;
-            }
-            stats.filled += updates.len();
-            for (k, v) in updates {
-                page.texels[k] = v;
-                st[k] = 2;
-            }
-        }
-        for s in st.iter_mut() {
-            if *s == 1 {
-                stats.unfilled += 1;
-                *s = 2; // left black, but counts as set so dilation does not overwrite it
-            }
-        }
-        // Dilate into the padding.
-        for _ in 0..dilate_passes {
-            let mut updates = Vec::new();
-            for k in 0..st.len() {
-                if st[k] != 0 {
-                    continue;
-                }
-                let (sum, n) = neighbours(page.width, page.height, k, |j| st[j] == 2)
-                    .fold((Vec3::ZERO, 0u32), |(s, n), j| (s + page.texels[j], n + 1));
-                if n > 0 {
-                    updates.push((k, sum / n as f32));
-                }
-            }
-            if updates.is_empty() {
-                break;
-            }
-            stats.dilated += updates.len();
-            for (k, v) in updates {
-                page.texels[k] = v;
-                st[k] = 2;
-            }
-        }
-    }
-    (pages, stats)
+    let mut a = Assembly::new(layout, patches, irradiance);
+    a.fill_hidden(patches);
+    a.dilate(dilate_passes);
+    (a.pages, a.stats)
 }
 
 /// The 8-neighbours of texel `k` accepted by `keep`.

@@ -31,7 +31,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::clusters::Clusters;
+use super::clusters::{Clusters, Links};
 use super::exitance_grid::ExitanceGrid;
 use super::hit_mapper::HitMapper;
 use super::monte_carlo::{self, STREAM_TRANSPORT};
@@ -99,21 +99,24 @@ pub struct Coarse {
 /// Bytes the hierarchical solve holds at its peak beside the nodes and the hit mapper, for
 /// `nodes` nodes, `page_texels` page texels and `triangles` triangles: the largest of its
 /// phases. The coarse level holds the cells of every node (8 bytes: its cell and its place
-/// in the cell order), the fine exitance its oracle reads (12), the transient of a split (the
-/// cells and the sort order, 28) and its matrix (at most
-/// [`solve::COARSE_BYTES_PER_NODE`]); the correction holds the exitance, the gathered light,
-/// the missed light and its result (12 each) and the exitance grid ([`ExitanceGrid`]); the
-/// error estimate the same four, the corrected result and the reflected correction.
+/// in the cell order), the links between neighbouring nodes (1), the fine exitance its
+/// oracle reads (12), the transient of a split (the cells and the sort order, 28) and its
+/// matrix (at most [`solve::COARSE_BYTES_PER_NODE`]); the correction holds the exitance, the
+/// gathered light, the missed light and its result (12 each), the two gathers' standard
+/// errors (4 each) and the exitance grid ([`ExitanceGrid`]); the reflection of the correction
+/// the same with the reflected field and its result (12 each), and which nodes lie near
+/// geometry (1); the error estimate the exitance, the gathered, missed and corrected light,
+/// the correction and its reflection (12 each) and the nodes' errors (4).
 pub fn planned_bytes(nodes: usize, page_texels: u64, triangles: usize) -> u64 {
     let n = nodes as u64;
     let clusters = 8 * n;
-    let coarse = clusters + (12 + 28 + solve::COARSE_BYTES_PER_NODE) * n;
-    let correction = clusters
-        + 4 * 12 * n
-        + page_texels * ExitanceGrid::BYTES_PER_PAGE_TEXEL
+    let grid = page_texels * ExitanceGrid::BYTES_PER_PAGE_TEXEL
         + triangles as u64 * ExitanceGrid::BYTES_PER_TRIANGLE;
-    let estimate = clusters + 6 * 12 * n;
-    coarse.max(correction).max(estimate)
+    let coarse = clusters + (1 + 12 + 28 + solve::COARSE_BYTES_PER_NODE) * n;
+    let correction = clusters + (4 * 12 + 2 * 4) * n + grid;
+    let reflection = clusters + (6 * 12 + 2 * 4 + 1) * n + grid;
+    let estimate = clusters + (6 * 12 + 4) * n;
+    coarse.max(correction).max(reflection).max(estimate)
 }
 
 /// Most refinement rounds (each takes a cell at most one level down).
@@ -129,8 +132,9 @@ pub fn coarse_solve(
     progress: &Progress,
 ) -> Coarse {
     let total_area: f64 = nodes.area.iter().map(|&a| a as f64).sum();
-    let mut clusters = Clusters::at_level(nodes, ctx.patches, options.top_level);
-    let mut rays = 0u64;
+    let links = Links::new(ctx, nodes);
+    let mut clusters = Clusters::at_level(nodes, ctx.patches, &links, options.top_level);
+    let mut rays = links.rays;
     let mut round = 0;
     loop {
         round += 1;
@@ -241,7 +245,7 @@ pub fn coarse_solve(
         for c in picked {
             split[c] = true;
         }
-        clusters = clusters.split(nodes, ctx.patches, &split);
+        clusters = clusters.split(nodes, ctx.patches, &links, &split);
     }
 }
 
@@ -304,6 +308,9 @@ pub enum Gather {
     Final,
     /// Δ = F̂'·ρ(H₁ − C): the correction, with rays of their own.
     Correction,
+    /// Δ₂ = F̂''·ρΔ: the correction's own reflection, with rays of their own (at nodes near
+    /// geometry, see the module docs).
+    Reflection,
 }
 
 /// Random-number stream of the correction gather.
@@ -318,8 +325,11 @@ pub struct GatherRays {
     pub visibility: u64,
 }
 
-/// A gather at every node from exitance `b`, with `rays` rays: the final gather H₁, or the
-/// correction Δ (see the module docs). Returns the irradiance per node and the rays traced.
+/// A gather from exitance `b` with `rays` rays at every node (or those `only` marks): the
+/// final gather H₁, the correction Δ or its reflection Δ₂ (see the module docs). Returns the
+/// irradiance per node (zero at nodes left out), its standard error (luminance, lux;
+/// [`monte_carlo::gather`]) and the rays traced.
+#[allow(clippy::too_many_arguments)]
 pub fn final_gather(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -327,32 +337,35 @@ pub fn final_gather(
     b: &[Vec3],
     rays: u32,
     which: Gather,
+    only: Option<&[bool]>,
     progress: &Progress,
-) -> (Vec<Vec3>, GatherRays) {
+) -> (Vec<Vec3>, Vec<f32>, GatherRays) {
     let stream = match which {
         Gather::Final => STREAM_TRANSPORT,
         Gather::Correction => STREAM_CORRECTION,
+        Gather::Reflection => STREAM_CORRECTION + 1,
     };
     let grid = ExitanceGrid::new(mapper, b);
     let visibility = AtomicU64::new(0);
-    let out: Vec<Vec3> = (0..nodes.len())
+    let (out, error): (Vec<Vec3>, Vec<f32>) = (0..nodes.len())
         .into_par_iter()
         .with_min_len(64)
         .map(|i| {
-            if progress.is_cancelled() {
-                return Vec3::ZERO;
+            if progress.is_cancelled() || only.is_some_and(|o| !o[i]) {
+                return (Vec3::ZERO, 0.0);
             }
-            let (h, v) = monte_carlo::gather(ctx, mapper, nodes, i, rays, stream, &grid);
+            let (h, se, v) = monte_carlo::gather(ctx, mapper, nodes, i, rays, stream, &grid);
             visibility.fetch_add(v, Ordering::Relaxed);
             progress.advance(1);
-            h
+            (h, se)
         })
-        .collect();
+        .unzip();
+    let gathered = only.map_or(nodes.len(), |o| o.iter().filter(|&&x| x).count());
     let traced = GatherRays {
-        closest: nodes.len() as u64 * rays as u64,
+        closest: gathered as u64 * rays as u64,
         visibility: visibility.into_inner(),
     };
-    (out, traced)
+    (out, error, traced)
 }
 
 /// The reflected irradiance per node, H₁ + Δ, each channel held at zero or above, and how many

@@ -47,8 +47,9 @@ pub(super) enum RayEnd {
 /// The rays of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
 /// basis support (from its representative point when it is a [`Nodes::sliver`], or when
 /// no support point is open), cosine-distributed about the surface there, numbered by
-/// random-number `stream`. Calls `f(weight, end)` for every start point. Returns the
-/// visibility rays the start points took (see [`support_point`]).
+/// random-number `stream`. Calls `f(weight, end, k)` for every start point, `k` the ray's
+/// index in the node's sequence. Returns the visibility rays the start points took (see
+/// [`support_point`]).
 #[inline]
 pub(super) fn for_each_ray(
     ctx: &BakeContext<'_>,
@@ -57,7 +58,7 @@ pub(super) fn for_each_ray(
     i: usize,
     rays: u32,
     stream: u32,
-    mut f: impl FnMut(f32, RayEnd),
+    mut f: impl FnMut(f32, RayEnd, u32),
 ) -> u64 {
     let p = &ctx.patches.patches[nodes.patch[i] as usize];
     let key = p.rng(ctx.settings.seed, stream);
@@ -65,13 +66,13 @@ pub(super) fn for_each_ray(
     let mut trace = |sp: &SurfacePoint, weight: f32, k: u32| {
         let dir = cosine_hemisphere(sp.normal, directions.point(k));
         if dir.dot(sp.geometric_normal) <= 0.0 {
-            f(weight, RayEnd::Below);
+            f(weight, RayEnd::Below, k);
             return;
         }
         let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
         match ctx.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
-            None => f(weight, RayEnd::Escaped),
-            Some(hit) => f(weight, RayEnd::Hit(hit)),
+            None => f(weight, RayEnd::Escaped, k),
+            Some(hit) => f(weight, RayEnd::Hit(hit), k),
         }
     };
     let mut started = 0u32;
@@ -113,7 +114,7 @@ pub(super) fn for_each_sample(
 ) -> f32 {
     let mut escaped = 0.0f32;
     let mut out = [(0u32, 0f32); 4];
-    let _ = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end| match end {
+    let _ = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, _| match end {
         RayEnd::Below => f(weight, &[]),
         RayEnd::Escaped => {
             escaped += weight;
@@ -201,8 +202,13 @@ pub fn gather_row(
 /// Node `i`'s gathered irradiance Σw·B(hit) / Σw from the field on `grid` over the rays of
 /// stream `stream` (the rays [`build`] traces for row i when it is [`STREAM_TRANSPORT`]),
 /// summed as the rays come, without forming the row (lux): (F·B)ᵢ of the matrix row those
-/// rays would make. The final gather of the hierarchical solve. Also returns the visibility
-/// rays of the start points.
+/// rays would make. The final gather of the hierarchical solve.
+///
+/// Also returns the standard error of its luminance and the visibility rays of the start
+/// points. The error comes from [`GATHER_BLOCKS`] blocks of consecutive rays: each block of
+/// a (0, 2)-sequence of a power-of-two length is a stratified replicate of the whole, so the
+/// spread of the blocks' estimates is the stratified estimator's (the spread of single rays
+/// would overstate it); the variance of the mean is the blocks' sample variance / blocks.
 pub fn gather(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -211,16 +217,42 @@ pub fn gather(
     rays: u32,
     stream: u32,
     grid: &ExitanceGrid<'_>,
-) -> (Vec3, u64) {
+) -> (Vec3, f32, u64) {
     let (mut total, mut sum) = (0.0f32, Vec3::ZERO);
-    let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end| {
+    let mut blocks = [(0.0f64, 0.0f64); GATHER_BLOCKS];
+    let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, k| {
         total += weight;
+        let b = &mut blocks[(k as usize * GATHER_BLOCKS) / rays as usize];
+        b.0 += weight as f64;
         if let RayEnd::Hit(hit) = end {
-            sum += grid.at(&hit) * weight;
+            let v = grid.at(&hit) * weight;
+            sum += v;
+            b.1 += luminance(v) as f64;
         }
     });
     let h = if total > 0.0 { sum / total } else { Vec3::ZERO };
-    (h, visibility)
+    (h, block_error(&blocks), visibility)
+}
+
+/// Blocks of a gather's rays for its error estimate (see [`gather`]).
+pub const GATHER_BLOCKS: usize = 4;
+
+/// The standard error of the self-normalised mean Σ(w·v)/Σw from per-block (Σw, Σw·v): the
+/// sample variance of the block estimates over the number of blocks (zero with fewer than
+/// two blocks that have weight).
+fn block_error(blocks: &[(f64, f64)]) -> f32 {
+    let estimates: Vec<f64> = blocks
+        .iter()
+        .filter(|b| b.0 > 0.0)
+        .map(|b| b.1 / b.0)
+        .collect();
+    let n = estimates.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let mean = estimates.iter().sum::<f64>() / n as f64;
+    let var = estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    (var / n as f64).sqrt() as f32
 }
 
 /// Luminance of node `i`'s gathered irradiance (F·B)ᵢ from exitance `b`, with its row

@@ -17,9 +17,11 @@ mod stream {
 }
 
 /// The points of one patch's texel footprint: point `s` is a point of the texel square on one
-/// of its triangles, or the representative point when the square point misses them (partly
-/// covered texel) or cannot see the representative point (geometry in between). Shared by the
-/// passes that sample texel footprints.
+/// of its triangles that is open surface of the patch ([`Patches::sees`]); when the square
+/// point misses the triangles (a partly covered texel) or is hidden (under geometry, behind
+/// a wall, in a gap the representative point is not in), other points are drawn, and after
+/// four misses the representative point stands in. So the passes that sample footprints
+/// integrate over the visible part of the texel only.
 pub struct Footprint<'a> {
     layout: &'a Layout,
     patches: &'a Patches,
@@ -123,7 +125,7 @@ impl<'a> Footprint<'a> {
                 // Only open surface on the representative point's side of any wall.
                 *rays += 2;
                 if !self.patches.sees(p, &sp, self.rays) {
-                    return rep;
+                    continue;
                 }
             }
             return sp;

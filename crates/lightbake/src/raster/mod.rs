@@ -48,7 +48,7 @@ pub struct Patch {
     pub triangle: u32,
     /// Chart of the owning triangle within its mesh.
     pub chart: u32,
-    /// `VALID`, `NEAR_GEOMETRY`, `MOVED`, `PARTLY_HIDDEN` bits.
+    /// `VALID`, `NEAR_GEOMETRY`, `MOVED`, `PARTLY_HIDDEN`, `COVERED` bits.
     pub flags: u8,
     /// First entry of this patch's triangles in [`Patches::footprint`].
     pub footprint_start: u32,
@@ -69,6 +69,10 @@ impl Patch {
     /// The texel's centre is hidden (inside or behind geometry) and its point was moved to
     /// the open part of its footprint, which lights it.
     pub const PARTLY_HIDDEN: u8 = 8;
+    /// Geometry lies within a texel along the representative point's normal: the point is in
+    /// a gap thinner than a texel (the floor under a rug), and only footprint points in such a
+    /// gap too belong to its surface (see [`Patches::sees`]).
+    pub const COVERED: u8 = 16;
 
     /// Whether the patch has its own value.
     pub fn is_valid(&self) -> bool {

@@ -8,10 +8,10 @@
 //! open point is marked invalid — *hidden*: no view can see it — and later filled from its
 //! chart neighbours. A second, independent search over other points of every hidden texel's
 //! footprint counts those of which it finds an eighth or more clearly open after all
-//! (*visible but unlit*: zero when the first search is dense enough). Patches with geometry that close are flagged
-//! [`Patch::NEAR_GEOMETRY`], and footprint samples of such patches are only used when they see
-//! the representative point (so a texel straddling a thin wall does not mix in light from the
-//! far side).
+//! (*visible but unlit*: zero when the first search is dense enough). Patches with geometry
+//! that close are flagged [`Patch::NEAR_GEOMETRY`], and footprint samples of such patches are
+//! only used when they see the representative point (so a texel straddling a thin wall does
+//! not mix in light from the far side).
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -46,6 +46,27 @@ const CHECK_POINTS: u32 = 16;
 /// Rays of a fan after which a point all of whose rays saw back faces is taken to be inside
 /// a solid (most points of a hidden texel are, and need no more).
 const PRETEST_RAYS: u32 = 4;
+
+/// What lies within `reach` along a surface point's normal (see [`gap_probe`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gap {
+    /// Nothing.
+    Open,
+    /// The front of a surface (or a double-sided one): the point is in a thin gap.
+    Covered,
+    /// The back of a single-sided surface: the point faces the inside of a solid.
+    Back,
+}
+
+/// What lies within `reach` above surface point `sp`, along its geometric normal.
+pub fn gap_probe(rays: &RayScene, sp: &SurfacePoint, reach: f32) -> Gap {
+    let from = rays.offset(sp.position, sp.geometric_normal);
+    match rays.closest_hit(from, sp.geometric_normal, 0.0, reach) {
+        None => Gap::Open,
+        Some(h) if h.front_face || rays.triangles[h.triangle as usize].double_sided => Gap::Covered,
+        Some(_) => Gap::Back,
+    }
+}
 
 /// One patch after its probes.
 struct Probed {
@@ -233,6 +254,24 @@ impl Patches {
             .collect();
         for i in mark {
             self.patches[i].flags |= Patch::NEAR_GEOMETRY;
+        }
+        // Representative points in a gap thinner than a texel (under a rug).
+        let covered: Vec<(bool, u64)> = self
+            .patches
+            .par_iter()
+            .map(|p| {
+                if !p.is_valid() || p.flags & Patch::NEAR_GEOMETRY == 0 {
+                    return (false, 0);
+                }
+                let gap = gap_probe(rays, &p.representative(), p.texel_size);
+                (gap == Gap::Covered, 1)
+            })
+            .collect();
+        for (p, (c, used)) in self.patches.iter_mut().zip(covered) {
+            if c {
+                p.flags |= Patch::COVERED;
+            }
+            self.rays += used;
         }
         // 3. The area of a patch near geometry: the visible share of its footprint.
         let shares: Vec<(f32, u64)> = self
@@ -462,23 +501,34 @@ impl Patches {
 
     /// Whether a point of patch `p`'s footprint is open surface (always, for patches not near
     /// geometry): it is not hidden from the representative point by geometry (a floor texel
-    /// half under a wall), and it does not face the back of a single-sided surface within a
-    /// texel (a ceiling texel sandwiched above a lamp hung just below it).
+    /// half under a wall), it does not face the back of a single-sided surface within a texel
+    /// (a ceiling texel sandwiched above a lamp hung just below it), and it lies in a gap
+    /// thinner than a texel exactly when the representative point does ([`Patch::COVERED`]:
+    /// the floor under a rug is not the floor beside it).
     pub fn sees(&self, p: &Patch, sp: &SurfacePoint, rays: &RayScene) -> bool {
         if p.flags & Patch::NEAR_GEOMETRY == 0 {
             return true;
+        }
+        let probe = gap_probe(rays, sp, p.texel_size);
+        self.sees_probed(p, sp, probe, rays)
+    }
+
+    /// [`Self::sees`] with the point's [`gap_probe`] already traced.
+    pub fn sees_probed(&self, p: &Patch, sp: &SurfacePoint, probe: Gap, rays: &RayScene) -> bool {
+        if p.flags & Patch::NEAR_GEOMETRY == 0 {
+            return true;
+        }
+        match probe {
+            Gap::Back => return false,
+            Gap::Covered if p.flags & Patch::COVERED == 0 => return false,
+            Gap::Open if p.flags & Patch::COVERED != 0 => return false,
+            _ => {}
         }
         let a = rays.offset(p.position, p.geometric_normal);
         let b = rays.offset(sp.position, sp.geometric_normal);
         let d = b - a;
         let len = d.length();
-        if len > 0.0 && rays.occluded(a, d / len, 0.0, len) {
-            return false;
-        }
-        match rays.closest_hit(b, sp.geometric_normal, 0.0, p.texel_size) {
-            Some(h) => h.front_face || rays.triangles[h.triangle as usize].double_sided,
-            None => true,
-        }
+        !(len > 0.0 && rays.occluded(a, d / len, 0.0, len))
     }
 
     /// Whether a point `sp` in the footprint of texel `texel` is open surface, for the node

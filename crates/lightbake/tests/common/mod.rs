@@ -58,6 +58,8 @@ pub fn settings(density: f32, spp: u32) -> BakeSettings {
     s.texel_density = Some(density);
     s.texel_density_from_scene = false;
     s.samples_per_texel = spp;
+    // The texels as the direct pass computed them, unfiltered (the denoiser has its tests).
+    s.denoise = false;
     s
 }
 

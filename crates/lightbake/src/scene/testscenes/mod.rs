@@ -8,13 +8,17 @@
 //!   lit by the sun and the sky through the window.
 //! * [`office_level`]: a generated office floor, the corpus's large scene (many instances,
 //!   200 000+ triangles; [`office`]).
+//! * [`contact_room`]: a room of contacts (a box on the floor, a cabinet against a wall, a rug,
+//!   a partition thinner than a texel), for the edge tests ([`edges`]).
 //! * [`plane`], [`quad`], [`cuboid`], [`grid`]: mesh builders.
 
 use glam::{Affine3A, Vec2, Vec3};
 
 use super::{Instance, Light, LightKind, Material, Mesh, Scene};
 
+pub mod edges;
 pub mod office;
+pub use edges::{contact_room, seam_room};
 pub use office::office_level;
 
 /// A flat quad with corners `c` (any winding), triangulated as (0,1,2),(0,2,3) and wound so
@@ -593,6 +597,8 @@ mod tests {
             cornell_box(CornellLight::Area),
             cornell_box(CornellLight::Point),
             sunlit_room(),
+            contact_room(),
+            seam_room(),
         ] {
             s.validate().unwrap();
             for m in &s.meshes {
