@@ -143,6 +143,7 @@ fn solvers(c: &mut Criterion) {
         range: None,
         position: Vec3::new(0.3, -0.35, 0.2),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     let lamp = case("closed box ρ=0.99, point light", &lamp_box, Some(32.0));
     table("closed box ρ=0.99, point light", &lamp);

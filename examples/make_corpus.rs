@@ -20,7 +20,7 @@ use std::process::Command;
 
 use glam::Vec3;
 use lightbake::scene::gltf_write::write_scene_gltf;
-use lightbake::scene::{Light, LightKind, Scene};
+use lightbake::scene::{Light, LightBake, LightKind, Scene};
 use lightbake::{LightConvention, import_gltf};
 
 /// Where Debian's `assimp-testmodels` puts the house.
@@ -131,6 +131,7 @@ fn light_the_house(scene: &mut Scene) {
         range: None,
         position: Vec3::ZERO,
         direction: -towards_sun,
+        bake: LightBake::Full,
     });
     // Lamps 0.4 m under the ceilings of three rooms: the ground floor spans y 0.2–2.7 m,
     // the upper floor starts at 2.9 m; the footprint is x 0–12 m, z −10–0 m.
@@ -148,6 +149,7 @@ fn light_the_house(scene: &mut Scene) {
             range: None,
             position: p,
             direction: Vec3::NEG_Z,
+            bake: LightBake::Full,
         });
     }
 }

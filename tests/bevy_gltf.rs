@@ -1,7 +1,8 @@
 //! A glTF baked by the `bake` command, loaded into a headless Bevy app (no GPU): its meshes get
 //! their lightmaps and its lights stop lighting them twice; when the command rewrites the
 //! lightmaps the running app reloads them (Bevy's file watcher), and `AssetServer::reload`
-//! does the same on demand.
+//! does the same on demand. Its irradiance volume spawns with the scene and reloads the same
+//! way.
 
 mod bevy_common;
 
@@ -9,6 +10,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use bevy::ecs::message::MessageCursor;
+use bevy::light::IrradianceVolume;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy_common::{headless_app, run_until};
@@ -135,5 +137,99 @@ fn baked_gltf_gets_lightmaps_and_hot_reloads_when_rebaked() {
     server.reload("baked/lightmaps/lightmap_0.exr");
     run_until(&mut quiet, "the explicit reload", TIMEOUT, |w| {
         image_matches(w, &image, &first)
+    });
+}
+
+#[test]
+fn baked_gltf_spawns_its_irradiance_volume_keeps_indirect_only_lights_and_reloads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = dir.path().join("assets");
+    let out = assets.join("baked");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box_point.gltf");
+    let bake_with = |method: &str| {
+        lightbake_cli::run_from([
+            "bake",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quality",
+            "preview",
+            "--texel-density",
+            "48",
+            "--method",
+            method,
+            "--irradiance-volume",
+            "--probe-rays",
+            "64",
+            "--indirect-only",
+            "ceiling_point",
+            "--quiet",
+        ])
+        .unwrap();
+    };
+    bake_with("radiosity");
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let entry = manifest["irradiance_volumes"][0].clone();
+    assert_eq!(entry["image"], "irradiance_volumes/volume_0.ktx2");
+
+    let mut app = headless_app(&assets, true);
+    let server = app.world().resource::<AssetServer>().clone();
+    app.world_mut().spawn(WorldAssetRoot(
+        server.load(GltfAssetLabel::Scene(0).from_asset("baked/cornell_box_point.gltf")),
+    ));
+    let loaded = |w: &mut World| {
+        let mut q = w.query::<(&IrradianceVolume, &GlobalTransform)>();
+        let found = q.iter(w).next().map(|(v, t)| (v.voxels.clone(), *t));
+        found.filter(|(h, _)| w.resource::<Assets<Image>>().get(h).is_some())
+    };
+    run_until(&mut app, "the volume and its image", TIMEOUT, |w| {
+        loaded(w).is_some()
+    });
+    let world = app.world_mut();
+    let (handle, transform) = loaded(world).unwrap();
+    let centre: Vec<f32> = (0..3)
+        .map(|k| entry["center"][k].as_f64().unwrap() as f32)
+        .collect();
+    let size: Vec<f32> = (0..3)
+        .map(|k| entry["size"][k].as_f64().unwrap() as f32)
+        .collect();
+    assert!((transform.translation() - Vec3::from_slice(&centre)).length() < 1e-5);
+    assert!((transform.scale() - Vec3::from_slice(&size)).length() < 1e-5);
+    let image = world.resource::<Assets<Image>>().get(&handle).unwrap();
+    let r: Vec<u32> = (0..3)
+        .map(|k| entry["resolution"][k].as_u64().unwrap() as u32)
+        .collect();
+    let extent = image.texture_descriptor.size;
+    assert_eq!(
+        (extent.width, extent.height, extent.depth_or_array_layers),
+        (r[0], 2 * r[1], 3 * r[2])
+    );
+    assert_eq!(
+        image.texture_descriptor.dimension,
+        bevy::render::render_resource::TextureDimension::D3
+    );
+    // The light baked indirect only stays real time on the lightmapped meshes.
+    let mut lights = world.query::<(&PointLight, Option<&BakedLight>)>();
+    let (light, baked) = lights.single(world).unwrap();
+    assert!(baked.is_none() && light.affects_lightmapped_mesh_diffuse);
+
+    // Re-baking into the folder reloads the volume's image in the running app.
+    let mut cursor = MessageCursor::<AssetEvent<Image>>::default();
+    cursor
+        .read(world.resource::<Messages<AssetEvent<Image>>>())
+        .for_each(drop);
+    let before = std::fs::read(out.join("irradiance_volumes/volume_0.ktx2")).unwrap();
+    bake_with("direct");
+    let after = std::fs::read(out.join("irradiance_volumes/volume_0.ktx2")).unwrap();
+    assert_ne!(
+        before, after,
+        "without interreflection the volume is darker"
+    );
+    run_until(&mut app, "the volume's reload", TIMEOUT, |w| {
+        let events = w.resource::<Messages<AssetEvent<Image>>>();
+        cursor
+            .read(events)
+            .any(|e| matches!(e, AssetEvent::Modified { id } if *id == handle.id()))
     });
 }

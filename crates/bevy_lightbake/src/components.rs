@@ -57,6 +57,24 @@ impl Lightbaked {
 #[reflect(Component, Default)]
 pub struct NotBaked;
 
+/// On a `PointLight`, `SpotLight`, `DirectionalLight` or `RectLight`: which part of its light
+/// the bake puts into the lightmaps. Without it, point, spot and directional lights are baked
+/// [`BakeMode::Full`] and rect lights [`BakeMode::IndirectOnly`].
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
+#[reflect(Component)]
+pub enum BakeMode {
+    /// Direct and indirect light: after the bake the light stops lighting lightmapped meshes
+    /// (`affects_lightmapped_mesh_diffuse = false`) but still lights dynamic objects and
+    /// gives specular highlights.
+    Full,
+    /// Only the light it sends after a reflection (Bevy's mixed lighting): the light stays
+    /// real time on lightmapped meshes too, with Bevy's shadows, and the lightmaps add what it
+    /// reflects. The default for `RectLight`: Bevy 0.19 has no switch to stop a rect light
+    /// lighting lightmapped meshes (its shader always adds their diffuse light), so its
+    /// direct light cannot be baked without showing twice.
+    IndirectOnly,
+}
+
 /// Where the bake's sky (light arriving from outside the scene) comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Reflect)]
 pub enum SkySource {
@@ -100,6 +118,11 @@ pub struct LightbakeConfig {
     /// After attaching lightmaps, stop `GlobalAmbientLight` from also lighting lightmapped
     /// meshes (the bake already contains all diffuse light it knows of). Default `true`.
     pub disable_ambient_on_lightmapped: bool,
+    /// Show the lightmaps while the bake runs: the direct light first, then the coarse
+    /// indirect light (with progressive radiosity's ambient term for the rest), then the
+    /// result ([`BakeStatus::preview`] says which). A bake that is cancelled or fails puts the
+    /// previous lightmaps back. Default `true`.
+    pub previews: bool,
 }
 
 impl Default for LightbakeConfig {
@@ -115,6 +138,7 @@ impl Default for LightbakeConfig {
             assets_folder: FileAssetReader::get_base_path().join("assets"),
             output_dir: "lightbake".into(),
             disable_ambient_on_lightmapped: true,
+            previews: true,
         }
     }
 }
@@ -155,6 +179,10 @@ pub struct BakeStatus {
     pub finished_stages: Vec<lightbake::report::StageStats>,
     /// Seconds since the bake started (wall clock).
     pub elapsed_seconds: f32,
+    /// What the lightmaps on screen show while a bake runs and after it: its direct light,
+    /// its first indirect solution, or the final result (`None` before the first preview,
+    /// and after a bake that was cancelled or failed, when the previous lightmaps are back).
+    pub preview: Option<lightbake::bake::PreviewKind>,
     /// Bakes finished (with lightmaps) since the app started.
     pub completed: u32,
     /// The report of the last finished bake: stages, timings, rays, error estimates.
@@ -231,3 +259,14 @@ impl Default for ShowLightmaps {
 /// `affects_lightmapped_mesh_diffuse` to `false`.
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BakedLight;
+
+/// On a `LightProbe` + `IrradianceVolume` entity the plugin spawned from a bake (in the app,
+/// or listed in a baked glTF's scene extras). Shown while [`ShowLightmaps`] is on.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BakedVolume {
+    /// The volume carries the light of `GlobalAmbientLight` (the bake's sky came from it):
+    /// while the volume is shown the plugin turns that ambient light's brightness to zero, so
+    /// dynamic objects do not get the sky twice (once occluded from the volume, once
+    /// unoccluded from the ambient light), and restores it when the volume is hidden.
+    pub carries_ambient: bool,
+}

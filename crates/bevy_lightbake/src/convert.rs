@@ -6,6 +6,8 @@
 //! | `PointLight::range`, `SpotLight::range` (m) | `range` | same; Bevy's window (1 − (d/r)⁴)² |
 //! | `SpotLight::{inner,outer}_angle` (rad) | cone angles | same |
 //! | `DirectionalLight::illuminance` (lux) | lux | same; `SunDisk::angular_size / 2` is the angular radius |
+//! | `RectLight::{intensity, width, height}` (lumens, m, local XY facing −Z) | luminance, nits | L = Φ / (π·w·h), w and h scaled by the transform (Bevy's own conversion) |
+//! | [`BakeMode`] on a light | `LightBake` | `Full` (default; rect lights `IndirectOnly`) |
 //! | `Color` | linear RGB | `Color::to_linear` |
 //! | `StandardMaterial::emissive` (`LinearRgba`, nits) | `emissive`, nits | same |
 //! | `StandardMaterial::{base_color, base_color_texture, metallic, double_sided}` | same | linear; sRGB texture |
@@ -19,16 +21,17 @@ use std::f32::consts::PI;
 
 use bevy::asset::AssetId;
 use bevy::image::{ImageAddressMode, ImageSampler};
+use bevy::light::RectLight;
 use bevy::light::{GlobalAmbientLight, SunDisk};
 use bevy::mesh::{Indices, PrimitiveTopology, UvChannel, VertexAttributeValues};
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use lightbake::scene::{
-    Instance as CoreInstance, Light as CoreLight, LightKind, Material as CoreMaterial,
+    Instance as CoreInstance, Light as CoreLight, LightBake, LightKind, Material as CoreMaterial,
     Mesh as CoreMesh, Scene, Texture as CoreTexture, TextureRef, Wrap,
 };
 
-use crate::components::{Lightbaked, NotBaked, SkySource};
+use crate::components::{BakeMode, Lightbaked, NotBaked, SkySource};
 
 /// Which Bevy entity and asset each part of the core scene came from, to carry the bake's
 /// results back.
@@ -36,10 +39,15 @@ use crate::components::{Lightbaked, NotBaked, SkySource};
 pub struct SceneMapping {
     /// Per core instance: its mesh entity.
     pub instances: Vec<Entity>,
+    /// Per core instance: its core mesh.
+    pub instance_meshes: Vec<usize>,
     /// Per core mesh: the Bevy mesh it was read from.
     pub meshes: Vec<MeshSource>,
-    /// Baked light entities.
+    /// Light entities whose direct light is baked ([`BakeMode::Full`]): after the bake they
+    /// stop lighting lightmapped meshes.
     pub lights: Vec<Entity>,
+    /// Light entities baked indirect only ([`BakeMode::IndirectOnly`]): they stay real time.
+    pub realtime_lights: Vec<Entity>,
     /// The sky was taken from `GlobalAmbientLight`.
     pub sky_from_ambient: bool,
 }
@@ -413,51 +421,79 @@ fn extract_instances(
         }
         scene.instances.push(instance);
         mapping.instances.push(entity);
+        mapping.instance_meshes.push(mesh_index);
     }
     Ok(own)
 }
 
-/// Every point, spot and directional light without [`NotBaked`], in the order of their names.
+/// The core's [`LightBake`] for a light with `mode` (`None`: `default`).
+fn light_bake(mode: Option<&BakeMode>, default: BakeMode) -> LightBake {
+    match mode.copied().unwrap_or(default) {
+        BakeMode::Full => LightBake::Full,
+        BakeMode::IndirectOnly => LightBake::IndirectOnly,
+    }
+}
+
+/// Every point, spot, directional and rect light without [`NotBaked`], in the order of their
+/// names.
 fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMapping) {
     let mut lights: Vec<(String, Entity, CoreLight)> = Vec::new();
-    let mut q = world.query_filtered::<(Entity, &PointLight, &GlobalTransform, Option<&Name>), Without<NotBaked>>();
-    for (e, l, t, n) in q.iter(world) {
+    let light =
+        |name: String, kind, color: Color, intensity, range, t: &GlobalTransform, bake| CoreLight {
+            name,
+            kind,
+            color: linear_rgb(color),
+            intensity,
+            range,
+            position: vec3(t.translation()),
+            direction: vec3(t.forward().as_vec3()),
+            bake,
+        };
+    let mut q = world.query_filtered::<(
+        Entity,
+        &PointLight,
+        &GlobalTransform,
+        Option<&Name>,
+        Option<&BakeMode>,
+    ), Without<NotBaked>>();
+    for (e, l, t, n, mode) in q.iter(world) {
         let name = entity_label(e, n);
-        lights.push((
+        let bake = light_bake(mode, BakeMode::Full);
+        let core = light(
             name.clone(),
-            e,
-            CoreLight {
-                name,
-                kind: LightKind::Point,
-                color: linear_rgb(l.color),
-                intensity: lumens_to_candela(l.intensity),
-                range: Some(l.range),
-                position: vec3(t.translation()),
-                direction: vec3(t.forward().as_vec3()),
-            },
-        ));
-    }
-    let mut q = world
-        .query_filtered::<(Entity, &SpotLight, &GlobalTransform, Option<&Name>), Without<NotBaked>>(
+            LightKind::Point,
+            l.color,
+            lumens_to_candela(l.intensity),
+            Some(l.range),
+            t,
+            bake,
         );
-    for (e, l, t, n) in q.iter(world) {
+        lights.push((name, e, core));
+    }
+    let mut q = world.query_filtered::<(
+        Entity,
+        &SpotLight,
+        &GlobalTransform,
+        Option<&Name>,
+        Option<&BakeMode>,
+    ), Without<NotBaked>>();
+    for (e, l, t, n, mode) in q.iter(world) {
         let name = entity_label(e, n);
-        lights.push((
+        let kind = LightKind::Spot {
+            inner_cone_angle: l.inner_angle.min(l.outer_angle),
+            outer_cone_angle: l.outer_angle,
+        };
+        let bake = light_bake(mode, BakeMode::Full);
+        let core = light(
             name.clone(),
-            e,
-            CoreLight {
-                name,
-                kind: LightKind::Spot {
-                    inner_cone_angle: l.inner_angle.min(l.outer_angle),
-                    outer_cone_angle: l.outer_angle,
-                },
-                color: linear_rgb(l.color),
-                intensity: lumens_to_candela(l.intensity),
-                range: Some(l.range),
-                position: vec3(t.translation()),
-                direction: vec3(t.forward().as_vec3()),
-            },
-        ));
+            kind,
+            l.color,
+            lumens_to_candela(l.intensity),
+            Some(l.range),
+            t,
+            bake,
+        );
+        lights.push((name, e, core));
     }
     let mut q = world.query_filtered::<(
         Entity,
@@ -465,28 +501,62 @@ fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMappi
         &GlobalTransform,
         Option<&SunDisk>,
         Option<&Name>,
+        Option<&BakeMode>,
     ), Without<NotBaked>>();
-    for (e, l, t, disk, n) in q.iter(world) {
+    for (e, l, t, disk, n, mode) in q.iter(world) {
         let name = entity_label(e, n);
-        lights.push((
+        let kind = LightKind::Directional {
+            angular_radius: disk.map_or(0.0, |d| 0.5 * d.angular_size),
+        };
+        let bake = light_bake(mode, BakeMode::Full);
+        let core = light(name.clone(), kind, l.color, l.illuminance, None, t, bake);
+        lights.push((name, e, core));
+    }
+    let mut q = world.query_filtered::<(
+        Entity,
+        &RectLight,
+        &GlobalTransform,
+        Option<&Name>,
+        Option<&BakeMode>,
+    ), Without<NotBaked>>();
+    for (e, l, t, n, mode) in q.iter(world) {
+        let name = entity_label(e, n);
+        // The rectangle as Bevy extracts it: its sides scaled by the transform.
+        let affine = t.affine();
+        let (width, height) = (
+            l.width * affine.matrix3.x_axis.length(),
+            l.height * affine.matrix3.y_axis.length(),
+        );
+        let kind = LightKind::Rect {
+            right: vec3(t.right().as_vec3()),
+            width,
+            height,
+        };
+        let luminance = l.intensity / (PI * width * height).max(f32::MIN_POSITIVE);
+        let bake = light_bake(mode, BakeMode::IndirectOnly);
+        if bake == LightBake::Full {
+            scene.warnings.push(format!(
+                "{name}: a RectLight baked with BakeMode::Full still lights lightmapped meshes in Bevy 0.19 (it has no affects_lightmapped_mesh_diffuse): hide it after the bake, or bake it IndirectOnly"
+            ));
+        }
+        let core = light(
             name.clone(),
-            e,
-            CoreLight {
-                name,
-                kind: LightKind::Directional {
-                    angular_radius: disk.map_or(0.0, |d| 0.5 * d.angular_size),
-                },
-                color: linear_rgb(l.color),
-                intensity: l.illuminance,
-                range: None,
-                position: vec3(t.translation()),
-                direction: vec3(t.forward().as_vec3()),
-            },
-        ));
+            kind,
+            l.color,
+            luminance,
+            Some(l.range),
+            t,
+            bake,
+        );
+        lights.push((name, e, core));
     }
     lights.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
     for (_, e, l) in lights {
+        if l.direct_is_baked() {
+            mapping.lights.push(e);
+        } else {
+            mapping.realtime_lights.push(e);
+        }
         scene.lights.push(l);
-        mapping.lights.push(e);
     }
 }

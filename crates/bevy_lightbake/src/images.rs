@@ -33,6 +33,29 @@ pub fn page_image(page: &LightmapPage) -> Image {
     )
 }
 
+/// A baked irradiance volume as the `Rgba16Float` 3D image Bevy's `IrradianceVolume` reads
+/// (its ambient-cube layout; see [`lightbake::probes::volume`]).
+pub fn volume_image(volume: &lightbake::probes::IrradianceVolume) -> Image {
+    let (size, texels) = volume.texture();
+    let mut data = Vec::with_capacity(texels.len() * 8);
+    for t in &texels {
+        for c in [t.x, t.y, t.z, 1.0] {
+            data.extend_from_slice(&f16::from_f32(c.min(HALF_MAX)).to_le_bytes());
+        }
+    }
+    Image::new(
+        Extent3d {
+            width: size.x,
+            height: size.y,
+            depth_or_array_layers: size.z,
+        },
+        TextureDimension::D3,
+        data,
+        TextureFormat::Rgba16Float,
+        RenderAssetUsages::default(),
+    )
+}
+
 /// Whether Bevy can show `image` as a lightmap on any device as it is.
 pub fn is_ready(image: &Image) -> bool {
     image.data.is_some() && image.texture_descriptor.format != TextureFormat::Rgba32Float

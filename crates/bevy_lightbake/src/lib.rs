@@ -17,7 +17,18 @@
 //!   `assets/<output_dir>/lightmaps/` and loaded through the `AssetServer`; with Bevy's
 //!   `file_watcher` (this crate's default feature) a rewrite by the `bake` command shows up in
 //!   the running game.
-//! * A glTF baked by the `bake` command gets its lightmaps as soon as its scene spawns.
+//! * A glTF baked by the `bake` command gets its lightmaps as soon as its scene spawns, and
+//!   its irradiance volumes (`bake --irradiance-volume`) as `LightProbe` + `IrradianceVolume`
+//!   entities under the scene's root.
+//! * With `LightbakeConfig::settings.irradiance_volume` an in-app bake also spawns an
+//!   irradiance volume, so moving meshes (without [`Lightbaked`]) get the baked indirect light
+//!   (see [`volumes`]).
+//! * While a bake runs the lightmaps show its progress ([`LightbakeConfig::previews`]): the
+//!   direct light, then the coarse indirect light, then the result; [`BakeStatus::preview`]
+//!   says which.
+//! * A light with [`BakeMode::IndirectOnly`] stays real time, with Bevy's shadows; the
+//!   lightmaps add only what it reflects (mixed lighting). `RectLight`s are baked that way
+//!   by default, since Bevy 0.19 cannot stop them lighting lightmapped meshes.
 //!
 //! Texels store irradiance / π, shown by Bevy with `lightmap_exposure = 1` (the default);
 //! units are Bevy's (lumens, lux, nits). See `docs/units.md`.
@@ -59,27 +70,31 @@ pub mod components;
 pub mod convert;
 pub mod gltf;
 pub mod images;
+mod preview;
 pub mod sample;
 pub mod spawn;
 pub mod systems;
+pub mod volumes;
 
 use bevy::asset::AssetEventSystems;
 use bevy::prelude::*;
 
 pub use components::{
-    BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
-    Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
+    BakeFinished, BakeMode, BakeOutcome, BakePhase, BakeStatus, BakedLight, BakedVolume,
+    CancelBake, LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps,
+    SkySource,
 };
 pub use lightbake;
 
 /// The usual imports.
 pub mod prelude {
     pub use crate::components::{
-        BakeFinished, BakeOutcome, BakePhase, BakeStatus, CancelBake, LightbakeConfig, Lightbaked,
-        Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
+        BakeFinished, BakeMode, BakeOutcome, BakePhase, BakeStatus, BakedVolume, CancelBake,
+        LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
     };
     pub use crate::{LightbakePlugin, LightbakeSystems};
     pub use lightbake::BakeSettings;
+    pub use lightbake::bake::PreviewKind;
 }
 
 /// Ordering of the plugin's systems.
@@ -109,11 +124,13 @@ impl Plugin for LightbakePlugin {
             .init_resource::<systems::PendingRequest>()
             .init_resource::<systems::MemoryPages>()
             .init_resource::<systems::ResizedImages>()
+            .init_resource::<volumes::SuppressedAmbient>()
             .add_message::<RequestBake>()
             .add_message::<CancelBake>()
             .add_message::<BakeFinished>()
             .register_type::<Lightbaked>()
             .register_type::<NotBaked>()
+            .register_type::<BakeMode>()
             .configure_sets(
                 Update,
                 (
@@ -138,13 +155,21 @@ impl Plugin for LightbakePlugin {
                     (systems::start_bake, systems::poll_bake)
                         .chain()
                         .in_set(LightbakeSystems::Bake),
-                    (gltf::attach_gltf_lightmaps, gltf::mark_baked_gltf_lights)
+                    (
+                        gltf::attach_gltf_lightmaps,
+                        gltf::mark_baked_gltf_lights,
+                        volumes::attach_gltf_volumes,
+                    )
                         .in_set(LightbakeSystems::Gltf),
                 ),
             )
             .add_systems(
                 PostUpdate,
-                (systems::prepare_lightmap_images, systems::sync_lightmaps)
+                (
+                    systems::prepare_lightmap_images,
+                    systems::sync_lightmaps,
+                    volumes::sync_volumes,
+                )
                     .chain()
                     .in_set(LightbakeSystems::Lightmaps),
             );

@@ -7,7 +7,7 @@ use std::f32::consts::PI;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
-use bevy::light::GlobalAmbientLight;
+use bevy::light::{GlobalAmbientLight, RectLight};
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
@@ -199,7 +199,7 @@ fn spawn_light(world: &mut World, l: &lightbake::scene::Light, unbounded: f32) {
     let lumens = l.intensity * 4.0 * PI;
     let range = l.range.unwrap_or(unbounded);
     let name = Name::new(l.name.clone());
-    match l.kind {
+    let mut entity = match l.kind {
         LightKind::Point => world.spawn((
             PointLight {
                 color,
@@ -246,7 +246,32 @@ fn spawn_light(world: &mut World, l: &lightbake::scene::Light, unbounded: f32) {
             }
             e
         }
+        LightKind::Rect {
+            right,
+            width,
+            height,
+        } => {
+            // Local −Z along the facing and local X along `right` (so local Y = right ×
+            // facing): Bevy's rectangle frame.
+            let facing = v3(l.direction);
+            let up = v3(right).cross(facing).normalize_or(perpendicular(facing));
+            let frame = Transform::from_translation(position).looking_to(facing, up);
+            world.spawn((
+                RectLight {
+                    color,
+                    intensity: l.intensity * PI * width * height,
+                    range,
+                    width,
+                    height,
+                },
+                frame,
+                name,
+            ))
+        }
     };
+    if !l.direct_is_baked() {
+        entity.insert(crate::components::BakeMode::IndirectOnly);
+    }
 }
 
 /// Any unit vector perpendicular to `d` (an "up" for `looking_to`).

@@ -13,22 +13,29 @@ use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use lightbake::{BakeError, BakeHandle, BakeOutput, BakeSettings, MeshUnwrap, Scene, UvOrigin};
 
+use lightbake::Layout;
+use lightbake::bake::PreviewKind;
+
 use crate::components::{
     BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
     Lightmapped, RequestBake, ShowLightmaps,
 };
 use crate::convert::{SceneMapping, extract_scene};
 use crate::images::{is_ready, narrow_to_half, page_image};
+use crate::preview::{Restore, show_preview};
+use crate::volumes::spawn_bake_volumes;
 
 /// A bake request waiting for the running bake (if any) to stop.
 #[derive(Resource, Default)]
 pub(crate) struct PendingRequest(Option<RequestBake>);
 
 /// What the bake task hands back.
-struct Finished {
-    output: BakeOutput,
+pub(crate) struct Finished {
+    pub(crate) output: BakeOutput,
     /// Asset paths of the page images written, when files were written.
-    page_paths: Option<Vec<String>>,
+    pub(crate) page_paths: Option<Vec<String>>,
+    /// Asset paths of the irradiance volumes written, when files were written.
+    pub(crate) volume_paths: Option<Vec<String>>,
 }
 
 /// The running bake.
@@ -41,7 +48,13 @@ struct Finished {
 pub(crate) struct BakeJob {
     handle: BakeHandle<Finished>,
     started: Instant,
-    mapping: SceneMapping,
+    pub(crate) mapping: SceneMapping,
+    /// The last preview shown (its sequence number; 0 before the first).
+    pub(crate) shown: u32,
+    /// What the first preview replaced, put back when the bake is cancelled or fails.
+    pub(crate) restore: Option<Restore>,
+    /// The meshes the first preview split off into assets of their own (by core mesh).
+    pub(crate) preview_meshes: Option<HashMap<usize, Handle<Mesh>>>,
 }
 
 /// In-memory page images of earlier bakes, reused so a re-bake of the same size updates the
@@ -91,6 +104,9 @@ pub(crate) fn start_bake(world: &mut World) {
     let started = Instant::now();
     let config = world.resource::<LightbakeConfig>().clone();
     let mut settings = request.settings.unwrap_or_else(|| config.settings.clone());
+    // The sky is read from the ambient light as the game set it, not as a shown volume
+    // turned it down (`volumes::sync_volumes` turns it down again).
+    crate::volumes::restore_ambient(world);
     let (scene, mapping) = match extract_scene(world, "bevy world", config.sky, &mut settings) {
         Ok(x) => x,
         Err(message) => return fail(world, started, message),
@@ -102,9 +118,14 @@ pub(crate) fn start_bake(world: &mut World) {
         .write_files
         .then(|| config.assets_folder.join(&config.output_dir));
     let output_dir = config.output_dir.clone();
-    let spawned = BakeHandle::spawn_then(scene, settings, move |output, scene, settings| {
+    let then = move |output, scene: &Scene, settings: &BakeSettings| {
         write_files(output, scene, settings, out_dir.as_deref(), &output_dir)
-    });
+    };
+    let spawned = if config.previews {
+        BakeHandle::spawn_then_previewing(scene, settings, then)
+    } else {
+        BakeHandle::spawn_then(scene, settings, then)
+    };
     let handle = match spawned {
         Ok(h) => h,
         Err(e) => return fail(world, started, e.to_string()),
@@ -113,6 +134,9 @@ pub(crate) fn start_bake(world: &mut World) {
         handle,
         started,
         mapping,
+        shown: 0,
+        restore: None,
+        preview_meshes: None,
     });
     let mut status = world.resource_mut::<BakeStatus>();
     status.phase = BakePhase::Running;
@@ -122,6 +146,7 @@ pub(crate) fn start_bake(world: &mut World) {
     status.error_estimate = None;
     status.finished_stages.clear();
     status.elapsed_seconds = 0.0;
+    status.preview = None;
 }
 
 /// After the bake, on its thread: (optionally) write the outputs atomically into the assets
@@ -133,20 +158,33 @@ fn write_files(
     out_dir: Option<&std::path::Path>,
     output_dir: &str,
 ) -> Result<Finished, BakeError> {
-    let page_paths = match out_dir {
+    let (page_paths, volume_paths) = match out_dir {
         Some(dir) => {
             lightbake::write_outputs(dir, &output, scene, None, settings)?;
             let pages = lightbake::output::page_files(&output, settings);
-            Some(
-                pages
-                    .iter()
-                    .map(|p| format!("{output_dir}/{}", p.primary().unwrap_or_default()))
-                    .collect(),
+            let volumes = lightbake::output::volumes(&output);
+            (
+                Some(
+                    pages
+                        .iter()
+                        .map(|p| format!("{output_dir}/{}", p.primary().unwrap_or_default()))
+                        .collect(),
+                ),
+                Some(
+                    volumes
+                        .iter()
+                        .map(|v| format!("{output_dir}/{}", v.image))
+                        .collect(),
+                ),
             )
         }
-        None => None,
+        None => (None, None),
     };
-    Ok(Finished { output, page_paths })
+    Ok(Finished {
+        output,
+        page_paths,
+        volume_paths,
+    })
 }
 
 fn fail(world: &mut World, started: Instant, message: String) {
@@ -176,10 +214,22 @@ pub(crate) fn poll_bake(world: &mut World) {
         status.elapsed_seconds = job.started.elapsed().as_secs_f32();
     }
     let Some(result) = job.handle.try_join() else {
+        if let Some(preview) = job.handle.preview()
+            && preview.sequence > job.shown
+            && preview.kind != PreviewKind::Final
+        {
+            show_preview(world, &mut job, &preview);
+        }
         world.insert_resource(job);
         return;
     };
     let seconds = job.started.elapsed().as_secs_f64();
+    if result.is_err()
+        && let Some(restore) = job.restore.take()
+    {
+        restore.apply(world, &job.mapping);
+        world.resource_mut::<BakeStatus>().preview = None;
+    }
     match result {
         Ok(finished) => {
             let lightmapped = apply_bake(world, finished, &job.mapping);
@@ -226,11 +276,24 @@ pub fn apply_unwrap(original: &Mesh, unwrap: &MeshUnwrap) -> Result<Mesh, MeshAc
 /// [`Lightmapped`], baked lights stop lighting lightmapped meshes. Returns how many mesh
 /// entities got a lightmap.
 fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> usize {
-    let Finished { output, page_paths } = finished;
-    let new_handles = apply_meshes(world, &output, mapping);
-    let handles = page_handles(world, &output, page_paths.as_deref());
-    let lightmapped = attach_lightmaps(world, &output, mapping, &new_handles, &handles);
+    let Finished {
+        output,
+        page_paths,
+        volume_paths,
+    } = finished;
+    let new_handles = apply_meshes(world, &output.layout, mapping);
+    let handles = match page_paths.as_deref() {
+        Some(paths) => loaded_pages(world, paths),
+        None => memory_pages(world, &output.pages),
+    };
+    let lightmapped = attach_lightmaps(world, &output.layout, mapping, &new_handles, &handles);
     mark_lights_baked(world, mapping);
+    spawn_bake_volumes(
+        world,
+        &output,
+        volume_paths.as_deref(),
+        mapping.sky_from_ambient,
+    );
     for w in &output.report.warnings {
         warn!("lightbake: {w}");
     }
@@ -238,18 +301,18 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
     status.phase = BakePhase::Done;
     status.completed += 1;
     status.fraction = 1.0;
+    status.preview = Some(PreviewKind::Final);
     status.last_report = Some(Box::new(output.report));
     lightmapped
 }
 
 /// Meshes get the unwrap's `UV_1` (and vertex split), in place or as a new asset; returns the
 /// new assets by core mesh.
-fn apply_meshes(
+pub(crate) fn apply_meshes(
     world: &mut World,
-    output: &BakeOutput,
+    layout: &Layout,
     mapping: &SceneMapping,
 ) -> HashMap<usize, Handle<Mesh>> {
-    let layout = &output.layout;
     let mut new_handles: HashMap<usize, Handle<Mesh>> = HashMap::new();
     for (m, source) in mapping.meshes.iter().enumerate() {
         let Some(unwrap) = &layout.meshes[m] else {
@@ -276,54 +339,51 @@ fn apply_meshes(
     new_handles
 }
 
-/// The page images: loaded from the files just written (`page_paths`), or made in memory.
-fn page_handles(
-    world: &mut World,
-    output: &BakeOutput,
-    page_paths: Option<&[String]>,
-) -> Vec<Handle<Image>> {
-    match page_paths {
-        Some(paths) => {
-            let server = world.resource::<AssetServer>().clone();
-            paths
-                .iter()
-                .map(|p| match server.get_handle::<Image>(p) {
-                    Some(h) => {
-                        server.reload(p);
-                        h
-                    }
-                    None => server.load(p),
-                })
-                .collect()
-        }
-        None => {
-            let mut kept = std::mem::take(&mut world.resource_mut::<MemoryPages>().0);
-            let mut images = world.resource_mut::<Assets<Image>>();
-            kept.truncate(output.pages.len());
-            for (i, page) in output.pages.iter().enumerate() {
-                let image = page_image(page);
-                match kept.get(i) {
-                    Some(h) if images.insert(h.id(), image.clone()).is_ok() => {}
-                    Some(_) => kept[i] = images.add(image),
-                    None => kept.push(images.add(image)),
-                }
+/// Images loaded (or reloaded) from the files just written, by asset path.
+pub(crate) fn loaded_pages(world: &mut World, paths: &[String]) -> Vec<Handle<Image>> {
+    let server = world.resource::<AssetServer>().clone();
+    paths
+        .iter()
+        .map(|p| match server.get_handle::<Image>(p) {
+            Some(h) => {
+                server.reload(p);
+                h
             }
-            world.resource_mut::<MemoryPages>().0 = kept.clone();
-            kept
+            None => server.load(p),
+        })
+        .collect()
+}
+
+/// The pages as images made in memory, reusing the assets of earlier bakes and previews (so a
+/// page of the same size updates its GPU texture in place).
+pub(crate) fn memory_pages(
+    world: &mut World,
+    pages: &[lightbake::LightmapPage],
+) -> Vec<Handle<Image>> {
+    let mut kept = std::mem::take(&mut world.resource_mut::<MemoryPages>().0);
+    let mut images = world.resource_mut::<Assets<Image>>();
+    kept.truncate(pages.len());
+    for (i, page) in pages.iter().enumerate() {
+        let image = page_image(page);
+        match kept.get(i) {
+            Some(h) if images.insert(h.id(), image.clone()).is_ok() => {}
+            Some(_) => kept[i] = images.add(image),
+            None => kept.push(images.add(image)),
         }
     }
+    world.resource_mut::<MemoryPages>().0 = kept.clone();
+    kept
 }
 
 /// Every baked entity gets its lightmap (and its own mesh where the asset was split off);
 /// returns how many.
-fn attach_lightmaps(
+pub(crate) fn attach_lightmaps(
     world: &mut World,
-    output: &BakeOutput,
+    layout: &Layout,
     mapping: &SceneMapping,
     new_handles: &HashMap<usize, Handle<Mesh>>,
     handles: &[Handle<Image>],
 ) -> usize {
-    let layout = &output.layout;
     let mut lightmapped = 0;
     for (i, &entity) in mapping.instances.iter().enumerate() {
         let Ok(mut e) = world.get_entity_mut(entity) else {
@@ -339,7 +399,7 @@ fn attach_lightmaps(
             }
             continue;
         };
-        let mesh_index = output.baked_scene.instances[i].mesh;
+        let mesh_index = mapping.instance_meshes[i];
         if let Some(h) = new_handles.get(&mesh_index) {
             e.insert(Mesh3d(h.clone()));
         }
@@ -356,7 +416,7 @@ fn attach_lightmaps(
 
 /// The baked lights stop lighting lightmapped meshes: their diffuse light is in the lightmaps
 /// now (and the ambient light's, when the sky came from it).
-fn mark_lights_baked(world: &mut World, mapping: &SceneMapping) {
+pub(crate) fn mark_lights_baked(world: &mut World, mapping: &SceneMapping) {
     for &entity in &mapping.lights {
         let Ok(mut e) = world.get_entity_mut(entity) else {
             continue;
@@ -460,7 +520,13 @@ pub(crate) fn sync_lightmaps(
             }
         };
         let ready = show.0 && images.get(&wanted.image).is_some_and(is_ready);
+        // A new image still loading (the final pages after a preview, say): the one shown
+        // stays until it is ready, rather than the mesh flashing to real-time light.
+        let keep = |cur: &Lightmap| {
+            show.0 && cur.image != wanted.image && images.get(&cur.image).is_some_and(is_ready)
+        };
         match (ready, current) {
+            (false, Some(cur)) if keep(cur) => {}
             (false, Some(_)) => {
                 commands.entity(entity).remove::<Lightmap>();
                 respecialize();

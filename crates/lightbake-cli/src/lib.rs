@@ -156,12 +156,35 @@ struct Args {
     /// The denoiser's radius, texels (default 3).
     #[arg(long)]
     denoise_radius: Option<u32>,
+    /// Also bake an irradiance volume for dynamic objects
+    /// (`irradiance_volumes/volume_0.ktx2`, Bevy's `IrradianceVolume` layout, listed in
+    /// manifest.json with its transform).
+    #[arg(long)]
+    irradiance_volume: bool,
+    /// Distance between the volume's probes, m (default: 16 texels at the bake's density,
+    /// widened to at most 65 536 probes).
+    #[arg(long, value_name = "M")]
+    probe_spacing: Option<f32>,
+    /// Rays per probe of the volume (default 256 preview, 512 medium, 1024 high).
+    #[arg(long)]
+    probe_rays: Option<u32>,
     /// Worker threads (0 = every core). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Seed of the sample sequences.
     #[arg(long, default_value_t = 0)]
     seed: u32,
+    /// Which part of the lights' light goes into the lightmaps: `full` (direct and indirect;
+    /// the engine must stop those lights lighting lightmapped meshes) or `indirect` (only the
+    /// light they send after a reflection: the lights stay real-time, with the engine's
+    /// shadows; Bevy's mixed lighting). Applies to every light, or to those named by
+    /// `--indirect-only`. Sky and emissive surfaces are always baked in full.
+    #[arg(long, value_enum, default_value = "full")]
+    lighting: Lighting,
+    /// Bake only these lights (glTF light names, comma-separated) indirect only; the rest in
+    /// full. Implies `--lighting indirect` for them.
+    #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
+    indirect_only: Vec<String>,
     /// Uniform sky luminance in nits, linear RGB (overrides the scene's).
     #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
@@ -331,6 +354,9 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.denoise = v;
     }
     set(&mut s.denoise_radius, args.denoise_radius);
+    s.irradiance_volume = args.irradiance_volume;
+    s.probe_spacing = args.probe_spacing;
+    set(&mut s.probe_rays, args.probe_rays);
     s.threads = args.threads;
     s.seed = args.seed;
     if let Some(v) = args.memory_budget {
@@ -339,6 +365,41 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.target_error = args.target_error;
     s.light_convention = args.light_convention;
     s
+}
+
+/// The `--lighting` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Lighting {
+    /// Direct and indirect light.
+    Full,
+    /// Indirect light only: the lights stay real-time.
+    Indirect,
+}
+
+/// Marks the lights `--lighting` / `--indirect-only` choose as baked indirect only.
+fn choose_lighting(args: &Args, scene: &mut lightbake::scene::Scene) -> Result<(), String> {
+    use lightbake::scene::LightBake;
+    for name in &args.indirect_only {
+        if !scene.lights.iter().any(|l| &l.name == name) {
+            let names: Vec<&str> = scene.lights.iter().map(|l| l.name.as_str()).collect();
+            return Err(format!(
+                "--indirect-only: the scene has no light named '{name}' (its lights: {})",
+                if names.is_empty() {
+                    "none".to_string()
+                } else {
+                    names.join(", ")
+                }
+            ));
+        }
+    }
+    for l in &mut scene.lights {
+        if args.indirect_only.contains(&l.name)
+            || (args.indirect_only.is_empty() && args.lighting == Lighting::Indirect)
+        {
+            l.bake = LightBake::IndirectOnly;
+        }
+    }
+    Ok(())
 }
 
 /// `on` or `off`.
@@ -358,6 +419,7 @@ fn run(args: Args) -> Result<(), String> {
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }
+    choose_lighting(&args, &mut imported.scene)?;
     let scene = &imported.scene;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -556,6 +618,9 @@ mod tests {
             "--no-stitch",
             "--denoise=off",
             "--denoise-radius=5",
+            "--irradiance-volume",
+            "--probe-spacing=0.5",
+            "--probe-rays=43",
             "--threads=1",
             "--seed=37",
             "--memory-budget=41",

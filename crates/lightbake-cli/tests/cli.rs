@@ -388,3 +388,60 @@ fn a_bake_killed_midway_leaves_every_output_whole() {
         "only {killed} bakes were killed before one finished"
     );
 }
+
+#[test]
+fn mixed_lighting_and_an_irradiance_volume_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let scene = asset("cornell_box_point.gltf");
+    let args = |extra: &[&str]| {
+        let mut a = vec![
+            scene.to_str().unwrap().to_string(),
+            "-o".into(),
+            out_dir.to_str().unwrap().into(),
+            "--quality".into(),
+            "preview".into(),
+            "--texel-density".into(),
+            "32".into(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let run = |extra: &[&str]| {
+        let a = args(extra);
+        bake(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let out = run(&[
+        "--lighting",
+        "indirect",
+        "--irradiance-volume",
+        "--probe-rays",
+        "32",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("indirect only"), "{stdout}");
+    assert!(stdout.contains("irradiance volume"), "{stdout}");
+    assert!(out_dir.join("irradiance_volumes/volume_0.ktx2").is_file());
+    let gltf: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("cornell_box_point.gltf")).unwrap())
+            .unwrap();
+    let light = &gltf["extensions"]["KHR_lights_punctual"]["lights"][0]["extras"]["lightbake"];
+    assert_eq!(light["bake"], "indirect");
+    assert!(light.get("baked").is_none(), "{light}");
+    let volumes = &gltf["scenes"][0]["extras"]["lightbake"]["irradiance_volumes"];
+    assert_eq!(volumes[0]["image"], "irradiance_volumes/volume_0.ktx2");
+
+    // A light named that the scene does not have is a one-line error naming the lights.
+    let out = run(&["--indirect-only", "lamp"]);
+    assert!(!out.status.success());
+    let line = stderr_line(&out);
+    assert!(
+        line.contains("'lamp'") && line.contains("ceiling_point"),
+        "{line}"
+    );
+}

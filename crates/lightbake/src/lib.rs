@@ -47,10 +47,11 @@
 //! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, hierarchical radiosity, the radiosity pass |
 //! | 11 | `vpl` | instant radiosity: walks, gather, bias compensation |
 //! | 12 | [`lightmap`] | pages of E/π, filled and dilated |
-//! | 13 | [`report`] | what a bake records about itself |
-//! | 14 | [`bake`](mod@bake) | the driver and [`BakeHandle`] |
-//! | 15 | [`output`] | EXR/HDR/KTX2 + PNG, baked glTF, manifest, report; atomically |
-//! | 16 | [`analysis`] | the reference path tracer, bakes scored against it at surface points, the convergence study |
+//! | 13 | [`probes`] | irradiance volumes for dynamic objects, gathered from the lightmaps |
+//! | 14 | [`report`] | what a bake records about itself |
+//! | 15 | [`bake`](mod@bake) | the driver, [`BakeHandle`] and the progressive previews |
+//! | 16 | [`output`] | EXR/HDR/KTX2 + PNG, irradiance volumes, baked glTF, manifest, report; atomically |
+//! | 17 | [`analysis`] | the reference path tracer, bakes scored against it at surface points, the convergence study |
 //!
 //! Modules without a link are the stages' internals: crate-private, and public with the
 //! `internals` feature (for the benchmarks and the core's tests). The scenes of the core's
@@ -81,11 +82,12 @@ pub mod scene;
 internal!(unwrap, bvh, raster, lights, plan, memory, context);
 // 8–11. The lighting passes.
 internal!(direct, solve, radiosity, vpl);
-// 12–16. Results, the driver, writing, analysis.
+// 12–17. Results, the driver, writing, analysis.
 pub mod analysis;
 pub mod bake;
 pub mod lightmap;
 pub mod output;
+pub mod probes;
 pub mod report;
 
 pub use bake::{BakeHandle, BakeOutput, bake};

@@ -32,8 +32,10 @@ pub struct PlannedStage {
 pub struct LightReach {
     /// Light name.
     pub light: String,
-    /// `point`, `spot` or `directional`.
+    /// `point`, `spot`, `directional` or `rect`.
     pub kind: &'static str,
+    /// Which part of its light the lightmaps hold.
+    pub bake: crate::scene::LightBake,
     /// Baked instances the light is evaluated for.
     pub instances: usize,
     /// Baked instances it was skipped for.
@@ -165,6 +167,12 @@ impl BakePlan {
             ));
         }
         for l in &self.lights {
+            if l.bake == crate::scene::LightBake::IndirectOnly {
+                s.push_str(&format!(
+                    "  light '{}' ({}) indirect only: its direct light is left to the engine's real-time lighting\n",
+                    l.light, l.kind
+                ));
+            }
             for r in &l.skip_reasons {
                 s.push_str(&format!(
                     "  light '{}' ({}) skipped for {r}\n",
@@ -264,6 +272,7 @@ fn light_reaches(scene: &Scene, baked: &[usize]) -> (Vec<LightReach>, Vec<Vec<u3
         let mut reach = LightReach {
             light: light.name.clone(),
             kind: light.kind_name(),
+            bake: light.bake,
             instances: 0,
             skipped: 0,
             skip_reasons: Vec::new(),
@@ -540,6 +549,19 @@ impl Facts<'_> {
                 "turned off in the settings (stitch_seams)",
                 "both sides of every seam made to agree after bilinear filtering",
             ),
+            step(
+                "irradiance volume",
+                s.irradiance_volume,
+                "not asked for (irradiance_volume; --irradiance-volume)",
+                &format!(
+                    "probes for dynamic objects, {} rays each, spacing {}",
+                    s.probe_rays,
+                    s.probe_spacing.map_or_else(
+                        || "from the texel density".to_string(),
+                        |d| format!("{d} m")
+                    )
+                ),
+            ),
             stage(
                 "write",
                 true,
@@ -618,6 +640,7 @@ mod tests {
             range: Some(5.0),
             position: Vec3::new(0.0, 1.0, 0.0),
             direction: Vec3::NEG_Y,
+            bake: crate::scene::LightBake::Full,
         });
         s.lights.push(Light {
             name: "spot".into(),
@@ -630,6 +653,7 @@ mod tests {
             range: None,
             position: Vec3::new(50.0, 3.0, 0.0),
             direction: Vec3::NEG_Y,
+            bake: crate::scene::LightBake::Full,
         });
         let plan = BakePlan::new(&s, &BakeSettings::default());
         assert_eq!(plan.lights_for(0), &[0]);

@@ -127,6 +127,9 @@ pub struct BakeReport {
     /// The seams and their stitch (the jumps across them before and after), when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<StitchStats>,
+    /// The irradiance volume, when one was baked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub irradiance_volume: Option<crate::probes::VolumeStats>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// The bake's estimate of its own error: the stages' estimates added in quadrature,
@@ -227,6 +230,25 @@ impl BakeReport {
                 100.0 * st.before.max,
                 100.0 * st.after.mean,
                 100.0 * st.after.max
+            ));
+        }
+        if let Some(v) = &self.irradiance_volume {
+            s.push_str(&format!(
+                "irradiance volume: {} × {} × {} probes {:.3e} m apart ({}), {} rays each, {:.2}% noise; {} moved out of geometry, {} filled from neighbours{}\n",
+                v.resolution[0],
+                v.resolution[1],
+                v.resolution[2],
+                v.spacing,
+                v.spacing_reason,
+                v.rays_per_probe,
+                100.0 * v.relative_standard_error,
+                v.moved,
+                v.filled,
+                if v.unfilled > 0 {
+                    format!(", {} left black", v.unfilled)
+                } else {
+                    String::new()
+                }
             ));
         }
         if let Some(f) = &self.floor {

@@ -293,6 +293,19 @@ pub struct BakeSettings {
     /// bilinear filtering, by a least-squares stitch of the texels along it
     /// ([`crate::lightmap::stitch`]). Default true.
     pub stitch_seams: bool,
+    /// Also bake an irradiance volume for dynamic objects ([`crate::probes`]): a grid of
+    /// probes over the baked instances, each the light from the six axis directions read from
+    /// the lightmaps (without the direct light of the lights, which the engine draws on
+    /// dynamic objects itself), written as `irradiance_volumes/volume_0.ktx2` in the layout
+    /// Bevy's `IrradianceVolume` reads. Default false.
+    pub irradiance_volume: bool,
+    /// Distance between the volume's probes, m (per scene unit). Default none: 16 lightmap
+    /// texels at the bake's density, widened so the volume has at most 65 536 probes (the
+    /// plan says so). An explicit spacing giving over 2²⁰ probes is refused.
+    pub probe_spacing: Option<f32>,
+    /// Rays per probe of the irradiance volume (plus a quarter as many samples of emissive
+    /// surfaces). Range 1..=65 536. Default 256 (preview), 512 (medium), 1024 (high).
+    pub probe_rays: u32,
     /// Seed of every Monte Carlo estimate (numbers are indexed by texel, sample and this seed,
     /// never by thread). The validity pass, which decides geometry (which texels are inside
     /// solids and where their points move), uses a fixed seed instead, so two seeds differ by
@@ -374,6 +387,13 @@ impl BakeSettings {
             denoise: quality != Quality::Preview,
             denoise_radius: 3,
             stitch_seams: true,
+            irradiance_volume: false,
+            probe_spacing: None,
+            probe_rays: match quality {
+                Quality::Preview => 256,
+                Quality::Medium => 512,
+                Quality::High => 1024,
+            },
             seed: 0,
             threads: 0,
             memory_budget_mib: 8192,
@@ -531,6 +551,18 @@ impl BakeSettings {
                 self.vpl_max_depth,
                 "must be at most 29",
             ));
+        }
+        if let Some(d) = self.probe_spacing {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(bad(
+                    "probe_spacing",
+                    d,
+                    "must be a positive distance in metres",
+                ));
+            }
+        }
+        if !(1..=65_536).contains(&self.probe_rays) {
+            return Err(bad("probe_rays", self.probe_rays, "must be 1..=65536"));
         }
         if self.memory_budget_mib == 0 {
             return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));

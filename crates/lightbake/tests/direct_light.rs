@@ -23,6 +23,7 @@ fn point_light(position: Vec3, intensity: f32) -> Light {
         range: None,
         position,
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     }
 }
 
@@ -77,6 +78,7 @@ fn spot_light_respects_its_cone() {
         range: None,
         position,
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     let out = bake(&s, &settings(12.0, 16));
     let half_texel = 0.5 * 6.0 / 72.0 * 2f32.sqrt();
@@ -135,6 +137,7 @@ fn directional_light_gives_uniform_cosine_irradiance() {
             range: None,
             position: Vec3::ZERO,
             direction,
+            bake: lightbake::scene::LightBake::Full,
         });
         let out = bake(&s, &settings(16.0, 16));
         // The mean cosine over a uniform cone of half-angle α about a direction at angle θ

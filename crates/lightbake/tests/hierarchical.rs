@@ -227,6 +227,7 @@ fn coarse_cells_do_not_carry_light_under_a_wall() {
         range: None,
         position: Vec3::new(-1.5, 2.0, 0.0),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     let mut s = settings(16.0, SolverChoice::Hierarchical);
     s.cluster_texels = 64;

@@ -385,6 +385,7 @@ fn energy_is_conserved() {
         range: None,
         position: Vec3::ZERO,
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     let mut settings = radiosity_settings(32.0, SolverChoice::GaussSeidel);
     settings.transport_rays = 256;

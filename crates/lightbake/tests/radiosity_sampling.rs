@@ -48,6 +48,7 @@ fn bent_grid() -> Scene {
         range: None,
         position: Vec3::new(0.0, 2.0, 0.0),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     bent
 }

@@ -363,6 +363,7 @@ fn split_rooms() -> Scene {
         range: None,
         position: Vec3::new(0.5, 0.6, 0.1),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     scene
 }

@@ -190,6 +190,7 @@ fn white_meshes_with_a_lamp(meshes: [Mesh; 2], lamp: Vec3, intensity: f32) -> Sc
         range: None,
         position: lamp,
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     s
 }
@@ -321,6 +322,7 @@ fn vpl_method_reproduces_direct_light_of_a_point_light() {
         range: None,
         position: Vec3::new(0.2, 1.0, 0.1),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     };
     s.lights.push(light.clone());
     let mut st = common::settings(16.0, 1);

@@ -43,7 +43,8 @@ pub struct ScorePoint {
     pub position: Vec3,
     /// Unit geometric normal (world).
     pub normal: Vec3,
-    /// The path tracer's E/π there (direct and indirect), linear RGB.
+    /// The path tracer's E/π there (direct and indirect; without the direct light of lights
+    /// baked indirect only), linear RGB.
     pub reference: Vec3,
     /// The variance of the reference's luminance (of its mean of two halves).
     pub variance: f64,
@@ -122,7 +123,7 @@ pub fn references(
                     paths.div_ceil(2),
                     hash_words(&[seed, k as u32, h]),
                 );
-                (r.direct + r.indirect) / std::f32::consts::PI
+                (r.direct - r.realtime + r.indirect) / std::f32::consts::PI
             };
             let (a, b) = (half(1), half(2));
             let d = luminance(a) as f64 - luminance(b) as f64;

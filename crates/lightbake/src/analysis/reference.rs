@@ -28,17 +28,30 @@ pub struct PathIrradiance {
     pub direct: Vec3,
     /// Light that reaches x after one or more reflections (lux).
     pub indirect: Vec3,
+    /// The part of `direct` from lights baked indirect only
+    /// ([`crate::scene::LightBake::IndirectOnly`]), which their lightmaps leave out (lux).
+    pub realtime: Vec3,
 }
 
 /// Direct irradiance at a surface point from lights, the sun and emitters (one sample of each
-/// sun and of the emitters, `u` the random numbers); the sky is left to the caller.
-fn next_event(ctx: &BakeContext<'_>, emitters: &Emitters, sp: &SurfacePoint, u: [f32; 3]) -> Vec3 {
+/// sun and of the emitters, `u` the random numbers); the sky is left to the caller. The
+/// second value is the part from lights baked indirect only.
+fn next_event(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    sp: &SurfacePoint,
+    u: [f32; 3],
+) -> (Vec3, Vec3) {
     let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
     let mut e = Vec3::ZERO;
+    let mut realtime = Vec3::ZERO;
     for light in &ctx.scene.lights {
         if let Some(incident) = light.incident(sp, Vec2::new(u[0], u[1]), ctx.rays) {
             if incident.visible(ctx.rays, origin) {
                 e += incident.irradiance;
+                if !light.direct_is_baked() {
+                    realtime += incident.irradiance;
+                }
             }
         }
     }
@@ -71,7 +84,7 @@ fn next_event(ctx: &BakeContext<'_>, emitters: &Emitters, sp: &SurfacePoint, u: 
             }
         }
     }
-    e
+    (e, realtime)
 }
 
 /// What the continuation ray contributes when it hits an emitter at distance `t` (the other
@@ -107,7 +120,9 @@ pub fn irradiance(
     for s in 0..samples {
         let rnd = |dim: u32| unit_float(hash_words(&[key, s, dim]));
         // Direct light at x itself: next-event estimation (the sky by the first ray below).
-        out.direct += next_event(ctx, emitters, sp, [rnd(1), rnd(2), rnd(3)]);
+        let (e, realtime) = next_event(ctx, emitters, sp, [rnd(1), rnd(2), rnd(3)]);
+        out.direct += e;
+        out.realtime += realtime;
         let mut point = *sp;
         let mut beta = Vec3::ONE;
         let mut dir = cosine_hemisphere(point.normal, sobol_02(s, key));
@@ -156,7 +171,7 @@ pub fn irradiance(
             };
             let base = 16 + 8 * depth;
             out.indirect +=
-                beta * next_event(ctx, emitters, &y, [rnd(base), rnd(base + 1), rnd(base + 2)]);
+                beta * next_event(ctx, emitters, &y, [rnd(base), rnd(base + 1), rnd(base + 2)]).0;
             // Russian roulette after three bounces.
             if depth >= 2 {
                 let survive = beta.max_element().min(0.95);
@@ -171,5 +186,6 @@ pub fn irradiance(
     }
     out.direct /= samples as f32;
     out.indirect /= samples as f32;
+    out.realtime /= samples as f32;
     out
 }

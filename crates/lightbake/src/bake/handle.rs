@@ -5,7 +5,8 @@
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use super::{BakeOutput, bake};
+use super::preview::{Preview, PreviewSlot};
+use super::{BakeOutput, bake_previewing};
 use crate::error::{BakeError, Result};
 use crate::progress::{Progress, ProgressSnapshot};
 use crate::scene::Scene;
@@ -16,6 +17,7 @@ use crate::settings::BakeSettings;
 pub struct BakeHandle<T = BakeOutput> {
     thread: Option<JoinHandle<Result<T>>>,
     progress: Arc<Progress>,
+    previews: Arc<PreviewSlot>,
 }
 
 impl BakeHandle<BakeOutput> {
@@ -39,19 +41,49 @@ impl<T: Send + 'static> BakeHandle<T> {
         settings: BakeSettings,
         then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
     ) -> Result<Self> {
+        Self::start(scene, settings, PreviewSlot::default(), then)
+    }
+
+    /// [`Self::spawn_then`], with the bake publishing progressive previews of its lightmaps
+    /// ([`super::preview`]; read them with [`Self::preview`]).
+    ///
+    /// # Errors
+    /// [`BakeError::Thread`] when the thread cannot be started.
+    pub fn spawn_then_previewing(
+        scene: Scene,
+        settings: BakeSettings,
+        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
+    ) -> Result<Self> {
+        Self::start(scene, settings, PreviewSlot::enabled(), then)
+    }
+
+    fn start(
+        scene: Scene,
+        settings: BakeSettings,
+        previews: PreviewSlot,
+        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
+    ) -> Result<Self> {
         let progress = Arc::new(Progress::new());
-        let watched = Arc::clone(&progress);
+        let previews = Arc::new(previews);
+        let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
         let thread = std::thread::Builder::new()
             .name("lightbake".into())
             .spawn(move || {
-                let output = bake(&scene, &settings, &watched)?;
+                let output = bake_previewing(&scene, &settings, &watched, &published)?;
                 then(output, &scene, &settings)
             })
             .map_err(|source| BakeError::Thread { source })?;
         Ok(Self {
             thread: Some(thread),
             progress,
+            previews,
         })
+    }
+
+    /// The latest progressive preview of the lightmaps (a bake started with
+    /// [`Self::spawn_then_previewing`]; `None` before the first and for other bakes).
+    pub fn preview(&self) -> Option<Arc<Preview>> {
+        self.previews.latest()
     }
 
     /// The bake's progress (stage, fraction, error estimate, finished stages).

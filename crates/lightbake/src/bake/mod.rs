@@ -9,6 +9,7 @@
 
 pub mod handle;
 mod passes;
+pub mod preview;
 mod stages;
 
 use std::time::Instant;
@@ -28,6 +29,8 @@ use crate::lightmap::{Assembly, HALF_MAX, LightmapPage};
 use crate::lights::Emitters;
 use crate::memory;
 use crate::plan::BakePlan;
+use crate::probes::gather::Solution;
+use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats, bake_volume};
 use crate::progress::{Progress, RayKind};
 use crate::raster::Patches;
 use crate::report::{BakeReport, Floor, TexelStats};
@@ -36,6 +39,7 @@ use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
 use crate::unwrap::{Layout, unwrap_scene};
 pub use handle::BakeHandle;
+pub use preview::{Preview, PreviewKind, PreviewSlot};
 use stages::Stages;
 
 /// Rays of each kind the floor calibration traces.
@@ -50,6 +54,9 @@ pub struct BakeOutput {
     pub baked_scene: Scene,
     /// Lightmap pages (E/π, linear RGB).
     pub pages: Vec<LightmapPage>,
+    /// The irradiance volume for dynamic objects, when the settings ask for one
+    /// ([`BakeSettings::irradiance_volume`]).
+    pub irradiance_volume: Option<IrradianceVolume>,
     /// Timings, counts, plan and warnings.
     pub report: BakeReport,
 }
@@ -61,8 +68,35 @@ pub struct BakeOutput {
 /// Invalid settings or scene ([`BakeError::BadSetting`] and the scene errors),
 /// [`BakeError::OverMemoryBudget`], [`BakeError::Unwrap`], [`BakeError::Cancelled`].
 pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<BakeOutput> {
+    bake_previewing(scene, settings, progress, &PreviewSlot::default())
+}
+
+/// [`bake`], leaving progressive previews of the lightmaps in `previews` when it is
+/// [`PreviewSlot::enabled`] ([`preview`]): the direct light, then the first indirect
+/// solution, then the final pages.
+///
+/// # Errors
+/// As [`bake`].
+pub fn bake_previewing(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    previews: &PreviewSlot,
+) -> Result<BakeOutput> {
     settings.validate()?;
     scene.validate()?;
+    if settings.method == Method::Vpl
+        && let Some(l) = scene.lights.iter().find(|l| !l.direct_is_baked())
+    {
+        return Err(BakeError::BadSetting {
+            name: "method",
+            value: "vpl".into(),
+            message: format!(
+                "light '{}' is baked indirect only, which needs the direct pass to tell its direct light apart: use the radiosity or hybrid method",
+                l.name
+            ),
+        });
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
         .build()
@@ -71,7 +105,15 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
             value: settings.threads.to_string(),
             message: e.to_string(),
         })?;
-    pool.install(|| bake_in_pool(scene, settings, progress, pool.current_num_threads()))
+    pool.install(|| {
+        bake_in_pool(
+            scene,
+            settings,
+            progress,
+            previews,
+            pool.current_num_threads(),
+        )
+    })
 }
 
 /// Values of the valid patches only.
@@ -99,6 +141,7 @@ struct Lit {
     contact: Option<ContactStats>,
     seams: Option<StitchStats>,
     denoise: Option<DenoiseStats>,
+    volume: Option<(IrradianceVolume, VolumeStats)>,
     /// Stages the plan meant to run that the bake found it could not, with why.
     skipped: Vec<(&'static str, String)>,
 }
@@ -107,10 +150,11 @@ fn bake_in_pool(
     scene: &Scene,
     settings: &BakeSettings,
     progress: &Progress,
+    previews: &PreviewSlot,
     threads: usize,
 ) -> Result<BakeOutput> {
     let start = Instant::now();
-    let mut stages = Stages::new(progress);
+    let mut stages = Stages::new(progress, previews);
     let mut warnings = scene.warnings.clone();
 
     // Plan, and refuse early when the texel count alone would not fit.
@@ -165,6 +209,10 @@ fn bake_in_pool(
         plan.skip(name, reason);
     }
     let total_seconds = start.elapsed().as_secs_f64();
+    let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
+    stages.preview(PreviewKind::Final, &layout, Vec3::ZERO, || {
+        lit.pages.clone()
+    });
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
     let report = BakeReport {
@@ -178,6 +226,7 @@ fn bake_in_pool(
         contact_fit: lit.contact,
         seams: lit.seams,
         denoise: lit.denoise,
+        irradiance_volume: volume_stats,
         texels: lit.texels,
         triangles: scene.instanced_triangle_count(),
         threads,
@@ -192,6 +241,7 @@ fn bake_in_pool(
         layout,
         baked_scene,
         pages: lit.pages,
+        irradiance_volume,
         report,
     })
 }
@@ -413,7 +463,60 @@ fn light_scene(
         lit.seams = Some(st);
     }
     lit.pages = assembly.pages;
+    if plan.runs("irradiance volume") {
+        lit.volume = volume_stage(
+            scene, layout, settings, plan, &rays, &emitters, &lit.pages, stages,
+        )?;
+        if lit.volume.as_ref().is_some_and(|v| v.1.unfilled > 0) {
+            warnings.push(
+                "every probe of the irradiance volume is inside geometry: the volume is black"
+                    .to_string(),
+            );
+        }
+    }
     Ok(lit)
+}
+
+/// The irradiance volume stage ([`crate::probes`]): the grid over the baked instances, every
+/// probe gathered from the finished `pages`.
+#[allow(clippy::too_many_arguments)]
+fn volume_stage(
+    scene: &Scene,
+    layout: &Layout,
+    settings: &BakeSettings,
+    plan: &BakePlan,
+    rays: &RayScene,
+    emitters: &Emitters,
+    pages: &[LightmapPage],
+    stages: &mut Stages<'_>,
+) -> Result<Option<(IrradianceVolume, VolumeStats)>> {
+    let Some(grid) = VolumeGrid::plan(scene, layout, settings, plan.texel_density)? else {
+        return Ok(None);
+    };
+    let solution = Solution {
+        scene,
+        layout,
+        pages,
+        rays,
+        emitters,
+    };
+    let progress = stages.progress();
+    let volume = stages.run("irradiance volume", grid.len() as u64, || {
+        let (volume, st) = bake_volume(&solution, grid, settings.probe_rays, settings.seed, progress);
+        let note = format!(
+            "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
+            st.resolution[0],
+            st.resolution[1],
+            st.resolution[2],
+            st.spacing,
+            st.moved,
+            st.filled,
+            100.0 * st.relative_standard_error
+        );
+        let rays = st.rays;
+        Ok(((volume, st), rays, note))
+    })?;
+    Ok(Some(volume))
 }
 
 /// The factor that scales the per-patch noise so its RMS over the valid patches matches the

@@ -65,11 +65,24 @@ pub(super) fn lighting(
         vpl: None,
         indirect_reason: None,
     };
+    let mut realtime = Vec::new();
     if direct_runs {
-        let (irradiance, texel_error, error) = direct(ctx, emitters, share, stages, warnings)?;
+        let (irradiance, texel_error, error, rt) = direct(ctx, emitters, share, stages, warnings)?;
         light.irradiance = irradiance;
         light.texel_error = texel_error;
         light.errors.extend(error);
+        realtime = rt;
+        let shown: Vec<Vec3> = if realtime.is_empty() {
+            light.irradiance.clone()
+        } else {
+            light
+                .irradiance
+                .iter()
+                .zip(&realtime)
+                .map(|(e, r)| (*e - *r).max(Vec3::ZERO))
+                .collect()
+        };
+        stages.preview_direct(ctx, shown);
     }
     if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
         let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
@@ -101,8 +114,17 @@ pub(super) fn lighting(
         ));
         light.radiosity = Some(report);
     }
+    // Lights baked indirect only: their direct light fed the interreflections above and
+    // leaves the lightmaps now (the engine draws it in real time).
+    for (e, r) in light.irradiance.iter_mut().zip(&realtime) {
+        *e = (*e - *r).max(Vec3::ZERO);
+    }
     Ok(light)
 }
+
+/// The direct stage's irradiance per patch, its per-patch standard error, its error
+/// estimate, and the part of the irradiance from lights baked indirect only.
+type DirectPass = (Vec<Vec3>, Vec<f32>, Option<ErrorEstimate>, Vec<Vec3>);
 
 /// The direct stage: irradiance per patch and its error estimate.
 fn direct(
@@ -111,7 +133,7 @@ fn direct(
     share: Option<f64>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, Vec<f32>, Option<ErrorEstimate>)> {
+) -> Result<DirectPass> {
     let patches = ctx.patches;
     let progress = stages.progress();
     let mut pilot = ctx.settings.clone();
@@ -146,7 +168,10 @@ fn direct(
                     )
                 });
                 let relative = est.as_ref().map(|e| e.relative_rms);
-                Ok(((r.irradiance, r.standard_error, est, s.clone()), relative))
+                Ok((
+                    (r.irradiance, r.standard_error, est, s.clone(), r.realtime),
+                    relative,
+                ))
             },
             |s, _, factor| {
                 let next = (
@@ -177,7 +202,7 @@ fn direct(
         );
         Ok((rounds, rays, note))
     })?;
-    let (irradiance, texel_error, error, _) = rounds.value;
+    let (irradiance, texel_error, error, _, realtime) = rounds.value;
     if let Some(e) = error.as_ref().filter(|_| rounds.missed) {
         warnings.push(format!(
             "direct light stopped at an estimated {:.2}% error, above its share {:.2}% of the target (sample counts capped or rounds used up)",
@@ -186,7 +211,7 @@ fn direct(
         ));
     }
     stages.annotate(RayKind::Shadow, error.clone());
-    Ok((irradiance, texel_error, error))
+    Ok((irradiance, texel_error, error, realtime))
 }
 
 /// The instant-radiosity stage: irradiance per patch from the VPLs (all of it for method
@@ -448,6 +473,15 @@ fn radiosity_round(
         let rays = sol.rays;
         Ok((sol, rays, note))
     })?;
+    // The preview of the solve, with the ambient term of its residual (stochastic Jacobi
+    // keeps no matrix to take one).
+    if stages.previewing() {
+        let ambient = transport.as_ref().map_or(Vec3::ZERO, |t| {
+            radiosity::system(t, nodes, &source).ambient_term(&crate::solve::to_f64(&solution.b))
+        });
+        let indirect = radiosity::per_patch(nodes, &solution.indirect, ctx.patches.patches.len());
+        stages.preview_indirect(ctx, &indirect, ambient);
+    }
     // The Monte Carlo error of the matrix rows, or of stochastic Jacobi's shooting.
     let error = stages.run(&format!("error estimate{suffix}"), 1, || {
         let (e, rays) = radiosity::gather_error(
@@ -519,6 +553,12 @@ fn hierarchical_round(
         Ok((c, rays, note))
     })?;
     let cell_indirect = &coarse.solution.indirect;
+    if stages.previewing() {
+        // The preview of the coarse level: each node the reflected light of its cell.
+        let per_node = coarse.clusters.prolong(cell_indirect);
+        let per_patch = radiosity::per_patch(nodes, &per_node, ctx.patches.patches.len());
+        stages.preview_indirect(ctx, &per_patch, coarse.ambient);
+    }
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
     let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
         let (h, se, rays) = hierarchical::final_gather(

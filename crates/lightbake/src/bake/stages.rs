@@ -4,22 +4,84 @@
 
 use std::time::Instant;
 
+use super::preview::{self, PreviewKind, PreviewSlot};
+use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::ErrorEstimate;
+use crate::lightmap::LightmapPage;
 use crate::progress::{Progress, RayKind, StageStats};
 use crate::settings::BakeSettings;
+use crate::unwrap::Layout;
 
 /// The finished stages of one bake, in order.
 pub(super) struct Stages<'p> {
     pub(super) list: Vec<StageStats>,
     progress: &'p Progress,
+    previews: &'p PreviewSlot,
+    /// The direct light the previews show (lux per patch), kept for the indirect preview
+    /// when previews are asked for.
+    preview_direct: Option<Vec<glam::Vec3>>,
 }
 
 impl<'p> Stages<'p> {
-    pub(super) fn new(progress: &'p Progress) -> Self {
+    pub(super) fn new(progress: &'p Progress, previews: &'p PreviewSlot) -> Self {
         Self {
             list: Vec::new(),
             progress,
+            previews,
+            preview_direct: None,
+        }
+    }
+
+    /// Whether the bake publishes previews (and has a direct-light preview to build on).
+    pub(super) fn previewing(&self) -> bool {
+        self.previews.is_enabled() && self.preview_direct.is_some()
+    }
+
+    /// The direct-light preview of `direct` (lux per patch, without the direct light of
+    /// lights baked indirect only), kept for [`Self::preview_indirect`].
+    pub(super) fn preview_direct(&mut self, ctx: &BakeContext<'_>, direct: Vec<glam::Vec3>) {
+        if !self.previews.is_enabled() {
+            return;
+        }
+        let pages = || preview::pages(ctx.layout, ctx.patches, &direct, ctx.settings.padding);
+        self.preview(PreviewKind::Direct, ctx.layout, glam::Vec3::ZERO, pages);
+        self.preview_direct = Some(direct);
+    }
+
+    /// The indirect preview: the direct light of [`Self::preview_direct`] plus `indirect`
+    /// (lux per patch) and the ambient term `ambient` (lux) on every texel.
+    pub(super) fn preview_indirect(
+        &self,
+        ctx: &BakeContext<'_>,
+        indirect: &[glam::Vec3],
+        ambient: glam::Vec3,
+    ) {
+        let Some(direct) = &self.preview_direct else {
+            return;
+        };
+        let pages = || {
+            let sum: Vec<glam::Vec3> = direct
+                .iter()
+                .zip(indirect)
+                .map(|(d, i)| (*d + *i + ambient).max(glam::Vec3::ZERO))
+                .collect();
+            preview::pages(ctx.layout, ctx.patches, &sum, ctx.settings.padding)
+        };
+        self.preview(PreviewKind::Indirect, ctx.layout, ambient, pages);
+    }
+
+    /// Publishes a preview of `kind` when the bake's watcher asked for previews: `pages`
+    /// makes them (only then) over `layout`, with the ambient term `ambient` included.
+    pub(super) fn preview(
+        &self,
+        kind: PreviewKind,
+        layout: &Layout,
+        ambient: glam::Vec3,
+        pages: impl FnOnce() -> Vec<LightmapPage>,
+    ) {
+        if self.previews.is_enabled() && !self.progress.is_cancelled() {
+            self.previews.publish(kind, layout, pages(), ambient);
         }
     }
 

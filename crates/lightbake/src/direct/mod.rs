@@ -52,6 +52,10 @@ pub struct DirectResult {
     pub standard_error: Vec<f32>,
     /// Shadow and sky rays traced.
     pub rays: u64,
+    /// The part of `irradiance` from lights baked indirect only
+    /// ([`crate::scene::LightBake::IndirectOnly`]), lux: it feeds the interreflections and
+    /// is taken out of the lightmaps. Empty when the scene has no such light.
+    pub realtime: Vec<Vec3>,
 }
 
 /// Per-pass context shared by the texel workers.
@@ -93,20 +97,23 @@ pub fn direct_light(
         closed_form: emitters.list.len() <= bake.settings.max_closed_form_emitters as usize,
     };
     let ray_count = AtomicU64::new(0);
-    let (irradiance, standard_error): (Vec<Vec3>, Vec<f32>) = bake
+    let any_realtime = bake.scene.lights.iter().any(|l| !l.direct_is_baked());
+    let (values, realtime): (Vec<(Vec3, f32)>, Vec<Vec3>) = bake
         .patches
         .patches
         .par_chunks(256)
         .flat_map_iter(|chunk| {
             let cancelled = progress.is_cancelled();
             let mut local_rays = 0u64;
-            let out: Vec<(Vec3, f32)> = chunk
+            let out: Vec<((Vec3, f32), Vec3)> = chunk
                 .iter()
                 .map(|p| {
                     if cancelled || !p.is_valid() {
-                        (Vec3::ZERO, 0.0)
+                        ((Vec3::ZERO, 0.0), Vec3::ZERO)
                     } else {
-                        texel(&ctx, p, &mut local_rays)
+                        let mut realtime = Vec3::ZERO;
+                        let v = texel(&ctx, p, &mut local_rays, &mut realtime);
+                        (v, realtime)
                     }
                 })
                 .collect();
@@ -115,10 +122,12 @@ pub fn direct_light(
             out
         })
         .unzip();
+    let (irradiance, standard_error) = values.into_iter().unzip();
     DirectResult {
         irradiance,
         standard_error,
         rays: ray_count.into_inner(),
+        realtime: if any_realtime { realtime } else { Vec::new() },
     }
 }
 
@@ -146,7 +155,9 @@ struct Spread {
 /// Ū·R, with Ū the mean unoccluded irradiance and R the ratio estimate of its visible
 /// fraction, whose variance is taken by the delta method (Σw²(v − R)²/(Σw)²); the sky term is
 /// a binomial proportion of escaped rays.
-fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
+///
+/// The part from lights baked indirect only is also added to `realtime` (lux).
+fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3, f32) {
     let spp = ctx.settings.samples_per_texel;
     let closed_form = ctx.plan.area_lights && ctx.closed_form && !ctx.emitters.is_empty();
     let mut e = Vec3::ZERO;
@@ -168,7 +179,7 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
         let sp = footprint.point(s, rays);
         samples.push(sp);
         let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-        add_lights(ctx, p, s, &sp, origin, &mut e, rays);
+        add_lights(ctx, p, s, &sp, origin, &mut e, realtime, rays);
         if ctx.plan.area_lights && !ctx.emitters.is_empty() {
             if ctx.closed_form {
                 ratio.add(ctx, p, s, &sp, origin, rays);
@@ -194,6 +205,7 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
         block.w_visible += (ratio.w_visible - wv_before) as f64;
         block.w_total += (ratio.w_total - wt_before) as f64;
     }
+    *realtime /= spp as f32;
     let mut irradiance = e / spp as f32;
     let mut variance = (standard_error(spread.plain, spread.plain_sq, spp) as f64).powi(2);
     if closed_form && ratio.w_total > 0.0 {
@@ -217,7 +229,9 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64) -> (Vec3, f32) {
 }
 
 /// Adds the light of every punctual and directional light the plan evaluates for `p` at
-/// footprint sample `s` (point `sp`, shadow rays from `origin`) to `e`, one light at a time.
+/// footprint sample `s` (point `sp`, shadow rays from `origin`) to `e`, one light at a time,
+/// and the light of those baked indirect only to `realtime` as well.
+#[allow(clippy::too_many_arguments)]
 fn add_lights(
     ctx: &Ctx<'_>,
     p: &Patch,
@@ -225,6 +239,7 @@ fn add_lights(
     sp: &SurfacePoint,
     origin: Vec3,
     e: &mut Vec3,
+    realtime: &mut Vec3,
     rays: &mut u64,
 ) {
     for &li in ctx.plan.lights_for(p.instance as usize) {
@@ -234,6 +249,9 @@ fn add_lights(
             *rays += 1;
             if incident.visible(ctx.rays, origin) {
                 *e += incident.irradiance;
+                if !light.direct_is_baked() {
+                    *realtime += incident.irradiance;
+                }
             }
         }
     }

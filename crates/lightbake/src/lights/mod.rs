@@ -11,12 +11,14 @@
 //!
 //! One file per kind, each citing what it implements: [`point`] and [`spot`] (glTF
 //! `KHR_lights_punctual` as Bevy shades them), [`directional`] (the sun, with a disc),
-//! [`sky`] (uniform luminance) and [`emissive`] (emissive triangles, closed-form polygon
+//! [`rect`] (Bevy's `RectLight`, closed-form polygon irradiance), [`sky`] (uniform luminance)
+//! and [`emissive`] (emissive triangles, closed-form polygon
 //! irradiance). A scene's [`Light`] dispatches on its [`LightKind`] here, and nowhere else.
 
 pub mod directional;
 pub mod emissive;
 pub mod point;
+pub mod rect;
 pub mod sky;
 pub mod spot;
 
@@ -138,6 +140,11 @@ impl LightSource for Light {
             LightKind::Directional { angular_radius } => {
                 directional::incident(self, angular_radius, at, u, rays)
             }
+            LightKind::Rect {
+                right,
+                width,
+                height,
+            } => rect::incident(self, right, width, height, at, u, rays),
         }
     }
 
@@ -149,6 +156,7 @@ impl LightSource for Light {
                 outer_cone_angle,
             } => spot::power(self, inner_cone_angle, outer_cone_angle),
             LightKind::Directional { .. } => directional::power(self, disc),
+            LightKind::Rect { width, height, .. } => rect::power(self, width, height),
         }
     }
 
@@ -162,6 +170,11 @@ impl LightSource for Light {
             LightKind::Directional { angular_radius } => {
                 directional::emit(self, angular_radius, u_position, u_direction, disc)
             }
+            LightKind::Rect {
+                right,
+                width,
+                height,
+            } => rect::emit(self, right, width, height, u_position, u_direction),
         }
     }
 
@@ -175,6 +188,7 @@ impl LightSource for Light {
                 outer_cone_angle, ..
             } => spot::misses(self, outer_cone_angle, lo, hi),
             LightKind::Directional { .. } => None,
+            LightKind::Rect { .. } => rect::misses(self, lo, hi),
         }
     }
 }

@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 use crate::error::{BakeError, Result};
-use crate::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
+use crate::scene::extras::{
+    self, LightBakeExtras, LightExtras, NodeExtras, NodeLightmap, SceneExtras, VolumeExtras,
+};
 use crate::scene::glb::glb;
 use crate::scene::gltf_accessor::read_dense;
 use crate::scene::gltf_import::GltfSource;
@@ -98,6 +100,7 @@ pub fn baked_gltf(
     original: &Scene,
     layout: &Layout,
     lightmaps: &[(usize, NodeLightmap)],
+    volumes: &[VolumeExtras],
     stem: &str,
 ) -> Result<BakedGltf> {
     let path = &source.path;
@@ -134,9 +137,11 @@ pub fn baked_gltf(
         };
         rewrite_primitive(&mut out, source, &gprim, src, unwrap, &context)?;
     }
-    // 3. Lightmap references in node extras; 4. punctual lights marked as baked.
+    // 3. Lightmap references in node extras, volumes in the scenes' extras; 4. punctual
+    // lights marked as baked (or baked indirect only).
     write_node_lightmaps(&mut json, lightmaps);
-    mark_lights_baked(&mut json);
+    write_scene_volumes(&mut json, volumes);
+    mark_lights_baked(&mut json, original);
     // 5. Images copied (gltf) or embedded (glb), then one buffer and the container.
     let mut files = images(&mut json, &mut blob, source)?;
     while blob.len() % 4 != 0 {
@@ -342,21 +347,72 @@ fn write_node_lightmaps(json: &mut Value, lightmaps: &[(usize, NodeLightmap)]) {
     }
 }
 
+/// Writes every scene's `extras.lightbake.irradiance_volumes` (its other extras kept), so an
+/// engine that spawns the scene finds its volumes.
+fn write_scene_volumes(json: &mut Value, volumes: &[VolumeExtras]) {
+    if volumes.is_empty() {
+        return;
+    }
+    let Some(scenes) = json.get_mut("scenes").and_then(Value::as_array_mut) else {
+        return;
+    };
+    for scene in scenes.iter_mut().filter(|s| s.is_object()) {
+        let mut lb: SceneExtras =
+            extras::read_value(scene["extras"].get(extras::KEY), "scene", &mut Vec::new());
+        lb.irradiance_volumes = volumes.to_vec();
+        extras::write(scene, &lb);
+    }
+}
+
 /// Marks every punctual light as baked (`extras.lightbake.baked`), so an engine that loads the
 /// baked glTF can keep the light for specular and dynamic objects but stop it lighting
 /// lightmapped surfaces a second time (Bevy: `affects_lightmapped_mesh_diffuse`, which the
-/// `bevy_lightbake` plugin sets from this flag).
-fn mark_lights_baked(json: &mut Value) {
+/// `bevy_lightbake` plugin sets from this flag) — except the lights `original` bakes
+/// indirect only (matched by the light's name, or its nodes' names when it has none): those
+/// get `bake: "indirect"` and stay real-time.
+fn mark_lights_baked(json: &mut Value, original: &Scene) {
+    let indirect: Vec<&str> = original
+        .lights
+        .iter()
+        .filter(|l| !l.direct_is_baked())
+        .map(|l| l.name.as_str())
+        .collect();
+    // The names of the nodes that carry each light.
+    let mut carriers: Vec<Vec<String>> = Vec::new();
+    for node in json
+        .get("nodes")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+    {
+        let light = node
+            .pointer("/extensions/KHR_lights_punctual/light")
+            .and_then(Value::as_u64);
+        if let (Some(i), Some(name)) = (light, node.get("name").and_then(Value::as_str)) {
+            let i = i as usize;
+            if carriers.len() <= i {
+                carriers.resize(i + 1, Vec::new());
+            }
+            carriers[i].push(name.to_string());
+        }
+    }
     let Some(lights) = json
         .pointer_mut("/extensions/KHR_lights_punctual/lights")
         .and_then(Value::as_array_mut)
     else {
         return;
     };
-    for light in lights.iter_mut().filter(|l| l.is_object()) {
+    for (i, light) in lights.iter_mut().enumerate().filter(|(_, l)| l.is_object()) {
         let mut lb: LightExtras =
             extras::read_value(light["extras"].get(extras::KEY), "light", &mut Vec::new());
-        lb.baked = true;
+        let only_indirect = match light.get("name").and_then(Value::as_str) {
+            Some(name) => indirect.contains(&name),
+            None => carriers
+                .get(i)
+                .is_some_and(|names| names.iter().any(|n| indirect.contains(&n.as_str()))),
+        };
+        lb.baked = !only_indirect;
+        lb.bake = only_indirect.then_some(LightBakeExtras::Indirect);
         extras::write(light, &lb);
     }
 }

@@ -55,6 +55,21 @@ pub fn encode_hdr(page: &LightmapPage) -> Result<Vec<u8>, String> {
 /// KTX2 container, one mip level, `VK_FORMAT_R16G16B16A16_SFLOAT` (alpha 1), linear
 /// BT.709 data format descriptor, no supercompression.
 pub fn encode_ktx2(page: &LightmapPage) -> Vec<u8> {
+    encode_ktx2_texels([page.width, page.height, 0], &page.texels)
+}
+
+/// [`encode_ktx2`] of any texels: `size` is (width, height, depth), depth 0 for a 2D
+/// texture and at least 1 for a 3D one (`pixelDepth`; Bevy loads depth > 1 as a 3D
+/// texture), texels x fastest, then y, then z.
+///
+/// # Panics
+/// When `texels` does not hold width × height × max(depth, 1) texels.
+pub fn encode_ktx2_texels(size: [u32; 3], texels: &[glam::Vec3]) -> Vec<u8> {
+    assert_eq!(
+        texels.len(),
+        (size[0] * size[1] * size[2].max(1)) as usize,
+        "texel count against the KTX2 size"
+    );
     const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
     const IDENTIFIER: [u8; 12] = [
         0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n', 0x1A, b'\n',
@@ -89,8 +104,8 @@ pub fn encode_ktx2(page: &LightmapPage) -> Vec<u8> {
         kvd.push(0);
     }
     // Texel data.
-    let mut data = Vec::with_capacity(page.texels.len() * 8);
-    for t in &page.texels {
+    let mut data = Vec::with_capacity(texels.len() * 8);
+    for t in texels {
         for c in [to_half(t.x), to_half(t.y), to_half(t.z), f16::ONE] {
             data.extend_from_slice(&c.to_le_bytes());
         }
@@ -106,9 +121,9 @@ pub fn encode_ktx2(page: &LightmapPage) -> Vec<u8> {
     out.extend_from_slice(&IDENTIFIER);
     put32(&mut out, VK_FORMAT_R16G16B16A16_SFLOAT);
     put32(&mut out, 2); // typeSize
-    put32(&mut out, page.width);
-    put32(&mut out, page.height);
-    put32(&mut out, 0); // pixelDepth
+    put32(&mut out, size[0]);
+    put32(&mut out, size[1]);
+    put32(&mut out, size[2]); // pixelDepth
     put32(&mut out, 0); // layerCount
     put32(&mut out, 1); // faceCount
     put32(&mut out, 1); // levelCount

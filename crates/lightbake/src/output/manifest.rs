@@ -71,6 +71,10 @@ pub struct ManifestInstance {
     pub uv_source: UvOrigin,
 }
 
+/// One irradiance volume in the manifest (the same entry the baked glTF's scene extras
+/// carry).
+pub use crate::scene::extras::VolumeExtras as ManifestVolume;
+
 /// `manifest.json`: what a game needs to attach the lightmaps.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Manifest {
@@ -89,6 +93,36 @@ pub struct Manifest {
     pub pages: Vec<PageFiles>,
     /// Baked instances.
     pub instances: Vec<ManifestInstance>,
+    /// Irradiance volumes for dynamic objects (none unless asked for).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub irradiance_volumes: Vec<ManifestVolume>,
+    /// What the volumes' voxels hold (when there are volumes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_stored_quantity: Option<&'static str>,
+}
+
+/// The volumes of a bake, as the manifest and the baked glTF list them.
+pub fn volumes(output: &BakeOutput) -> Vec<ManifestVolume> {
+    output
+        .irradiance_volume
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let (center, size) = v.grid.centre_and_size();
+            ManifestVolume {
+                image: volume_file(i),
+                center: center.to_array(),
+                size: size.to_array(),
+                resolution: v.grid.resolution.to_array(),
+                intensity: 1.0,
+            }
+        })
+        .collect()
+}
+
+/// File of irradiance volume `i`, relative to the output directory.
+pub fn volume_file(i: usize) -> String {
+    format!("irradiance_volumes/volume_{i}.ktx2")
 }
 
 /// The manifest of a bake.
@@ -131,5 +165,9 @@ pub fn manifest(
         stored_quantity: "irradiance / pi (lux / pi), linear RGB; Bevy: Lightmap with lightmap_exposure = 1",
         pages: pages.to_vec(),
         instances,
+        irradiance_volumes: volumes(output),
+        volume_stored_quantity: output.irradiance_volume.is_some().then_some(
+            "irradiance / pi from each side (-X, +X, -Y, +Y, -Z, +Z), without the lights' direct light; Bevy: IrradianceVolume with intensity 1",
+        ),
     }
 }

@@ -9,6 +9,7 @@
 //!   <scene>.gltf + <scene>.bin   (or <scene>.glb)   input + TEXCOORD_1 + node extras
 //!   lightmaps/lightmap_<page>.exr|.hdr|.ktx2         E/π, linear RGB
 //!   lightmaps/lightmap_<page>.preview.png            tonemapped, to look at
+//!   irradiance_volumes/volume_0.ktx2                 ambient cubes for dynamic objects (on request)
 //!   manifest.json                                    instance → page file + uv_rect
 //!   report.json                                      settings, plan, timings, rays, warnings
 //! ```
@@ -26,7 +27,10 @@ use crate::scene::Scene;
 use crate::scene::extras::NodeLightmap;
 use crate::scene::gltf_import::GltfSource;
 use crate::settings::BakeSettings;
-pub use manifest::{MANIFEST_VERSION, Manifest, ManifestInstance, PageFiles, manifest};
+pub use manifest::{
+    MANIFEST_VERSION, Manifest, ManifestInstance, ManifestVolume, PageFiles, manifest, volume_file,
+    volumes,
+};
 
 /// What [`write_outputs`] wrote.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -79,6 +83,11 @@ pub fn write_outputs(
     let mut staged = StagedFiles::new();
     let pages = page_files(output, settings);
     stage_pages(&mut staged, dir, output, &pages)?;
+    for (i, volume) in output.irradiance_volume.iter().enumerate() {
+        let (size, texels) = volume.texture();
+        let bytes = images::encode_ktx2_texels(size.to_array(), &texels);
+        staged.stage(&dir.join(volume_file(i)), &bytes)?;
+    }
     let baked_gltf = match source {
         Some(source) => Some(stage_baked_gltf(
             &mut staged,
@@ -173,7 +182,14 @@ fn stage_baked_gltf(
         };
         node_lightmaps.push((node, lightmap));
     }
-    let baked = gltf_export::baked_gltf(source, original, &output.layout, &node_lightmaps, &stem)?;
+    let baked = gltf_export::baked_gltf(
+        source,
+        original,
+        &output.layout,
+        &node_lightmaps,
+        &volumes(output),
+        &stem,
+    )?;
     for (rel, bytes) in &baked.files {
         staged.stage(&dir.join(rel), bytes)?;
     }

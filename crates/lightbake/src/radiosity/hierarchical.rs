@@ -94,6 +94,9 @@ pub struct Coarse {
     pub solution: Solution,
     /// What it ended as.
     pub report: CoarseReport,
+    /// Progressive radiosity's ambient term for what the last coarse solve left unsolved
+    /// ([`System::ambient_term`]), irradiance, lux.
+    pub ambient: Vec3,
 }
 
 /// Bytes the hierarchical solve holds at its peak beside the nodes and the hit mapper, for
@@ -171,6 +174,7 @@ pub fn coarse_solve(
             max_iterations: options.max_iterations,
         };
         let mut solution = solve::solve_matrix(choice, &system, &solve_options);
+        let ambient = system.ambient_term(&solve::to_f64(&solution.b));
         for (c, e) in solution.indirect.iter_mut().zip(&first_bounce) {
             *c += *e;
         }
@@ -239,6 +243,7 @@ pub fn coarse_solve(
                 clusters,
                 solution,
                 report,
+                ambient,
             };
         }
         let mut split = vec![false; clusters.len()];

@@ -6,11 +6,14 @@
 //! |---|---|---|---|
 //! | scene | `texel_density` | number | suggested texels per metre |
 //! | scene | `sky` | `[r, g, b]` | uniform sky luminance, nits, linear RGB |
+//! | scene | `irradiance_volumes` | list | written by the bake: each volume's image, centre, size and resolution |
 //! | node | `texel_density_scale` | number | density multiplier for this node's meshes |
 //! | node | `bake` | bool | `false`: cast shadows and reflect, but get no lightmap |
 //! | node | `lightmaps` | list | written by the bake: per primitive, its page image and `uv_rect` |
 //! | light | `angular_radius` | number | sun disc radius, radians |
 //! | light | `baked` | bool | written by the bake: the light's diffuse light is in the lightmaps |
+//! | light | `bake` | `"full"` / `"indirect"` | bake all its light (default), or only its indirect light (it stays real-time) |
+//! | light | `rect` | `[width, height]` | a spot light that is really a rectangle (Bevy's `RectLight`), m; its `intensity` is then candela on the axis, luminance × area |
 //!
 //! Reading is lenient per key ([`read`]): a key of the wrong type or an unknown key is
 //! reported and left out, and the other keys still apply.
@@ -32,6 +35,34 @@ pub struct SceneExtras {
     /// Uniform sky luminance, nits, linear RGB.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sky: Option<[f32; 3]>,
+    /// The irradiance volumes baked for the scene (written by the bake). Malformed entries
+    /// are skipped when read.
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "well_formed_entries"
+    )]
+    pub irradiance_volumes: Vec<VolumeExtras>,
+}
+
+/// One irradiance volume, in a scene's `extras.lightbake.irradiance_volumes` and in
+/// `manifest.json`: Bevy's light probe is the unit cube centred on the origin under
+/// `Transform::from_translation(center).with_scale(size)` (in the scene's space), with an
+/// `IrradianceVolume` whose `voxels` is `image` and whose `intensity` is `intensity`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VolumeExtras {
+    /// The KTX2 3D texture (`Rgba16Float`, Bevy's ambient-cube layout), relative to the
+    /// glTF file (or the output directory, in the manifest).
+    pub image: String,
+    /// Centre of the volume's box, m.
+    pub center: [f32; 3],
+    /// Size of the box, m (the light probe's scale; no rotation).
+    pub size: [f32; 3],
+    /// Probes along x, y, z.
+    pub resolution: [u32; 3],
+    /// `IrradianceVolume::intensity`: 1, since the voxels hold E/π like the lightmaps (the
+    /// light from each side without the lights' direct light).
+    pub intensity: f32,
 }
 
 /// A glTF node's `extras.lightbake`.
@@ -78,6 +109,24 @@ pub struct LightExtras {
     /// should stop it lighting lightmapped surfaces a second time.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub baked: bool,
+    /// `"indirect"`: bake only the light's indirect light ([`super::LightBake::IndirectOnly`]);
+    /// `"full"` (or absent): all of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bake: Option<LightBakeExtras>,
+    /// A rectangle of this width × height (m) in the node's XY plane, facing −Z: the light is
+    /// a rect light, its spot entry the far-field stand-in for readers without lightbake.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rect: Option<[f32; 2]>,
+}
+
+/// The values of a light's `extras.lightbake.bake`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LightBakeExtras {
+    /// All of the light.
+    Full,
+    /// Its indirect light only.
+    Indirect,
 }
 
 /// Deserialises a list, keeping the entries that parse.

@@ -393,21 +393,41 @@ impl Importer<'_> {
                 angular_radius: lb.angular_radius.unwrap_or(0.0),
             },
         };
+        let right = world.transform_vector3(Vec3::X).normalize_or(Vec3::X);
+        let (kind, intensity) = match lb.rect {
+            Some([w, h]) => (
+                LightKind::Rect {
+                    right,
+                    width: w,
+                    height: h,
+                },
+                // Candela on the axis (the spot stand-in) → luminance.
+                light.intensity() / (w * h).max(f32::MIN_POSITIVE),
+            ),
+            None => (kind, light.intensity()),
+        };
+        let bake = match lb.bake {
+            Some(extras::LightBakeExtras::Indirect) => crate::scene::LightBake::IndirectOnly,
+            _ => crate::scene::LightBake::Full,
+        };
         let range = match (light.range(), bevy, kind) {
             (Some(r), _, _) => Some(r),
-            (None, true, LightKind::Point | LightKind::Spot { .. }) => Some(20.0),
+            (None, true, LightKind::Point | LightKind::Spot { .. } | LightKind::Rect { .. }) => {
+                Some(20.0)
+            }
             (None, _, _) => None,
         };
         self.scene.lights.push(Light {
             name,
             kind,
             color,
-            intensity: light.intensity(),
+            intensity,
             range,
             position: world.transform_point3(Vec3::ZERO),
             direction: world
                 .transform_vector3(Vec3::NEG_Z)
                 .normalize_or(Vec3::NEG_Y),
+            bake,
         });
     }
 

@@ -216,11 +216,37 @@ fn light(l: &super::Light, i: usize) -> (Value, Value) {
             };
             extras::write(&mut light, &lb);
         }
+        LightKind::Rect { width, height, .. } => {
+            // A hemisphere spot with the rectangle's on-axis intensity stands in for it.
+            light["type"] = json!("spot");
+            light["intensity"] = json!(l.intensity * width * height);
+            light["spot"] =
+                json!({ "innerConeAngle": 0.0, "outerConeAngle": std::f32::consts::FRAC_PI_2 });
+            let lb = LightExtras {
+                rect: Some([width, height]),
+                ..LightExtras::default()
+            };
+            extras::write(&mut light, &lb);
+        }
+    }
+    if l.bake == crate::scene::LightBake::IndirectOnly {
+        let mut lb: LightExtras = extras::read_value(
+            light.get("extras").and_then(|e| e.get(extras::KEY)),
+            "",
+            &mut Vec::new(),
+        );
+        lb.bake = Some(extras::LightBakeExtras::Indirect);
+        extras::write(&mut light, &lb);
     }
     if let Some(r) = l.range {
         light["range"] = json!(r);
     }
-    let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction);
+    let mut rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction);
+    if let LightKind::Rect { right, .. } = l.kind {
+        // The whole frame: −Z to the facing, X to the width axis.
+        let up = right.cross(l.direction);
+        rotation = Quat::from_mat3(&glam::Mat3::from_cols(right, up, -l.direction));
+    }
     let mut n = json!({ "name": l.name, "extensions": { "KHR_lights_punctual": { "light": i } } });
     if l.position != Vec3::ZERO {
         n["translation"] = json!(l.position.to_array());
@@ -274,6 +300,7 @@ pub fn scene_to_gltf(scene: &Scene, bin_uri: &str) -> (Vec<u8>, Vec<u8>) {
     let lb = SceneExtras {
         texel_density: scene.texel_density_hint,
         sky: (scene.sky != Vec3::ZERO).then(|| scene.sky.to_array()),
+        ..SceneExtras::default()
     };
     extras::write(&mut gltf_scene, &lb);
     pad4(&mut w.bin);

@@ -26,6 +26,32 @@ pub enum LightKind {
         /// Angular radius of the disc, radians (0 = hard shadows; the sun is ≈ 0.00465).
         angular_radius: f32,
     },
+    /// A one-sided rectangle centred on `position`, emitting uniformly (Lambertian) towards
+    /// `direction` (Bevy's `RectLight`: its local XY plane, facing local −Z); `intensity` is
+    /// its luminance, nits.
+    Rect {
+        /// Unit world vector along the rectangle's width (the local X axis).
+        right: Vec3,
+        /// Width along `right`, m (> 0).
+        width: f32,
+        /// Height along `direction × right`, m (> 0).
+        height: f32,
+    },
+}
+
+/// Which part of a light's light the lightmaps hold.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LightBake {
+    /// Direct and indirect light: the engine must not light lightmapped meshes with it again
+    /// (Bevy: `affects_lightmapped_mesh_diffuse = false`). The default.
+    #[default]
+    Full,
+    /// Only the light it sends after one or more reflections: the engine keeps the light in
+    /// real time, with its own shadows, for lightmapped meshes too (Bevy's mixed lighting:
+    /// `affects_lightmapped_mesh_diffuse = true`). Its direct light still feeds the
+    /// interreflections.
+    IndirectOnly,
 }
 
 /// A punctual light (`KHR_lights_punctual`).
@@ -37,15 +63,18 @@ pub struct Light {
     pub kind: LightKind,
     /// Linear RGB colour; multiplied by `intensity`.
     pub color: Vec3,
-    /// Candela for point and spot lights; lux for directional lights.
+    /// Candela for point and spot lights; lux for directional lights; nits for rect lights.
     pub intensity: f32,
     /// Distance (m) beyond which the light has no effect, with the smooth window
     /// `(1 − (d/range)⁴)²` that Bevy uses; `None` = infinite.
     pub range: Option<f32>,
     /// World position (point and spot).
     pub position: Vec3,
-    /// Unit world direction the light travels (spot axis, sun direction): the node's −Z.
+    /// Unit world direction the light travels (spot axis, sun direction, the side a rect
+    /// light faces): the node's −Z.
     pub direction: Vec3,
+    /// Which part of its light the lightmaps hold. Default [`LightBake::Full`].
+    pub bake: LightBake,
 }
 
 impl Light {
@@ -104,14 +133,40 @@ impl Light {
                     )));
                 }
             }
+            LightKind::Rect {
+                right,
+                width,
+                height,
+            } => {
+                if !(width.is_finite() && width > 0.0 && height.is_finite() && height > 0.0) {
+                    return Err(bad(format!(
+                        "rectangle {width} × {height} m must have a positive, finite width and height"
+                    )));
+                }
+                if !right.is_finite()
+                    || (right.length() - 1.0).abs() > 1e-3
+                    || right.dot(self.direction).abs() > 1e-3
+                {
+                    return Err(bad(format!(
+                        "the rectangle's width axis {right:?} must be a unit vector at right angles to its facing {:?}",
+                        self.direction
+                    )));
+                }
+            }
             LightKind::Point => {}
         }
         Ok(())
     }
 
-    /// Whether the light sits at a point (point and spot lights), rather than at infinity.
+    /// Whether the light sits at a point (point and spot lights), rather than at infinity or
+    /// over an area.
     pub fn is_punctual(&self) -> bool {
         matches!(self.kind, LightKind::Point | LightKind::Spot { .. })
+    }
+
+    /// Whether the lightmaps hold this light's direct light ([`LightBake::Full`]).
+    pub fn direct_is_baked(&self) -> bool {
+        self.bake == LightBake::Full
     }
 
     /// Short type name for the plan and messages.
@@ -120,6 +175,7 @@ impl Light {
             LightKind::Point => "point",
             LightKind::Spot { .. } => "spot",
             LightKind::Directional { .. } => "directional",
+            LightKind::Rect { .. } => "rect",
         }
     }
 }

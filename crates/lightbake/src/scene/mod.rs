@@ -35,7 +35,7 @@ mod mesh;
 pub mod testscenes;
 mod texture;
 
-pub use light::{Light, LightKind};
+pub use light::{Light, LightBake, LightKind};
 pub use material::{Material, TexCoords, TextureRef};
 pub use mesh::{GltfPrimitiveRef, Mesh};
 pub use texture::{Texture, Wrap};

@@ -206,6 +206,27 @@ impl System<'_> {
         norm(&self.residual(b), self.area) / self.source_norm()
     }
 
+    /// Progressive radiosity's ambient term for the energy not yet distributed (Cohen, Chen,
+    /// Wallace & Greenberg 1988, §4): with the residual r = S + ρ∘(F·b) − b as the unshot
+    /// exitance, A = R·Σ rⱼ·Aⱼ / Σ Aⱼ with R = 1/(1 − ρ̄) (ρ̄ the area-weighted mean albedo,
+    /// per channel), the irradiance every surface would still receive, spread evenly. Zero
+    /// for a solved system; negative components (an overshoot) are kept.
+    pub fn ambient_term(&self, b: &[DVec3]) -> Vec3 {
+        let r = self.residual(b);
+        let (mut unshot, mut albedo, mut area) = (DVec3::ZERO, DVec3::ZERO, 0.0f64);
+        for i in 0..r.len() {
+            let a = self.area[i] as f64;
+            unshot += r[i] * a;
+            albedo += self.rho(i) * a;
+            area += a;
+        }
+        if area <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let mean_albedo = (albedo / area).min(DVec3::splat(0.999));
+        (unshot / area / (DVec3::ONE - mean_albedo)).as_vec3()
+    }
+
     /// The bound ‖B − b‖∞ / ‖b‖∞ ≤ ‖r‖∞ / ((1 − ρ_max)·‖b‖∞), from
     /// ‖(I − ρF)⁻¹‖∞ ≤ 1/(1 − ρ_max) (F's rows sum to at most 1).
     pub fn error_bound(&self, b: &[DVec3], r: &[DVec3]) -> Option<f64> {

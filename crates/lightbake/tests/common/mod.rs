@@ -225,6 +225,7 @@ pub fn two_squares(perpendicular: bool) -> Scene {
         range: None,
         position: Vec3::new(0.5, 0.5, 0.5),
         direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
     });
     s
 }

@@ -123,6 +123,7 @@ pub fn contact_room() -> Scene {
         range: None,
         position: Vec3::new(-1.0, 2.0, 0.0),
         direction: Vec3::NEG_Y,
+        bake: crate::scene::LightBake::Full,
     });
     s
 }
@@ -170,6 +171,7 @@ pub fn seam_room() -> Scene {
         range: None,
         position: Vec3::new(0.4, 2.2, 1.2),
         direction: Vec3::NEG_Y,
+        bake: crate::scene::LightBake::Full,
     });
     s
 }

@@ -418,6 +418,7 @@ pub fn cornell_box(light: CornellLight) -> Scene {
             range: None,
             position: cornell(278.0, 498.8, 279.6),
             direction: Vec3::NEG_Y,
+            bake: crate::scene::LightBake::Full,
         }),
     }
     s
@@ -583,6 +584,7 @@ pub fn sunlit_room() -> Scene {
         range: None,
         position: Vec3::ZERO,
         direction: Vec3::new(0.35, -0.55, -0.76).normalize(),
+        bake: crate::scene::LightBake::Full,
     });
     s
 }

@@ -375,6 +375,7 @@ pub fn office_level(rooms_x: u32, rooms_z: u32) -> Scene {
             elevation.sin(),
             elevation.cos() * azimuth.cos(),
         ),
+        bake: crate::scene::LightBake::Full,
     });
     s
 }
@@ -436,6 +437,7 @@ fn furnish(s: &mut Scene, f: &Furniture, ix: u32, iz: u32) {
         range: Some(8.0),
         position: origin + lamp - Vec3::new(0.0, 0.35, 0.0),
         direction: Vec3::NEG_Y,
+        bake: crate::scene::LightBake::Full,
     });
 }
 

@@ -1,0 +1,141 @@
+//! Progressive previews in the game: while a bake runs, the lightmaps it has so far are
+//! shown ([`lightbake::bake::preview`]: the direct light, then the coarse indirect light with
+//! progressive radiosity's ambient term, then the result), and a bake that is cancelled or
+//! fails puts back what the first preview replaced.
+
+use bevy::light::{DirectionalLight, GlobalAmbientLight, PointLight, SpotLight};
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use lightbake::bake::Preview;
+
+use crate::components::{BakeStatus, BakedLight, Lightmapped};
+use crate::convert::SceneMapping;
+use crate::systems::{BakeJob, apply_meshes, attach_lightmaps, mark_lights_baked, memory_pages};
+
+/// What the first preview of a bake replaced.
+pub(crate) struct Restore {
+    /// Per baked instance (in the mapping's order): its entity's lightmap and mesh before.
+    instances: Vec<(Option<Lightmapped>, Option<Mesh3d>)>,
+    /// Per baked light (in the mapping's order): its `affects_lightmapped_mesh_diffuse` and
+    /// whether it carried [`BakedLight`].
+    lights: Vec<(Option<bool>, bool)>,
+    /// `GlobalAmbientLight::affects_lightmapped_meshes`.
+    ambient: Option<bool>,
+}
+
+impl Restore {
+    /// Records the state of every entity and mesh `mapping` names.
+    fn record(world: &World, mapping: &SceneMapping) -> Self {
+        let instances = mapping
+            .instances
+            .iter()
+            .map(|&e| {
+                world.get_entity(e).map_or((None, None), |e| {
+                    (e.get::<Lightmapped>().cloned(), e.get::<Mesh3d>().cloned())
+                })
+            })
+            .collect();
+        let lights = mapping
+            .lights
+            .iter()
+            .map(|&e| {
+                world.get_entity(e).map_or((None, false), |e| {
+                    let affects = e
+                        .get::<PointLight>()
+                        .map(|l| l.affects_lightmapped_mesh_diffuse)
+                        .or_else(|| {
+                            e.get::<SpotLight>()
+                                .map(|l| l.affects_lightmapped_mesh_diffuse)
+                        })
+                        .or_else(|| {
+                            e.get::<DirectionalLight>()
+                                .map(|l| l.affects_lightmapped_mesh_diffuse)
+                        });
+                    (affects, e.contains::<BakedLight>())
+                })
+            })
+            .collect();
+        let ambient = world
+            .get_resource::<GlobalAmbientLight>()
+            .map(|a| a.affects_lightmapped_meshes);
+        Self {
+            instances,
+            lights,
+            ambient,
+        }
+    }
+
+    /// Puts everything back: the meshes as they were read for the bake, the entities' meshes
+    /// and lightmaps, the lights' flags.
+    pub(crate) fn apply(self, world: &mut World, mapping: &SceneMapping) {
+        for source in &mapping.meshes {
+            if !source.needs_own_asset {
+                let _ = world
+                    .resource_mut::<Assets<Mesh>>()
+                    .insert(source.handle.id(), source.original.clone());
+            }
+        }
+        for (&entity, (lightmapped, mesh)) in mapping.instances.iter().zip(self.instances) {
+            let Ok(mut e) = world.get_entity_mut(entity) else {
+                continue;
+            };
+            if let Some(mesh) = mesh {
+                e.insert(mesh);
+            }
+            match lightmapped {
+                Some(l) => {
+                    e.insert(l);
+                }
+                None => {
+                    e.remove::<(Lightmapped, Lightmap)>();
+                }
+            }
+            // Bevy chooses the pipeline (lightmapped or not) when the mesh entity changes.
+            if let Some(mut mesh) = e.get_mut::<Mesh3d>() {
+                mesh.set_changed();
+            }
+        }
+        for (&entity, (affects, baked)) in mapping.lights.iter().zip(self.lights) {
+            let Ok(mut e) = world.get_entity_mut(entity) else {
+                continue;
+            };
+            if let Some(a) = affects {
+                if let Some(mut l) = e.get_mut::<PointLight>() {
+                    l.affects_lightmapped_mesh_diffuse = a;
+                }
+                if let Some(mut l) = e.get_mut::<SpotLight>() {
+                    l.affects_lightmapped_mesh_diffuse = a;
+                }
+                if let Some(mut l) = e.get_mut::<DirectionalLight>() {
+                    l.affects_lightmapped_mesh_diffuse = a;
+                }
+            }
+            if !baked {
+                e.remove::<BakedLight>();
+            }
+        }
+        if let (Some(before), Some(mut a)) =
+            (self.ambient, world.get_resource_mut::<GlobalAmbientLight>())
+        {
+            a.affects_lightmapped_meshes = before;
+        }
+    }
+}
+
+/// Shows `preview` of the running bake: the first one applies its layout (the meshes' `UV_1`)
+/// and takes the baked lights off lightmapped meshes, as the finished bake does; each puts
+/// its pages in memory and on the entities.
+pub(crate) fn show_preview(world: &mut World, job: &mut BakeJob, preview: &Preview) {
+    if job.restore.is_none() {
+        job.restore = Some(Restore::record(world, &job.mapping));
+        mark_lights_baked(world, &job.mapping);
+    }
+    if job.preview_meshes.is_none() {
+        job.preview_meshes = Some(apply_meshes(world, &preview.layout, &job.mapping));
+    }
+    let new_handles = job.preview_meshes.clone().unwrap_or_default();
+    let handles = memory_pages(world, &preview.pages);
+    attach_lightmaps(world, &preview.layout, &job.mapping, &new_handles, &handles);
+    job.shown = preview.sequence;
+    world.resource_mut::<BakeStatus>().preview = Some(preview.kind);
+}

@@ -1,0 +1,167 @@
+//! Irradiance volumes for dynamic objects: `LightProbe` + `IrradianceVolume` entities spawned
+//! from an in-app bake (when `LightbakeConfig::settings.irradiance_volume` is set) and from
+//! the scene extras of a glTF baked by `bake --irradiance-volume`
+//! (`extras.lightbake.irradiance_volumes`, image paths relative to the glTF file). The voxel
+//! images are loaded through the `AssetServer`, so the file watcher reloads them when the
+//! `bake` command rewrites them. Lightmapped meshes keep their lightmaps
+//! (`affects_lightmapped_meshes = false`); moving meshes take their diffuse light from the
+//! volume.
+
+use bevy::gltf::GltfSceneExtras;
+use bevy::light::{GlobalAmbientLight, IrradianceVolume, LightProbe};
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use lightbake::BakeOutput;
+use lightbake::scene::extras::{self, SceneExtras, VolumeExtras};
+
+use crate::components::{BakedVolume, ShowLightmaps};
+use crate::images::volume_image;
+
+/// A volume entity spawned by an in-app bake (replaced by the next one).
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct InAppVolume;
+
+/// A glTF scene root already searched for volumes.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct VolumesLookedUp;
+
+/// The ambient light's brightness while a volume carrying it is shown (restored after).
+#[derive(Resource, Default)]
+pub(crate) struct SuppressedAmbient(Option<f32>);
+
+/// The light probe bundle of one volume entry, its voxels `image`.
+fn volume_bundle(
+    entry: &VolumeExtras,
+    image: Handle<Image>,
+    carries_ambient: bool,
+) -> impl Bundle + use<> {
+    (
+        Name::new(format!("lightbake irradiance volume ({})", entry.image)),
+        LightProbe::default(),
+        IrradianceVolume {
+            voxels: image,
+            intensity: entry.intensity,
+            affects_lightmapped_meshes: false,
+        },
+        Transform::from_translation(Vec3::from_array(entry.center))
+            .with_scale(Vec3::from_array(entry.size)),
+        BakedVolume { carries_ambient },
+    )
+}
+
+/// Replaces the volumes of the previous in-app bake with `output`'s: their images loaded from
+/// `paths` (the files just written, as asset paths) or made in memory.
+pub(crate) fn spawn_bake_volumes(
+    world: &mut World,
+    output: &BakeOutput,
+    paths: Option<&[String]>,
+    carries_ambient: bool,
+) {
+    let old: Vec<Entity> = world
+        .query_filtered::<Entity, With<InAppVolume>>()
+        .iter(world)
+        .collect();
+    for e in old {
+        world.despawn(e);
+    }
+    let entries = lightbake::output::volumes(output);
+    for (i, (entry, volume)) in entries.iter().zip(&output.irradiance_volume).enumerate() {
+        let image = match paths.and_then(|p| p.get(i)) {
+            Some(path) => {
+                let server = world.resource::<AssetServer>().clone();
+                match server.get_handle::<Image>(path) {
+                    Some(h) => {
+                        server.reload(path);
+                        h
+                    }
+                    None => server.load(path),
+                }
+            }
+            None => world
+                .resource_mut::<Assets<Image>>()
+                .add(volume_image(volume)),
+        };
+        world.spawn((volume_bundle(entry, image, carries_ambient), InAppVolume));
+    }
+}
+
+/// Spawns the volumes a baked glTF lists, as children of its scene's root (so they move with
+/// it), once per spawned scene.
+pub(crate) fn attach_gltf_volumes(
+    mut commands: Commands,
+    server: Res<AssetServer>,
+    scenes: Query<(Entity, &GltfSceneExtras, Option<&ChildOf>), Without<VolumesLookedUp>>,
+    roots: Query<&WorldAssetRoot>,
+) {
+    for (entity, scene_extras, parent) in &scenes {
+        commands.entity(entity).insert(VolumesLookedUp);
+        let lb: SceneExtras = extras::read(Some(&scene_extras.value), "scene", &mut Vec::new());
+        if lb.irradiance_volumes.is_empty() {
+            continue;
+        }
+        let Some(gltf_path) = parent
+            .and_then(|p| roots.get(p.parent()).ok())
+            .and_then(|root| server.get_path(root.id()))
+        else {
+            warn!("lightbake: a glTF scene lists irradiance volumes but its file is unknown");
+            continue;
+        };
+        for entry in &lb.irradiance_volumes {
+            match gltf_path.without_label().resolve_embed_str(&entry.image) {
+                Ok(path) => {
+                    let image = server.load(path);
+                    commands
+                        .entity(entity)
+                        .with_child(volume_bundle(entry, image, false));
+                }
+                Err(e) => warn!(
+                    "lightbake: {gltf_path}: bad irradiance volume path {:?}: {e}",
+                    entry.image
+                ),
+            }
+        }
+    }
+}
+
+/// Gives the ambient light back the brightness a shown volume took from it.
+pub(crate) fn restore_ambient(world: &mut World) {
+    if let Some(b) = world.resource_mut::<SuppressedAmbient>().0.take()
+        && let Some(mut a) = world.get_resource_mut::<GlobalAmbientLight>()
+    {
+        a.brightness = b;
+    }
+}
+
+/// Shows the baked volumes while [`ShowLightmaps`] is on; while one that carries the ambient
+/// light's sky is shown, that light's brightness is zero (see [`BakedVolume`]).
+pub(crate) fn sync_volumes(
+    show: Res<ShowLightmaps>,
+    mut volumes: Query<(&BakedVolume, &mut Visibility)>,
+    mut ambient: Option<ResMut<GlobalAmbientLight>>,
+    mut suppressed: ResMut<SuppressedAmbient>,
+) {
+    let mut carries = false;
+    for (v, mut visibility) in &mut volumes {
+        let wanted = if show.0 {
+            Visibility::Inherited
+        } else {
+            Visibility::Hidden
+        };
+        visibility.set_if_neq(wanted);
+        carries |= show.0 && v.carries_ambient;
+    }
+    let Some(a) = ambient.as_mut() else {
+        return;
+    };
+    match (carries, suppressed.0) {
+        (true, None) => {
+            suppressed.0 = Some(a.brightness);
+            a.brightness = 0.0;
+        }
+        (false, Some(b)) => {
+            a.brightness = b;
+            suppressed.0 = None;
+        }
+        _ => {}
+    }
+}

@@ -1,0 +1,245 @@
+//! Where an irradiance volume's probes go: a box over the baked instances, cut into cubic
+//! cells of one spacing, a probe at each cell's centre (where Bevy's `IrradianceVolume`
+//! samples its voxels: the texture is stretched over the unit cube, texel centres at
+//! (i + ½)/R).
+
+use glam::{UVec3, Vec3};
+use serde::Serialize;
+
+use crate::error::{BakeError, Result};
+use crate::scene::Scene;
+use crate::settings::BakeSettings;
+use crate::unwrap::Layout;
+
+/// Probes per metre of spacing, in lightmap texels: with no `probe_spacing` the spacing is
+/// this many texels at the bake's density (16 texels: 6 cm in a Cornell box at 256
+/// texels/m, 0.5 m in a house at 32).
+pub const TEXELS_PER_PROBE: f32 = 16.0;
+
+/// Most probes a volume gets when its spacing is chosen automatically; the spacing grows
+/// until the grid fits (the plan says so).
+pub const MAX_AUTO_PROBES: u64 = 1 << 16;
+
+/// Most probes of any volume (an explicit `probe_spacing` beyond it is refused).
+pub const MAX_PROBES: u64 = 1 << 20;
+
+/// Largest side of a 3D texture a GPU must support (WebGPU's and wgpu's default
+/// `max_texture_dimension_3d`): the texture is (Rx, 2·Ry, 3·Rz) texels.
+pub const MAX_TEXTURE_SIDE: u32 = 2048;
+
+/// The probe grid of one volume.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VolumeGrid {
+    /// The volume's box, world metres: lower corner.
+    pub min: Vec3,
+    /// Upper corner.
+    pub max: Vec3,
+    /// Probes along x, y and z.
+    pub resolution: UVec3,
+    /// Edge of a cell (the distance between neighbouring probes), m.
+    pub spacing: f32,
+    /// How the spacing was chosen, in words (for the plan).
+    pub reason: String,
+}
+
+impl VolumeGrid {
+    /// The grid over the bounds of the instances `layout` gives a lightmap, at
+    /// `settings.probe_spacing` or [`TEXELS_PER_PROBE`] texels at `texel_density`. `None` when
+    /// no instance is baked.
+    ///
+    /// # Errors
+    /// [`BakeError::BadSetting`] (`probe_spacing`) when an explicit spacing gives more than
+    /// [`MAX_PROBES`] probes or a texture side beyond [`MAX_TEXTURE_SIDE`].
+    pub fn plan(
+        scene: &Scene,
+        layout: &Layout,
+        settings: &BakeSettings,
+        texel_density: f32,
+    ) -> Result<Option<Self>> {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for (i, rect) in layout.instances.iter().enumerate() {
+            if rect.is_some() {
+                let (a, b) = scene.instance_bounds(i);
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        }
+        if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
+            return Ok(None);
+        }
+        Self::for_bounds(lo, hi, settings.probe_spacing, texel_density).map(Some)
+    }
+
+    /// The grid over `[lo, hi]` at `spacing`, or (`None`) at [`TEXELS_PER_PROBE`] texels at
+    /// `texel_density`, widened to [`MAX_AUTO_PROBES`].
+    ///
+    /// # Errors
+    /// As [`Self::plan`].
+    pub fn for_bounds(
+        lo: Vec3,
+        hi: Vec3,
+        spacing: Option<f32>,
+        texel_density: f32,
+    ) -> Result<Self> {
+        match spacing {
+            Some(s) => {
+                let grid = Self::over(lo, hi, s, format!("{s} m (probe_spacing)"));
+                if let Some(why) = grid.too_large(MAX_PROBES) {
+                    return Err(BakeError::BadSetting {
+                        name: "probe_spacing",
+                        value: s.to_string(),
+                        message: format!(
+                            "{why}: choose a larger spacing (the baked region is {:.3} × {:.3} × {:.3} m)",
+                            hi.x - lo.x,
+                            hi.y - lo.y,
+                            hi.z - lo.z
+                        ),
+                    });
+                }
+                Ok(grid)
+            }
+            None => {
+                let wanted = TEXELS_PER_PROBE / texel_density;
+                let mut s = wanted;
+                let mut grid = Self::over(lo, hi, s, String::new());
+                while grid.too_large(MAX_AUTO_PROBES).is_some() {
+                    s *= 1.05;
+                    grid = Self::over(lo, hi, s, String::new());
+                }
+                grid.reason = if s == wanted {
+                    format!(
+                        "{} texels at {} texels/m",
+                        TEXELS_PER_PROBE,
+                        crate::plan::density_text(texel_density)
+                    )
+                } else {
+                    format!(
+                        "widened from {} texels at {} texels/m ({wanted:.3e} m) to keep the volume within {MAX_AUTO_PROBES} probes (set probe_spacing to choose)",
+                        TEXELS_PER_PROBE,
+                        crate::plan::density_text(texel_density)
+                    )
+                };
+                Ok(grid)
+            }
+        }
+    }
+
+    /// The grid of cubic cells of edge `spacing` over `[lo, hi]`: at least two probes per
+    /// axis (so a flat region gets probes on both sides of it, not on it), the box grown
+    /// about its centre to a whole number of cells.
+    pub fn over(lo: Vec3, hi: Vec3, spacing: f32, reason: String) -> Self {
+        let extent = hi - lo;
+        let cells = |e: f32| ((e / spacing).ceil() as u32).max(2);
+        let resolution = UVec3::new(cells(extent.x), cells(extent.y), cells(extent.z));
+        let centre = 0.5 * (lo + hi);
+        let half = 0.5 * spacing * resolution.as_vec3();
+        Self {
+            min: centre - half,
+            max: centre + half,
+            resolution,
+            spacing,
+            reason,
+        }
+    }
+
+    /// Why the grid cannot be a texture of at most `max_probes` probes, if it cannot.
+    fn too_large(&self, max_probes: u64) -> Option<String> {
+        let r = self.resolution;
+        let n = self.len() as u64;
+        if n > max_probes {
+            return Some(format!(
+                "{} × {} × {} = {n} probes, more than {max_probes}",
+                r.x, r.y, r.z
+            ));
+        }
+        let side = (r.x as u64).max(2 * r.y as u64).max(3 * r.z as u64);
+        (side > MAX_TEXTURE_SIDE as u64).then(|| {
+            format!(
+                "a {} × {} × {} texture (Bevy's layout: x, 2·y, 3·z), beyond the {MAX_TEXTURE_SIDE} a GPU must support",
+                r.x,
+                2 * r.y as u64,
+                3 * r.z as u64
+            )
+        })
+    }
+
+    /// Number of probes.
+    pub fn len(&self) -> usize {
+        let r = self.resolution.as_u64vec3();
+        (r.x * r.y * r.z) as usize
+    }
+
+    /// Whether the grid has no probe (never, for a planned grid).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Index of probe (x, y, z): x fastest.
+    pub fn index(&self, x: u32, y: u32, z: u32) -> usize {
+        (x + self.resolution.x * (y + self.resolution.y * z)) as usize
+    }
+
+    /// (x, y, z) of probe `i`.
+    pub fn coords(&self, i: usize) -> UVec3 {
+        let i = i as u32;
+        let r = self.resolution;
+        UVec3::new(i % r.x, (i / r.x) % r.y, i / (r.x * r.y))
+    }
+
+    /// World position of probe `i`: its cell's centre.
+    pub fn position(&self, i: usize) -> Vec3 {
+        self.min + (self.coords(i).as_vec3() + 0.5) * self.spacing
+    }
+
+    /// The box's centre and size, m: Bevy's light probe is the unit cube under
+    /// `Transform::from_translation(centre).with_scale(size)`.
+    pub fn centre_and_size(&self) -> (Vec3, Vec3) {
+        (0.5 * (self.min + self.max), self.max - self.min)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probes_sit_at_cell_centres_inside_the_box() {
+        let g = VolumeGrid::over(Vec3::ZERO, Vec3::new(1.0, 0.0, 0.45), 0.1, String::new());
+        assert_eq!(g.resolution, UVec3::new(10, 2, 5));
+        assert!((g.min.y + 0.1).abs() < 1e-6 && (g.max.y - 0.1).abs() < 1e-6);
+        assert!((g.min.z + 0.025).abs() < 1e-6);
+        for i in 0..g.len() {
+            let c = g.coords(i);
+            assert_eq!(g.index(c.x, c.y, c.z), i);
+            let p = g.position(i);
+            assert!(p.cmpgt(g.min).all() && p.cmplt(g.max).all());
+        }
+        // The flat axis gets a probe on each side of the plane, none on it.
+        assert!((g.position(0).y + 0.05).abs() < 1e-6);
+        assert!((g.position(g.index(0, 1, 0)).y - 0.05).abs() < 1e-6);
+        assert!(g.too_large(MAX_PROBES).is_none());
+        assert!(g.too_large(10).unwrap().contains("100 probes"));
+        let long = VolumeGrid::over(Vec3::ZERO, Vec3::new(0.1, 0.1, 1000.0), 1.0, String::new());
+        assert!(long.too_large(MAX_PROBES).unwrap().contains("texture"));
+    }
+
+    #[test]
+    fn the_spacing_follows_the_density_and_widens_to_the_budget() {
+        let (lo, hi) = (Vec3::ZERO, Vec3::new(8.0, 3.0, 6.0));
+        // 32 texels/m: 16 texels = 0.5 m, 16 × 6 × 12 probes.
+        let g = VolumeGrid::for_bounds(lo, hi, None, 32.0).unwrap();
+        assert_eq!(g.spacing, 0.5);
+        assert_eq!(g.resolution, UVec3::new(16, 6, 12));
+        assert!(g.reason.starts_with("16 texels"), "{}", g.reason);
+        // 400 texels/m would be 200 × 75 × 150 probes: widened to the budget.
+        let g = VolumeGrid::for_bounds(lo, hi, None, 400.0).unwrap();
+        assert!(g.len() as u64 <= MAX_AUTO_PROBES && g.len() as u64 > MAX_AUTO_PROBES / 2);
+        assert!(g.reason.contains("widened"), "{}", g.reason);
+        // An explicit spacing is kept, or refused by name.
+        let g = VolumeGrid::for_bounds(lo, hi, Some(0.25), 400.0).unwrap();
+        assert_eq!(g.resolution, UVec3::new(32, 12, 24));
+        let e = VolumeGrid::for_bounds(lo, hi, Some(0.01), 400.0).unwrap_err();
+        assert!(e.to_string().contains("probe_spacing"), "{e}");
+    }
+}

@@ -1,0 +1,376 @@
+//! The volume stage: every probe of the grid gathered from the bake's solution
+//! ([`super::gather`]), probes that sit inside geometry moved to the nearest open point or,
+//! failing that, filled from their neighbours, and the result laid out as the 3D texture
+//! Bevy's `IrradianceVolume` reads.
+//!
+//! **Inside geometry.** A probe whose rays meet the back of single-sided surfaces more than
+//! [`INSIDE_FRACTION`] of the time is inside a solid (a pillar, a thick wall) or under a
+//! floor: its light is not the light a dynamic object there would get, and with trilinear
+//! filtering a black voxel darkens every point within a cell of it. Such a probe is moved
+//! past the nearest back faces it saw (the way out of the solid), at most one cell away, and
+//! gathered there; a probe with no such way out is *filled*: the mean of its open
+//! neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
+//!
+//! **Texture layout** (Bevy's `bevy_pbr::irradiance_volume` docs): a volume of resolution
+//! (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel (x, y, z) is at
+//! s = x, t = y (+ Ry for +X, +Y, +Z), p = z (+ Rz for ±Y, + 2Rz for ±Z).
+
+use glam::{UVec3, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::gather::Solution;
+use super::grid::VolumeGrid;
+use crate::color::luminance;
+use crate::progress::Progress;
+use crate::sampling::hash_words;
+
+/// A probe whose rays meet back faces more often than this is inside geometry.
+pub const INSIDE_FRACTION: f32 = 0.25;
+
+/// A baked irradiance volume.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IrradianceVolume {
+    /// Where the probes are.
+    pub grid: VolumeGrid,
+    /// Per probe ([`VolumeGrid::index`]), the irradiance over π from each side in the order
+    /// −X, +X, −Y, +Y, −Z, +Z ([`SIDES`](super::gather::SIDES)), linear RGB: what a white Lambertian surface
+    /// facing that way would show, in the lightmap's units.
+    pub voxels: Vec<[Vec3; 6]>,
+    /// Per probe, what became of it.
+    pub states: Vec<ProbeState>,
+}
+
+/// What became of one probe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ProbeState {
+    /// Gathered at its cell's centre.
+    Open,
+    /// Inside geometry at its centre; gathered at this open point instead (world, m).
+    Moved(Vec3),
+    /// Inside geometry with no open point within a cell: its neighbours' mean.
+    Filled,
+    /// Inside geometry, and no probe of the volume is open: black.
+    Black,
+}
+
+/// What the volume stage did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct VolumeStats {
+    /// Probes in the grid.
+    pub probes: usize,
+    /// Probes along x, y, z.
+    pub resolution: [u32; 3],
+    /// Distance between probes, m.
+    pub spacing: f32,
+    /// Why that spacing.
+    pub spacing_reason: String,
+    /// Rays per probe (emitter samples not counted).
+    pub rays_per_probe: u32,
+    /// Probes found inside geometry and moved to an open point within a cell.
+    pub moved: usize,
+    /// Probes inside geometry with no open point within a cell, filled from their neighbours.
+    pub filled: usize,
+    /// Probes left black: inside geometry with no open probe anywhere in the volume.
+    pub unfilled: usize,
+    /// The gathers' noise: RMS over the open probes' sides of the standard error of the
+    /// luminance, over the RMS luminance of the sides.
+    pub relative_standard_error: f64,
+    /// Rays traced (gather, emitter and shadow rays).
+    pub rays: u64,
+}
+
+/// One probe's gather after the inside test.
+struct Probe {
+    sides: [Vec3; 6],
+    /// Standard error of each side's luminance.
+    error: [f32; 6],
+    /// Where it was gathered, when it was moved.
+    moved: Option<Vec3>,
+    open: bool,
+    rays: u64,
+}
+
+/// Bakes the volume over `grid` from `solution` with `rays` rays per probe (numbers keyed by
+/// the probe and `seed`; the same bits on any thread count).
+pub fn bake_volume(
+    solution: &Solution<'_>,
+    grid: VolumeGrid,
+    rays: u32,
+    seed: u32,
+    progress: &Progress,
+) -> (IrradianceVolume, VolumeStats) {
+    let probes: Vec<Probe> = (0..grid.len())
+        .into_par_iter()
+        .with_min_len(4)
+        .map(|i| {
+            if progress.is_cancelled() {
+                return Probe {
+                    sides: [Vec3::ZERO; 6],
+                    error: [0.0; 6],
+                    moved: None,
+                    open: true,
+                    rays: 0,
+                };
+            }
+            let p = probe(solution, &grid, i, rays, seed);
+            progress.advance(1);
+            p
+        })
+        .collect();
+    let mut stats = VolumeStats {
+        probes: grid.len(),
+        resolution: grid.resolution.to_array(),
+        spacing: grid.spacing,
+        spacing_reason: grid.reason.clone(),
+        rays_per_probe: rays,
+        rays: probes.iter().map(|p| p.rays).sum(),
+        ..VolumeStats::default()
+    };
+    let (mut err2, mut val2) = (0.0f64, 0.0f64);
+    for p in probes.iter().filter(|p| p.open) {
+        for s in 0..6 {
+            err2 += (p.error[s] as f64).powi(2);
+            val2 += (luminance(p.sides[s]) as f64).powi(2);
+        }
+    }
+    if val2 > 0.0 {
+        stats.relative_standard_error = (err2 / val2).sqrt();
+    }
+    stats.moved = probes.iter().filter(|p| p.moved.is_some()).count();
+    let mut voxels: Vec<[Vec3; 6]> = probes.iter().map(|p| p.sides).collect();
+    let open: Vec<bool> = probes.iter().map(|p| p.open).collect();
+    let mut states: Vec<ProbeState> = probes
+        .iter()
+        .map(|p| match (p.open, p.moved) {
+            (true, Some(at)) => ProbeState::Moved(at),
+            (true, None) => ProbeState::Open,
+            (false, _) => ProbeState::Black,
+        })
+        .collect();
+    let filled = fill(&grid, &mut voxels, open);
+    for i in filled {
+        states[i] = ProbeState::Filled;
+    }
+    stats.filled = states.iter().filter(|s| **s == ProbeState::Filled).count();
+    stats.unfilled = states.iter().filter(|s| **s == ProbeState::Black).count();
+    (
+        IrradianceVolume {
+            grid,
+            voxels,
+            states,
+        },
+        stats,
+    )
+}
+
+/// Probe `i`: gathered at its cell's centre, or moved out of the geometry it sits in.
+fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: u32) -> Probe {
+    let key = hash_words(&[seed, 0x9b0e, i as u32]);
+    let centre = grid.position(i);
+    let g = solution.gather(centre, rays, key);
+    let mut spent = g.rays;
+    let inside = |backs: u32| backs as f32 > INSIDE_FRACTION * rays as f32;
+    if !inside(g.back_hits) {
+        return Probe {
+            sides: g.sides,
+            error: g.standard_error,
+            moved: None,
+            open: true,
+            rays: spent,
+        };
+    }
+    // Out past the nearest back faces it saw, nearest first, within one cell.
+    let margin = (0.05 * grid.spacing).max(16.0 * solution.rays.epsilon(centre));
+    for (k, &(t, dir)) in g.nearest_backs[..g.backs_kept].iter().enumerate() {
+        let to = dir * (t + margin);
+        if to.length() > grid.spacing {
+            break;
+        }
+        let at = centre + to;
+        let moved = solution.gather(at, rays, hash_words(&[key, k as u32 + 1]));
+        spent += moved.rays;
+        if !inside(moved.back_hits) {
+            return Probe {
+                sides: moved.sides,
+                error: moved.standard_error,
+                moved: Some(at),
+                open: true,
+                rays: spent,
+            };
+        }
+    }
+    Probe {
+        sides: [Vec3::ZERO; 6],
+        error: [0.0; 6],
+        moved: None,
+        open: false,
+        rays: spent,
+    }
+}
+
+/// Fills the probes that are not `open` with the mean of their open neighbours (the 26
+/// around them), pass after pass outwards. Returns the probes filled.
+fn fill(grid: &VolumeGrid, voxels: &mut [[Vec3; 6]], mut open: Vec<bool>) -> Vec<usize> {
+    let r = grid.resolution.as_ivec3();
+    let mut filled = Vec::new();
+    loop {
+        let mut updates = Vec::new();
+        for i in 0..voxels.len() {
+            if open[i] {
+                continue;
+            }
+            let c = grid.coords(i).as_ivec3();
+            let mut sum = [Vec3::ZERO; 6];
+            let mut count = 0;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let q = c + glam::IVec3::new(dx, dy, dz);
+                        if q.cmplt(glam::IVec3::ZERO).any() || q.cmpge(r).any() {
+                            continue;
+                        }
+                        let j = grid.index(q.x as u32, q.y as u32, q.z as u32);
+                        if open[j] {
+                            for s in 0..6 {
+                                sum[s] += voxels[j][s];
+                            }
+                            count += 1;
+                        }
+                    }
+                }
+            }
+            if count > 0 {
+                updates.push((i, sum.map(|v| v / count as f32)));
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (i, v) in updates {
+            voxels[i] = v;
+            open[i] = true;
+            filled.push(i);
+        }
+    }
+    filled
+}
+
+impl IrradianceVolume {
+    /// The texture Bevy's `IrradianceVolume` reads (see the module docs): its size
+    /// (Rx, 2Ry, 3Rz) and its texels, s fastest, then t, then p.
+    pub fn texture(&self) -> (UVec3, Vec<Vec3>) {
+        let r = self.grid.resolution;
+        let size = UVec3::new(r.x, 2 * r.y, 3 * r.z);
+        let mut texels = vec![Vec3::ZERO; (size.x * size.y * size.z) as usize];
+        for (i, sides) in self.voxels.iter().enumerate() {
+            let c = self.grid.coords(i);
+            for (k, v) in sides.iter().enumerate() {
+                let (axis, positive) = (k as u32 / 2, k % 2 == 1);
+                let t = c.y + if positive { r.y } else { 0 };
+                let p = c.z + axis * r.z;
+                texels[(c.x + size.x * (t + size.y * p)) as usize] = *v;
+            }
+        }
+        (size, texels)
+    }
+
+    /// What Bevy's shader gives a surface at `position` with unit normal `normal` from this
+    /// volume (`irradiance_volume.wgsl`): each axis' side facing the normal, trilinearly
+    /// filtered between probe centres (clamped at the outer ones), weighted by the squared
+    /// normal's components. E/π, linear RGB.
+    pub fn sample(&self, position: Vec3, normal: Vec3) -> Vec3 {
+        let (centre, size) = self.grid.centre_and_size();
+        let r = self.grid.resolution.as_vec3();
+        let unit = (position - centre) / size;
+        let stp = ((unit + 0.5) * r).clamp(Vec3::splat(0.5), r - 0.5) - 0.5;
+        let base = stp.floor().as_uvec3();
+        let f = stp - stp.floor();
+        let mut out = Vec3::ZERO;
+        for axis in 0..3 {
+            let n = normal[axis];
+            let side = 2 * axis + usize::from(n >= 0.0);
+            let mut v = Vec3::ZERO;
+            for corner in 0..8u32 {
+                let o = UVec3::new(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+                let q = (base + o).min(self.grid.resolution - 1);
+                let w = (0..3).fold(1.0, |w, a| w * if o[a] == 1 { f[a] } else { 1.0 - f[a] });
+                v += self.voxels[self.grid.index(q.x, q.y, q.z)][side] * w;
+            }
+            out += v * n * n;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn volume() -> IrradianceVolume {
+        let grid = VolumeGrid::over(Vec3::ZERO, Vec3::new(2.0, 1.0, 3.0), 1.0, String::new());
+        let voxels = (0..grid.len())
+            .map(|i| {
+                let c = grid.coords(i).as_vec3();
+                std::array::from_fn(|s| Vec3::new(c.x + 10.0 * s as f32, c.y, c.z))
+            })
+            .collect();
+        let states = vec![ProbeState::Open; grid.len()];
+        IrradianceVolume {
+            grid,
+            voxels,
+            states,
+        }
+    }
+
+    #[test]
+    fn texture_layout_is_bevys() {
+        let v = volume();
+        let r = v.grid.resolution;
+        assert_eq!(r, UVec3::new(2, 2, 3));
+        let (size, texels) = v.texture();
+        assert_eq!(size, UVec3::new(2, 4, 9));
+        let at = |s: u32, t: u32, p: u32| texels[(s + size.x * (t + size.y * p)) as usize];
+        // Voxel (1, 0, 2): −X at (1, 0, 2), +X at (1, 2, 2), −Y at (1, 0, 5), +Z at (1, 2, 8).
+        let i = v.grid.index(1, 0, 2);
+        assert_eq!(at(1, 0, 2), v.voxels[i][0]);
+        assert_eq!(at(1, 2, 2), v.voxels[i][1]);
+        assert_eq!(at(1, 0, 5), v.voxels[i][2]);
+        assert_eq!(at(1, 2, 8), v.voxels[i][5]);
+    }
+
+    #[test]
+    fn sampling_at_a_probe_returns_its_side_and_blends_between() {
+        let v = volume();
+        let i = v.grid.index(1, 1, 1);
+        let p = v.grid.position(i);
+        assert_eq!(v.sample(p, Vec3::X), v.voxels[i][1]);
+        assert_eq!(v.sample(p, Vec3::NEG_Z), v.voxels[i][4]);
+        let n = Vec3::new(0.6, 0.0, 0.8);
+        let expected = v.voxels[i][1] * 0.36 + v.voxels[i][5] * 0.64;
+        assert!((v.sample(p, n) - expected).length() < 1e-4);
+        // Halfway between two probes along x: the mean; beyond the outer ones: clamped.
+        let j = v.grid.index(0, 1, 1);
+        let mid = 0.5 * (p + v.grid.position(j));
+        assert!((v.sample(mid, Vec3::Y) - 0.5 * (v.voxels[i][3] + v.voxels[j][3])).length() < 1e-4);
+        assert_eq!(v.sample(p + Vec3::X * 5.0, Vec3::Y), v.voxels[i][3]);
+    }
+
+    #[test]
+    fn closed_probes_are_filled_from_open_neighbours() {
+        let grid = VolumeGrid::over(Vec3::ZERO, Vec3::new(4.0, 2.0, 2.0), 1.0, String::new());
+        let mut voxels = vec![[Vec3::ONE; 6]; grid.len()];
+        let mut open = vec![true; grid.len()];
+        // A solid column at x = 0..1 of the first row: two probes, one behind the other.
+        for x in 0..2 {
+            let i = grid.index(x, 0, 0);
+            voxels[i] = [Vec3::ZERO; 6];
+            open[i] = false;
+        }
+        let filled = fill(&grid, &mut voxels, open);
+        assert_eq!(filled, vec![grid.index(0, 0, 0), grid.index(1, 0, 0)]);
+        assert!(voxels.iter().all(|v| v[0] == Vec3::ONE));
+        let mut none = vec![[Vec3::ZERO; 6]; grid.len()];
+        assert!(fill(&grid, &mut none, vec![false; grid.len()]).is_empty());
+    }
+}
