@@ -6,7 +6,9 @@
 //! ```
 //!
 //! The bake starts at startup and runs on a background task while the app keeps drawing; the
-//! overlay shows the stage, its progress and the solver's error estimate.
+//! overlay shows the stage, its progress and the solver's error estimate, and the lightmaps
+//! show the bake's progress: its direct light, then the coarse indirect light, then the
+//! result.
 //! Keys: `B` bake again, `C` cancel, `Space` switch between the baked lightmaps and Bevy's
 //! real-time lighting.
 //!
@@ -135,8 +137,12 @@ fn overlay(
         BakePhase::Failed(e) => format!("failed: {e}"),
     };
     let mode = if show.0 { "baked" } else { "real-time" };
-    text.0 =
-        format!("{what}\nlighting: {mode}\nB: bake again   C: cancel   Space: baked / real-time");
+    let showing = status
+        .preview
+        .map_or("the previous lightmaps", |p| p.describe());
+    text.0 = format!(
+        "{what}\nlighting: {mode}, showing {showing}\nB: bake again   C: cancel   Space: baked / real-time"
+    );
 }
 
 /// Wall-clock frame times (`Time<Real>`: the virtual clock clamps long frames to 250 ms).
@@ -152,11 +158,12 @@ fn measure(time: Res<Time<Real>>, status: Res<BakeStatus>, mut times: ResMut<Fra
 fn arm_capture(
     capture: Option<ResMut<FrameCapture>>,
     status: Res<BakeStatus>,
-    pending: Query<(), (With<Lightmapped>, Without<Lightmap>)>,
-    lightmapped: Query<(), With<Lightmap>>,
+    shown: Query<(&Lightmapped, Option<&Lightmap>)>,
 ) {
     if let Some(mut capture) = capture {
-        let ready = status.completed > 0 && pending.is_empty() && !lightmapped.is_empty();
+        let ready = status.completed > 0
+            && !shown.is_empty()
+            && shown.iter().all(|(l, m)| l.is_shown_by(m));
         if ready && !capture.armed {
             capture.armed = true;
         }

@@ -123,13 +123,12 @@ fn toggle(input: Option<Res<ButtonInput<KeyCode>>>, mut show: ResMut<ShowLightma
 fn arm_capture(
     capture: Option<ResMut<FrameCapture>>,
     viewer: Res<Viewer>,
-    pending: Query<(), (With<Lightmapped>, Without<Lightmap>)>,
-    lightmapped: Query<(), With<Lightmap>>,
+    shown: Query<(&Lightmapped, Option<&Lightmap>)>,
 ) {
     if let Some(mut capture) = capture
         && viewer.framed
-        && pending.is_empty()
-        && !lightmapped.is_empty()
+        && !shown.is_empty()
+        && shown.iter().all(|(l, m)| l.is_shown_by(m))
     {
         capture.armed = true;
     }

@@ -56,8 +56,8 @@ fn baked_cornell(assets: &Path, light: CornellLight) -> (App, HashMap<String, En
             panic!("bake failed: {e}");
         }
         let completed = status.completed;
-        let mut waiting = world.query_filtered::<(), (With<Lightmapped>, Without<Lightmap>)>();
-        completed == 1 && waiting.iter(world).next().is_none()
+        let mut shown = world.query::<(&Lightmapped, Option<&Lightmap>)>();
+        completed == 1 && shown.iter(world).all(|(l, m)| l.is_shown_by(m))
     });
     (app, names)
 }

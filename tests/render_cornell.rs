@@ -83,8 +83,9 @@ fn rendered_cornell_box_shows_the_bake() {
     ));
     world.write_message(RequestBake::default());
     let frame = support::capture_when_ready(&mut app, |world| {
-        let mut waiting = world.query_filtered::<(), (With<Lightmapped>, Without<Lightmap>)>();
-        world.resource::<BakeStatus>().completed == 1 && waiting.iter(world).next().is_none()
+        let mut shown = world.query::<(&Lightmapped, Option<&Lightmap>)>();
+        world.resource::<BakeStatus>().completed == 1
+            && shown.iter(world).all(|(l, m)| l.is_shown_by(m))
     });
     let world = app.world_mut();
     frame

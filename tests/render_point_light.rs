@@ -96,8 +96,8 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
     world.write_message(RequestBake::default());
 
     let frame = support::capture_when_ready(&mut app, |world| {
-        let mut lit = world.query_filtered::<(), With<Lightmap>>();
-        lit.iter(world).count() == 1
+        let mut lit = world.query::<(&Lightmapped, Option<&Lightmap>)>();
+        lit.iter(world).count() == 1 && lit.iter(world).all(|(l, m)| l.is_shown_by(m))
     });
     frame
         .save_png(&std::env::temp_dir().join("lightbake_render_point_light.png"))

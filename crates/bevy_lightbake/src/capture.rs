@@ -142,6 +142,19 @@ impl FrameCapture {
     pub fn done(&self) -> bool {
         self.frame.is_some() || self.failed.is_some()
     }
+
+    /// Forgets the captured frame and disarms, to capture the scene again once it changed
+    /// (another bake): set [`Self::armed`] again when it is complete.
+    pub fn rearm(&mut self) {
+        self.armed = false;
+        self.frame = None;
+        self.failed = None;
+        self.readbacks = 0;
+        self.latest = None;
+        self.previous = None;
+        self.fresh = false;
+        self.same = 0;
+    }
 }
 
 /// Pipelines the render world is still compiling, shared with the main world.

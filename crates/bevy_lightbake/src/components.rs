@@ -243,6 +243,16 @@ pub struct Lightmapped {
     pub uv_rect: Rect,
 }
 
+impl Lightmapped {
+    /// Whether `lightmap` (the entity's Bevy `Lightmap`, if any) shows this lightmap: its
+    /// image and rectangle. After a bake, an entity keeps showing its preview (or previous
+    /// lightmap) until the new image has loaded; a test or a screenshot that wants the final
+    /// picture waits until this holds for every entity.
+    pub fn is_shown_by(&self, lightmap: Option<&bevy::pbr::Lightmap>) -> bool {
+        lightmap.is_some_and(|l| l.image == self.image && l.uv_rect == self.uv_rect)
+    }
+}
+
 /// Show the baked lightmaps (`true`, the default) or Bevy's real-time lighting (`false`:
 /// every plugin-managed `Lightmap` is removed, so baked lights and the ambient light light
 /// those meshes again in real time).

@@ -3,14 +3,17 @@
 //! progressive radiosity's ambient term, then the result), and a bake that is cancelled or
 //! fails puts back what the first preview replaced.
 
-use bevy::light::{DirectionalLight, GlobalAmbientLight, PointLight, SpotLight};
+use bevy::light::GlobalAmbientLight;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use lightbake::bake::Preview;
 
 use crate::components::{BakeStatus, BakedLight, Lightmapped};
 use crate::convert::SceneMapping;
-use crate::systems::{BakeJob, apply_meshes, attach_lightmaps, mark_lights_baked, memory_pages};
+use crate::systems::{
+    BakeJob, affects_lightmapped, apply_meshes, attach_lightmaps, mark_lights_baked, memory_pages,
+    set_affects_lightmapped,
+};
 
 /// What the first preview of a bake replaced.
 pub(crate) struct Restore {
@@ -35,23 +38,10 @@ impl Restore {
                 })
             })
             .collect();
-        let lights = mapping
-            .lights
-            .iter()
-            .map(|&e| {
+        let lights = all_lights(mapping)
+            .map(|e| {
                 world.get_entity(e).map_or((None, false), |e| {
-                    let affects = e
-                        .get::<PointLight>()
-                        .map(|l| l.affects_lightmapped_mesh_diffuse)
-                        .or_else(|| {
-                            e.get::<SpotLight>()
-                                .map(|l| l.affects_lightmapped_mesh_diffuse)
-                        })
-                        .or_else(|| {
-                            e.get::<DirectionalLight>()
-                                .map(|l| l.affects_lightmapped_mesh_diffuse)
-                        });
-                    (affects, e.contains::<BakedLight>())
+                    (affects_lightmapped(&e), e.contains::<BakedLight>())
                 })
             })
             .collect();
@@ -95,22 +85,16 @@ impl Restore {
                 mesh.set_changed();
             }
         }
-        for (&entity, (affects, baked)) in mapping.lights.iter().zip(self.lights) {
+        for (entity, (affects, baked)) in all_lights(mapping).zip(self.lights) {
             let Ok(mut e) = world.get_entity_mut(entity) else {
                 continue;
             };
             if let Some(a) = affects {
-                if let Some(mut l) = e.get_mut::<PointLight>() {
-                    l.affects_lightmapped_mesh_diffuse = a;
-                }
-                if let Some(mut l) = e.get_mut::<SpotLight>() {
-                    l.affects_lightmapped_mesh_diffuse = a;
-                }
-                if let Some(mut l) = e.get_mut::<DirectionalLight>() {
-                    l.affects_lightmapped_mesh_diffuse = a;
-                }
+                set_affects_lightmapped(&mut e, a);
             }
-            if !baked {
+            if baked {
+                e.insert(BakedLight);
+            } else {
                 e.remove::<BakedLight>();
             }
         }
@@ -120,6 +104,15 @@ impl Restore {
             a.affects_lightmapped_meshes = before;
         }
     }
+}
+
+/// Every light entity the bake reads, baked in full or indirect only.
+fn all_lights(mapping: &SceneMapping) -> impl Iterator<Item = Entity> + '_ {
+    mapping
+        .lights
+        .iter()
+        .chain(&mapping.realtime_lights)
+        .copied()
 }
 
 /// Shows `preview` of the running bake: the first one applies its layout (the meshes' `UV_1`)

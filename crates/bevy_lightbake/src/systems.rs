@@ -283,7 +283,7 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
     } = finished;
     let new_handles = apply_meshes(world, &output.layout, mapping);
     let handles = match page_paths.as_deref() {
-        Some(paths) => loaded_pages(world, paths),
+        Some(paths) => file_pages(world, paths, &output.pages),
         None => memory_pages(world, &output.pages),
     };
     let lightmapped = attach_lightmaps(world, &output.layout, mapping, &new_handles, &handles);
@@ -339,19 +339,31 @@ pub(crate) fn apply_meshes(
     new_handles
 }
 
-/// Images loaded (or reloaded) from the files just written, by asset path.
-pub(crate) fn loaded_pages(world: &mut World, paths: &[String]) -> Vec<Handle<Image>> {
+/// The page images of the files just written, by asset path, holding `pages` at once: the
+/// asset of each path (loaded now if it was not) gets the new texels in memory, so the entities
+/// never show a file's previous content while the file is read again; the asset stays tied
+/// to its file, so a later rewrite by the `bake` command reloads it.
+pub(crate) fn file_pages(
+    world: &mut World,
+    paths: &[String],
+    pages: &[lightbake::LightmapPage],
+) -> Vec<Handle<Image>> {
     let server = world.resource::<AssetServer>().clone();
-    paths
+    let handles: Vec<Handle<Image>> = paths
         .iter()
-        .map(|p| match server.get_handle::<Image>(p) {
-            Some(h) => {
-                server.reload(p);
-                h
-            }
-            None => server.load(p),
+        .map(|p| {
+            server
+                .get_handle::<Image>(p)
+                .unwrap_or_else(|| server.load(p))
         })
-        .collect()
+        .collect();
+    let mut images = world.resource_mut::<Assets<Image>>();
+    for (h, page) in handles.iter().zip(pages) {
+        if images.insert(h.id(), page_image(page)).is_err() {
+            warn!("lightbake: a lightmap image was removed while it was being replaced");
+        }
+    }
+    handles
 }
 
 /// The pages as images made in memory, reusing the assets of earlier bakes and previews (so a
@@ -417,26 +429,53 @@ pub(crate) fn attach_lightmaps(
 /// The baked lights stop lighting lightmapped meshes: their diffuse light is in the lightmaps
 /// now (and the ambient light's, when the sky came from it).
 pub(crate) fn mark_lights_baked(world: &mut World, mapping: &SceneMapping) {
-    for &entity in &mapping.lights {
+    let baked = mapping.lights.iter().map(|&e| (e, true));
+    let realtime = mapping.realtime_lights.iter().map(|&e| (e, false));
+    for (entity, is_baked) in baked.chain(realtime) {
         let Ok(mut e) = world.get_entity_mut(entity) else {
             continue;
         };
-        if let Some(mut l) = e.get_mut::<PointLight>() {
-            l.affects_lightmapped_mesh_diffuse = false;
+        // A light baked indirect only lights lightmapped meshes in real time (again, when an
+        // earlier bake took it off them).
+        set_affects_lightmapped(&mut e, !is_baked);
+        if is_baked {
+            e.insert(BakedLight);
+        } else {
+            e.remove::<BakedLight>();
         }
-        if let Some(mut l) = e.get_mut::<SpotLight>() {
-            l.affects_lightmapped_mesh_diffuse = false;
-        }
-        if let Some(mut l) = e.get_mut::<DirectionalLight>() {
-            l.affects_lightmapped_mesh_diffuse = false;
-        }
-        e.insert(BakedLight);
     }
     if mapping.sky_from_ambient
         && let Some(mut a) = world.get_resource_mut::<GlobalAmbientLight>()
     {
         a.affects_lightmapped_meshes = false;
     }
+}
+
+/// Sets `affects_lightmapped_mesh_diffuse` of the point, spot or directional light on `e`.
+pub(crate) fn set_affects_lightmapped(e: &mut EntityWorldMut<'_>, affects: bool) {
+    if let Some(mut l) = e.get_mut::<PointLight>() {
+        l.affects_lightmapped_mesh_diffuse = affects;
+    }
+    if let Some(mut l) = e.get_mut::<SpotLight>() {
+        l.affects_lightmapped_mesh_diffuse = affects;
+    }
+    if let Some(mut l) = e.get_mut::<DirectionalLight>() {
+        l.affects_lightmapped_mesh_diffuse = affects;
+    }
+}
+
+/// `affects_lightmapped_mesh_diffuse` of the point, spot or directional light on `e`.
+pub(crate) fn affects_lightmapped(e: &EntityRef<'_>) -> Option<bool> {
+    e.get::<PointLight>()
+        .map(|l| l.affects_lightmapped_mesh_diffuse)
+        .or_else(|| {
+            e.get::<SpotLight>()
+                .map(|l| l.affects_lightmapped_mesh_diffuse)
+        })
+        .or_else(|| {
+            e.get::<DirectionalLight>()
+                .map(|l| l.affects_lightmapped_mesh_diffuse)
+        })
 }
 
 /// Narrows lightmap images Bevy loaded as `Rgba32Float` (EXR, HDR) to `Rgba16Float`, and

@@ -66,16 +66,17 @@ pub(crate) fn spawn_bake_volumes(
     }
     let entries = lightbake::output::volumes(output);
     for (i, (entry, volume)) in entries.iter().zip(&output.irradiance_volume).enumerate() {
+        // The file's asset (tied to it for hot reloads) holds the new voxels at once.
         let image = match paths.and_then(|p| p.get(i)) {
             Some(path) => {
                 let server = world.resource::<AssetServer>().clone();
-                match server.get_handle::<Image>(path) {
-                    Some(h) => {
-                        server.reload(path);
-                        h
-                    }
-                    None => server.load(path),
-                }
+                let h = server
+                    .get_handle::<Image>(path)
+                    .unwrap_or_else(|| server.load(path));
+                let _ = world
+                    .resource_mut::<Assets<Image>>()
+                    .insert(h.id(), volume_image(volume));
+                h
             }
             None => world
                 .resource_mut::<Assets<Image>>()

@@ -45,6 +45,13 @@ impl MemoryEstimate {
         Self { items, total }
     }
 
+    /// The estimate with one more item.
+    pub fn with(self, item: &str, bytes: u64) -> Self {
+        let mut items = self.items;
+        items.push((item.to_string(), bytes));
+        Self::from_items(items)
+    }
+
     /// Total in MiB.
     pub fn mib(&self) -> f64 {
         self.total as f64 / (1024.0 * 1024.0)

@@ -176,7 +176,36 @@ fn bake_in_pool(
         Ok((layout, 0, note))
     })?;
     warnings.extend(layout.warnings.iter().cloned());
-    let estimate = memory::estimate_from_layout(scene, &layout);
+    let mut estimate = memory::estimate_from_layout(scene, &layout);
+    // The volume's grid, planned here so that a spacing it cannot take is refused before
+    // the lighting passes run.
+    let volume_grid = if plan.runs("irradiance volume") {
+        let grid = VolumeGrid::plan(scene, &layout, settings, plan.texel_density)?;
+        if grid.is_none() {
+            plan.skip("irradiance volume", "no instance has a lightmap".into());
+        }
+        grid
+    } else {
+        None
+    };
+    if let Some(grid) = &volume_grid {
+        estimate = estimate.with(
+            "irradiance volume",
+            grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
+        );
+        plan.set_reason(
+            "irradiance volume",
+            format!(
+                "{} × {} × {} probes {:.3e} m apart ({}), {} rays each",
+                grid.resolution.x,
+                grid.resolution.y,
+                grid.resolution.z,
+                grid.spacing,
+                grid.reason,
+                settings.probe_rays
+            ),
+        );
+    }
     estimate.check(settings.memory_budget_mib)?;
     let baked_scene = layout.apply(scene);
 
@@ -195,6 +224,7 @@ fn bake_in_pool(
             &layout,
             settings,
             &plan,
+            volume_grid,
             &mut stages,
             &mut warnings,
         )?
@@ -268,6 +298,7 @@ fn light_scene(
     layout: &Layout,
     settings: &BakeSettings,
     plan: &BakePlan,
+    volume_grid: Option<VolumeGrid>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
@@ -463,10 +494,10 @@ fn light_scene(
         lit.seams = Some(st);
     }
     lit.pages = assembly.pages;
-    if plan.runs("irradiance volume") {
-        lit.volume = volume_stage(
-            scene, layout, settings, plan, &rays, &emitters, &lit.pages, stages,
-        )?;
+    if let Some(grid) = volume_grid {
+        lit.volume = Some(volume_stage(
+            scene, layout, settings, grid, &rays, &emitters, &lit.pages, stages,
+        )?);
         if lit.volume.as_ref().is_some_and(|v| v.1.unfilled > 0) {
             warnings.push(
                 "every probe of the irradiance volume is inside geometry: the volume is black"
@@ -477,22 +508,19 @@ fn light_scene(
     Ok(lit)
 }
 
-/// The irradiance volume stage ([`crate::probes`]): the grid over the baked instances, every
-/// probe gathered from the finished `pages`.
+/// The irradiance volume stage ([`crate::probes`]): every probe of `grid` gathered from the
+/// finished `pages`.
 #[allow(clippy::too_many_arguments)]
 fn volume_stage(
     scene: &Scene,
     layout: &Layout,
     settings: &BakeSettings,
-    plan: &BakePlan,
+    grid: VolumeGrid,
     rays: &RayScene,
     emitters: &Emitters,
     pages: &[LightmapPage],
     stages: &mut Stages<'_>,
-) -> Result<Option<(IrradianceVolume, VolumeStats)>> {
-    let Some(grid) = VolumeGrid::plan(scene, layout, settings, plan.texel_density)? else {
-        return Ok(None);
-    };
+) -> Result<(IrradianceVolume, VolumeStats)> {
     let solution = Solution {
         scene,
         layout,
@@ -516,7 +544,7 @@ fn volume_stage(
         let rays = st.rays;
         Ok(((volume, st), rays, note))
     })?;
-    Ok(Some(volume))
+    Ok(volume)
 }
 
 /// The factor that scales the per-patch noise so its RMS over the valid patches matches the

@@ -11,9 +11,12 @@
 //! gathered there; a probe with no such way out is *filled*: the mean of its open
 //! neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
 //!
-//! **Texture layout** (Bevy's `bevy_pbr::irradiance_volume` docs): a volume of resolution
-//! (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel (x, y, z) is at
-//! s = x, t = y (+ Ry for +X, +Y, +Z), p = z (+ Rz for ±Y, + 2Rz for ±Z).
+//! **Texture layout**, as Bevy 0.19's shader reads it (`irradiance_volume.wgsl`): a volume of
+//! resolution (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel
+//! (x, y, z) is at s = x, t = y (+ Ry for −X, −Y, −Z: the shader adds half the height for a
+//! negative normal component), p = z (+ Rz for ±Y, + 2Rz for ±Z). The module docs of
+//! `bevy_pbr::irradiance_volume` put the offset on the positive sides instead; their diagram
+//! and the shader put the positive sides in the first half, and the shader is what renders.
 
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -27,6 +30,11 @@ use crate::sampling::hash_words;
 
 /// A probe whose rays meet back faces more often than this is inside geometry.
 pub const INSIDE_FRACTION: f32 = 0.25;
+
+/// Bytes the volume stage holds per probe at its peak: the gathered probe (its sides, their
+/// errors, where it moved, 128), the voxels and states kept (72 + 16) and the texture laid
+/// out for writing (72).
+pub const BYTES_PER_PROBE: u64 = 288;
 
 /// A baked irradiance volume.
 #[derive(Clone, Debug, PartialEq)]
@@ -267,7 +275,7 @@ impl IrradianceVolume {
             let c = self.grid.coords(i);
             for (k, v) in sides.iter().enumerate() {
                 let (axis, positive) = (k as u32 / 2, k % 2 == 1);
-                let t = c.y + if positive { r.y } else { 0 };
+                let t = c.y + if positive { 0 } else { r.y };
                 let p = c.z + axis * r.z;
                 texels[(c.x + size.x * (t + size.y * p)) as usize] = *v;
             }
@@ -331,12 +339,64 @@ mod tests {
         let (size, texels) = v.texture();
         assert_eq!(size, UVec3::new(2, 4, 9));
         let at = |s: u32, t: u32, p: u32| texels[(s + size.x * (t + size.y * p)) as usize];
-        // Voxel (1, 0, 2): −X at (1, 0, 2), +X at (1, 2, 2), −Y at (1, 0, 5), +Z at (1, 2, 8).
+        // Voxel (1, 0, 2): +X at (1, 0, 2), −X at (1, 2, 2), −Y at (1, 2, 5), +Z at (1, 0, 8).
         let i = v.grid.index(1, 0, 2);
-        assert_eq!(at(1, 0, 2), v.voxels[i][0]);
-        assert_eq!(at(1, 2, 2), v.voxels[i][1]);
-        assert_eq!(at(1, 0, 5), v.voxels[i][2]);
-        assert_eq!(at(1, 2, 8), v.voxels[i][5]);
+        assert_eq!(at(1, 2, 2), v.voxels[i][0]);
+        assert_eq!(at(1, 0, 2), v.voxels[i][1]);
+        assert_eq!(at(1, 2, 5), v.voxels[i][2]);
+        assert_eq!(at(1, 0, 8), v.voxels[i][5]);
+    }
+
+    /// Bevy 0.19's `irradiance_volume_light` on the texture, step by step: the unit cube's
+    /// point scaled to voxels and clamped, the half for a negative normal component added to
+    /// v, the third of each axis added to w, each read with trilinear filtering (texel
+    /// centres at (i + ½)/size), weighted by N².
+    fn shader(size: UVec3, texels: &[Vec3], unit_pos: Vec3, n: Vec3) -> Vec3 {
+        let atlas = size.as_vec3();
+        let resolution = atlas / Vec3::new(1.0, 2.0, 3.0);
+        let stp = ((unit_pos + 0.5) * resolution).clamp(Vec3::splat(0.5), resolution - 0.5);
+        let uvw = stp / atlas;
+        let neg = Vec3::select(n.cmplt(Vec3::ZERO), Vec3::splat(0.5), Vec3::ZERO);
+        let fetch = |uvw: Vec3| {
+            let c = uvw * atlas - 0.5;
+            let base = c.floor();
+            let f = c - base;
+            let mut v = Vec3::ZERO;
+            for k in 0..8u32 {
+                let o = UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+                let q = (base.as_ivec3() + o.as_ivec3())
+                    .clamp(glam::IVec3::ZERO, size.as_ivec3() - 1)
+                    .as_uvec3();
+                let w = (0..3).fold(1.0, |w, a| w * if o[a] == 1 { f[a] } else { 1.0 - f[a] });
+                v += texels[(q.x + size.x * (q.y + size.y * q.z)) as usize] * w;
+            }
+            v
+        };
+        let x = fetch(uvw + Vec3::new(0.0, neg.x, 0.0));
+        let y = fetch(uvw + Vec3::new(0.0, neg.y, 1.0 / 3.0));
+        let z = fetch(uvw + Vec3::new(0.0, neg.z, 2.0 / 3.0));
+        let nn = n * n;
+        x * nn.x + y * nn.y + z * nn.z
+    }
+
+    #[test]
+    fn the_texture_gives_bevys_shader_what_sample_gives() {
+        let v = volume();
+        let (size, texels) = v.texture();
+        let (centre, extent) = v.grid.centre_and_size();
+        for (p, n) in [
+            (Vec3::new(0.7, 0.2, 1.1), Vec3::Y),
+            (Vec3::new(1.3, 0.8, 2.6), Vec3::NEG_Y),
+            (Vec3::new(0.2, 0.5, 0.4), Vec3::new(0.6, -0.8, 0.0)),
+            (Vec3::new(1.9, 0.1, 1.7), Vec3::new(-0.48, 0.6, -0.64)),
+        ] {
+            let want = v.sample(p, n);
+            let got = shader(size, &texels, (p - centre) / extent, n);
+            assert!(
+                (want - got).length() < 1e-3 * want.length().max(1.0),
+                "{p} {n}: {want} against {got}"
+            );
+        }
     }
 
     #[test]

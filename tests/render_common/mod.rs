@@ -1,0 +1,71 @@
+//! Shared by the render tests that compare places of one picture: pixels of world points,
+//! their means, a surface's lightmap value there, and the exposure that shows it mid-grey.
+
+#![allow(dead_code)]
+
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use bevy_lightbake::capture::CapturedFrame;
+use bevy_lightbake::prelude::*;
+use bevy_lightbake::sample::sample_lightmap;
+
+/// The pixel where the (single) camera sees world point `p`.
+pub fn pixel(world: &mut World, p: Vec3) -> (u32, u32) {
+    let mut q = world.query::<(&Camera, &GlobalTransform)>();
+    let (camera, t) = q.single(world).unwrap();
+    let v = camera.world_to_viewport(t, p).unwrap();
+    (v.x as u32, v.y as u32)
+}
+
+/// Mean linear colour of the (2r + 1)² pixels around `(x, y)`.
+pub fn mean_at(frame: &CapturedFrame, (x, y): (u32, u32), r: u32) -> Vec3 {
+    frame.mean_linear(x - r, y - r, x + r + 1, y + r + 1)
+}
+
+/// E/π of `entity`'s lightmap at the surface point nearest `p`.
+pub fn lightmap_at(world: &World, entity: Entity, p: Vec3) -> Vec3 {
+    let mesh = world
+        .resource::<Assets<Mesh>>()
+        .get(&world.get::<Mesh3d>(entity).unwrap().0)
+        .unwrap();
+    let lm = world.get::<Lightmap>(entity).unwrap();
+    let image = world.resource::<Assets<Image>>().get(&lm.image).unwrap();
+    let t = world.get::<GlobalTransform>(entity).unwrap();
+    sample_lightmap(mesh, t, lm.uv_rect, image, p).unwrap()
+}
+
+/// The `ev100` at which Bevy shows `entity`'s lightmapped surface at `p` (its albedo times its
+/// lightmap) at a third of white: Bevy multiplies by 2^−ev100 / 1.2.
+pub fn exposure_for(world: &World, entity: Entity, p: Vec3) -> f32 {
+    let e = lightmap_at(world, entity, p);
+    let material = world
+        .get::<MeshMaterial3d<StandardMaterial>>(entity)
+        .unwrap();
+    let albedo = world
+        .resource::<Assets<StandardMaterial>>()
+        .get(&material.0)
+        .unwrap()
+        .base_color
+        .to_linear();
+    let shown = (e * Vec3::new(albedo.red, albedo.green, albedo.blue)).max_element();
+    (shown.max(1e-6) / (0.33 * 1.2)).log2()
+}
+
+/// Updates `app` until its `n`-th bake has finished, every lightmap is attached and `also`
+/// holds; panics when the bake fails.
+pub fn wait_for_bake(app: &mut App, n: u32, mut also: impl FnMut(&mut World) -> bool) {
+    loop {
+        app.update();
+        let world = app.world_mut();
+        if let BakePhase::Failed(e) = &world.resource::<BakeStatus>().phase {
+            panic!("bake failed: {e}");
+        }
+        let mut shown = world.query::<(&Lightmapped, Option<&Lightmap>)>();
+        if world.resource::<BakeStatus>().completed == n
+            && shown.iter(world).all(|(l, m)| l.is_shown_by(m))
+            && also(world)
+        {
+            return;
+        }
+    }
+}

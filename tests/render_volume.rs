@@ -1,0 +1,211 @@
+//! A dynamic object next to lightmapped geometry, drawn by Bevy's renderer (software Vulkan,
+//! Mesa lavapipe): a thin plate lying on the floor, not baked (no `Lightbaked`), takes its
+//! diffuse light from the irradiance volume the in-app bake spawned (and any real-time light),
+//! the floor beside it from its lightmap; where both see the same light they must be as bright
+//! within 10%. In the Cornell box (lit by its emissive ceiling panel, which Bevy does not draw
+//! in real time: all of the plate's light comes from the volume) and the sunlit room (sky and
+//! interreflection from the volume; in the sun patch Bevy's real-time sun adds the direct
+//! light, with its shadows). Skips when no Vulkan driver is installed (fails instead with
+//! `LIGHTBAKE_REQUIRE_VULKAN=1`, which `.ci/run` sets after installing one).
+
+mod render_common;
+#[path = "../examples/support/mod.rs"]
+mod support;
+
+use bevy::camera::{Exposure, RenderTarget};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::light::{GlobalAmbientLight, IrradianceVolume};
+use bevy::prelude::*;
+use bevy::render::view::Msaa;
+use bevy_lightbake::capture::FrameCapture;
+use bevy_lightbake::prelude::*;
+use bevy_lightbake::spawn::spawn_scene;
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
+use render_common::{exposure_for, mean_at, pixel, wait_for_bake};
+
+const W: u32 = 320;
+const H: u32 = 240;
+
+/// Bakes `scene` in the app with `settings` (a volume among them), lays a plate of `size` m
+/// (the floor's material, not baked) on the floor at each of `spots`, and renders from
+/// `camera`, once per spot with the exposure that puts the floor there at about a third of
+/// white. Returns, per spot, the plate's brightness and the floor's (the mean of four points
+/// `size` m beside the plate).
+fn plates_against_floor(
+    scene: &Scene,
+    settings: BakeSettings,
+    spots: &[Vec2],
+    size: f32,
+    camera: (Transform, Projection),
+    name: &str,
+) -> Vec<(Vec3, Vec3)> {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut app, target) = support::render_test_app(dir.path(), W, H);
+    app.world_mut().resource_mut::<LightbakeConfig>().settings = settings;
+    let world = app.world_mut();
+    let entities = spawn_scene(world, scene);
+    world.insert_resource(GlobalAmbientLight::NONE);
+    let floor = entities[scene
+        .instances
+        .iter()
+        .position(|i| i.name == "floor")
+        .unwrap()];
+    let material = world
+        .get::<MeshMaterial3d<StandardMaterial>>(floor)
+        .unwrap()
+        .clone();
+    let plate = world
+        .resource_mut::<Assets<Mesh>>()
+        .add(Cuboid::new(size, 0.004, size));
+    for s in spots {
+        world.spawn((
+            Mesh3d(plate.clone()),
+            material.clone(),
+            Transform::from_xyz(s.x, 0.002, s.y),
+        ));
+    }
+    let camera = world
+        .spawn((
+            Camera3d::default(),
+            camera.0,
+            camera.1,
+            RenderTarget::Image(target.into()),
+            Tonemapping::None,
+            Msaa::Off,
+            Exposure::default(),
+        ))
+        .id();
+    world.write_message(RequestBake::default());
+    wait_for_bake(&mut app, 1, |world| {
+        let mut volumes = world.query::<&IrradianceVolume>();
+        let ready = volumes
+            .iter(world)
+            .all(|v| world.resource::<Assets<Image>>().get(&v.voxels).is_some());
+        ready && volumes.iter(world).count() == 1
+    });
+    let mut results = Vec::new();
+    for (k, s) in spots.iter().enumerate() {
+        let world = app.world_mut();
+        // The floor there at about a third of white.
+        let ev100 = exposure_for(world, floor, Vec3::new(s.x, 0.0, s.y));
+        world.entity_mut(camera).insert(Exposure { ev100 });
+        world.resource_mut::<FrameCapture>().rearm();
+        let frame = support::capture_when_ready(&mut app, |_| true);
+        frame
+            .save_png(&std::env::temp_dir().join(format!("lightbake_render_volume_{name}_{k}.png")))
+            .unwrap();
+        let world = app.world_mut();
+        let on_plate = mean_at(&frame, pixel(world, Vec3::new(s.x, 0.0, s.y)), 2);
+        let beside: Vec3 = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
+            .iter()
+            .map(|(dx, dz)| {
+                let p = Vec3::new(s.x + dx * size, 0.0, s.y + dz * size);
+                mean_at(&frame, pixel(world, p), 2)
+            })
+            .sum::<Vec3>()
+            / 4.0;
+        results.push((on_plate, beside));
+    }
+    results
+}
+
+fn check(name: &str, spots: &[Vec2], results: &[(Vec3, Vec3)]) {
+    let mut worst: f32 = 0.0;
+    for (s, (plate, floor)) in spots.iter().zip(results) {
+        assert!(
+            floor.max_element() > 0.03,
+            "{name}: the floor at {s} is lit: {floor}"
+        );
+        assert!(
+            plate.max_element() < 0.95 && floor.max_element() < 0.95,
+            "clipped"
+        );
+        let rel = (*plate - *floor).abs().max_element() / floor.max_element();
+        println!(
+            "{name} at ({:+.2}, {:+.2}): dynamic plate {plate:.4}, lightmapped floor {floor:.4}, {:.1}%",
+            s.x,
+            s.y,
+            100.0 * rel
+        );
+        worst = worst.max(rel);
+    }
+    assert!(
+        worst < 0.10,
+        "{name}: plate and floor differ by {:.1}%",
+        100.0 * worst
+    );
+}
+
+#[test]
+fn a_dynamic_plate_lit_by_the_volume_matches_the_lightmapped_floor() {
+    if !support::render_tests_can_run() {
+        return;
+    }
+    // The Cornell box, seen from above (its ceiling and panel face down, so Bevy culls them).
+    let cornell = cornell_box(CornellLight::Area);
+    let spots = [Vec2::new(-0.15, 0.15), Vec2::new(0.16, -0.16)];
+    let results = plates_against_floor(
+        &cornell,
+        BakeSettings {
+            texel_density: Some(128.0),
+            irradiance_volume: true,
+            probe_spacing: Some(0.04),
+            probe_rays: 1024,
+            ..BakeSettings::medium()
+        },
+        &spots,
+        0.06,
+        (
+            Transform::from_xyz(0.0, 1.2, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
+            Projection::default(),
+        ),
+        "cornell",
+    );
+    check("Cornell box", &spots, &results);
+
+    // The sunlit room, seen from under its ceiling: one plate in the shade, one in the sun.
+    let room = sunlit_room();
+    let rays = lightbake::bvh::RayScene::build(&room);
+    let sun = room.lights[0].direction;
+    let in_sun = |s: Vec2| {
+        let p = glam::Vec3::new(s.x, 0.01, s.y);
+        !rays.occluded(p, -sun, 0.0, 100.0)
+    };
+    let spots = [Vec2::new(-2.8, -2.0), Vec2::new(1.0, 0.6)];
+    assert!(
+        !in_sun(spots[0]) && in_sun(spots[1]),
+        "one spot in the shade, one in the sun"
+    );
+    for s in &spots {
+        // The whole plate and the floor beside it in the same light.
+        for d in [Vec2::X, Vec2::NEG_X, Vec2::Y, Vec2::NEG_Y] {
+            assert_eq!(
+                in_sun(*s + d * 0.45),
+                in_sun(*s),
+                "{s} is not near a shadow edge"
+            );
+        }
+    }
+    let results = plates_against_floor(
+        &room,
+        BakeSettings {
+            irradiance_volume: true,
+            probe_spacing: Some(0.25),
+            probe_rays: 512,
+            ..BakeSettings::medium()
+        },
+        &spots,
+        0.3,
+        (
+            Transform::from_xyz(-0.9, 2.9, -0.7)
+                .looking_at(Vec3::new(-0.9, 0.0, -0.7), Vec3::NEG_Z),
+            Projection::Perspective(PerspectiveProjection {
+                fov: 100f32.to_radians(),
+                ..default()
+            }),
+        ),
+        "sunlit_room",
+    );
+    check("sunlit room", &spots, &results);
+}
