@@ -5,6 +5,9 @@
 //! Also each lighting pass on a prepared Cornell box: direct light, the instant-radiosity walk
 //! and gather, and the re-gather behind the radiosity error estimate.
 //!
+//! And the irradiance volume stage on the finished bakes of both scenes, at the default
+//! spacing and rays.
+//!
 //! `cargo bench -p lightbake --bench bake`
 
 #![allow(missing_docs)] // criterion_group! and criterion_main! generate undocumented items
@@ -16,12 +19,13 @@ use lightbake::bvh::RayScene;
 use lightbake::context::{BakeContext, Prepared};
 use lightbake::direct::direct_light;
 use lightbake::lights::Emitters;
+use lightbake::probes::gather::Solution;
+use lightbake::probes::{VolumeGrid, bake_volume};
 use lightbake::progress::Progress;
 use lightbake::radiosity::{self, Nodes, monte_carlo};
 use lightbake::raster::Patches;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
-use lightbake::settings::BakeSettings;
-use lightbake::settings::Method;
+use lightbake::settings::{BakeSettings, Method, SolverChoice};
 use lightbake::unwrap::unwrap_scene;
 use lightbake::vpl::instant_radiosity;
 
@@ -102,11 +106,28 @@ fn stages(c: &mut Criterion) {
         })
     });
     let nodes = Nodes::new(&ctx, settings.basis);
+    // The re-gather reads a full-matrix solution (`auto` would take the hierarchical solve,
+    // which runs as stages of its own).
+    let krylov = BakeSettings {
+        solver: SolverChoice::Krylov,
+        ..settings.clone()
+    };
+    let matrix_ctx = BakeContext {
+        settings: &krylov,
+        ..ctx
+    };
     let (irr, _) = {
-        let t = monte_carlo::build(&ctx, &nodes, 32, settings.basis, &Progress::new());
-        let plan = radiosity::plan_solver(&ctx, &nodes).expect("plan");
+        let t = monte_carlo::build(&matrix_ctx, &nodes, 32, settings.basis, &Progress::new());
+        let plan = radiosity::plan_solver(&matrix_ctx, &nodes).expect("plan");
         let source = radiosity::source(&nodes, &direct);
-        let s = radiosity::solve_system(&ctx, &nodes, &plan, Some(&t), &source, &Progress::new());
+        let s = radiosity::solve_system(
+            &matrix_ctx,
+            &nodes,
+            &plan,
+            Some(&t),
+            &source,
+            &Progress::new(),
+        );
         (s, t)
     };
     g.bench_function("error_estimate_regather", |b| {
@@ -124,5 +145,47 @@ fn stages(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bakes, stages);
+fn volumes(c: &mut Criterion) {
+    let settings = BakeSettings::medium();
+    let mut g = c.benchmark_group("irradiance_volume");
+    g.sample_size(10);
+    for scene in [cornell_box(CornellLight::Area), sunlit_room()] {
+        let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
+        let density = out.report.plan.texel_density;
+        let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, density)
+            .expect("grid")
+            .expect("baked instances");
+        let rays = RayScene::build(&out.baked_scene);
+        let emitters = Emitters::collect(&out.baked_scene, &rays);
+        let solution = Solution {
+            scene: &out.baked_scene,
+            layout: &out.layout,
+            pages: &out.pages,
+            rays: &rays,
+            emitters: &emitters,
+        };
+        let (_, stats) = bake_volume(
+            &solution,
+            grid.clone(),
+            settings.probe_rays,
+            0,
+            &Progress::new(),
+        );
+        eprintln!("{}: {stats:?}", scene.name);
+        g.bench_function(format!("{}_{}_probes", scene.name, grid.len()), |b| {
+            b.iter(|| {
+                black_box(bake_volume(
+                    &solution,
+                    grid.clone(),
+                    settings.probe_rays,
+                    0,
+                    &Progress::new(),
+                ))
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bakes, stages, volumes);
 criterion_main!(benches);
