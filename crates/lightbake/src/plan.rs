@@ -550,11 +550,11 @@ impl Facts<'_> {
                 "both sides of every seam made to agree after bilinear filtering",
             ),
             step(
-                "irradiance volume",
+                "volume",
                 s.irradiance_volume,
-                "not asked for (irradiance_volume; --irradiance-volume)",
+                "no irradiance volume asked for (irradiance_volume; --irradiance-volume)",
                 &format!(
-                    "probes for dynamic objects, {} rays each, spacing {}",
+                    "irradiance volume for dynamic objects, {} rays per probe, spacing {}",
                     s.probe_rays,
                     s.probe_spacing.map_or_else(
                         || "from the texel density".to_string(),

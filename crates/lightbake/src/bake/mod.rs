@@ -179,10 +179,10 @@ fn bake_in_pool(
     let mut estimate = memory::estimate_from_layout(scene, &layout);
     // The volume's grid, planned here so that a spacing it cannot take is refused before
     // the lighting passes run.
-    let volume_grid = if plan.runs("irradiance volume") {
+    let volume_grid = if plan.runs("volume") {
         let grid = VolumeGrid::plan(scene, &layout, settings, plan.texel_density)?;
         if grid.is_none() {
-            plan.skip("irradiance volume", "no instance has a lightmap".into());
+            plan.skip("volume", "no instance has a lightmap".into());
         }
         grid
     } else {
@@ -194,9 +194,9 @@ fn bake_in_pool(
             grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
         );
         plan.set_reason(
-            "irradiance volume",
+            "volume",
             format!(
-                "{} × {} × {} probes {:.3e} m apart ({}), {} rays each",
+                "irradiance volume for dynamic objects: {} × {} × {} probes {:.3e} m apart ({}), {} rays each",
                 grid.resolution.x,
                 grid.resolution.y,
                 grid.resolution.z,
@@ -205,6 +205,11 @@ fn bake_in_pool(
                 settings.probe_rays
             ),
         );
+    }
+    if previews.is_enabled() {
+        // The direct light kept per patch (at most one per page texel, 12 bytes) and two
+        // sets of pages alive at once (the preview shown and the one being made, 16 each).
+        estimate = estimate.with("progressive previews", layout.page_texels() * (12 + 2 * 16));
     }
     estimate.check(settings.memory_budget_mib)?;
     let baked_scene = layout.apply(scene);
@@ -529,7 +534,7 @@ fn volume_stage(
         emitters,
     };
     let progress = stages.progress();
-    let volume = stages.run("irradiance volume", grid.len() as u64, || {
+    let volume = stages.run("volume", grid.len() as u64, || {
         let (volume, st) = bake_volume(&solution, grid, settings.probe_rays, settings.seed, progress);
         let note = format!(
             "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
