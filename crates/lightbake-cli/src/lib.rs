@@ -23,6 +23,7 @@ use lightbake::{
 };
 
 mod plot;
+mod split;
 
 /// Parses `R,G,B` (three numbers separated by commas).
 fn parse_rgb(text: &str) -> Result<[f32; 3], String> {
@@ -411,15 +412,22 @@ fn parse_on_off(s: &str) -> Result<bool, String> {
     }
 }
 
-fn run(args: Args) -> Result<(), String> {
-    let settings = settings_from(&args);
+/// The settings and the scene a command line asks for: the preset and every flag, the glTF
+/// imported, the sky and the lights' bake modes applied.
+fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), String> {
+    let settings = settings_from(args);
     settings.validate().map_err(|e| e.to_string())?;
     let mut imported =
         import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }
-    choose_lighting(&args, &mut imported.scene)?;
+    choose_lighting(args, &mut imported.scene)?;
+    Ok((settings, imported))
+}
+
+fn run(args: Args) -> Result<(), String> {
+    let (settings, imported) = load(&args)?;
     let scene = &imported.scene;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -442,12 +450,22 @@ fn run(args: Args) -> Result<(), String> {
         BakeHandle::spawn(imported.scene.clone(), settings.clone()).map_err(|e| e.to_string())?;
     watch(&handle, args.quiet);
     let output = handle.join().map_err(|e| e.to_string())?;
+    write_and_print(&args.output, &output, &imported, &settings)
+}
+
+/// Writes a bake's outputs into `dir` and prints its table, counts and files.
+fn write_and_print(
+    dir: &std::path::Path,
+    output: &lightbake::BakeOutput,
+    imported: &lightbake::ImportedScene,
+    settings: &BakeSettings,
+) -> Result<(), String> {
     let written = lightbake::output::write_outputs(
-        &args.output,
-        &output,
+        dir,
+        output,
         &imported.scene,
         Some(&imported.source),
-        &settings,
+        settings,
     )
     .map_err(|e| e.to_string())?;
     println!();
@@ -479,11 +497,7 @@ fn run(args: Args) -> Result<(), String> {
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
     }
-    println!(
-        "wrote {} files to {}:",
-        written.files.len(),
-        args.output.display()
-    );
+    println!("wrote {} files to {}:", written.files.len(), dir.display());
     for f in &written.files {
         println!("  {}", f.display());
     }
@@ -537,6 +551,9 @@ where
     T: Into<OsString> + Clone,
 {
     let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
+    if let Some(result) = split::dispatch(&args, false) {
+        return result;
+    }
     if args.get(1).is_some_and(|a| a == "convergence") {
         let c =
             ConvergenceArgs::try_parse_from(convergence_args(&args)).map_err(|e| e.to_string())?;
@@ -557,7 +574,9 @@ fn convergence_args(args: &[OsString]) -> Vec<OsString> {
 /// and prints the error on one line (exit 1).
 pub fn main() -> ExitCode {
     let argv: Vec<OsString> = std::env::args_os().collect();
-    let result = if argv.get(1).is_some_and(|a| a == "convergence") {
+    let result = if let Some(result) = split::dispatch(&argv, true) {
+        result
+    } else if argv.get(1).is_some_and(|a| a == "convergence") {
         convergence::run(ConvergenceArgs::parse_from(convergence_args(&argv)))
     } else {
         run(Args::parse_from(argv))

@@ -195,6 +195,23 @@ pub enum BakeError {
     /// The bake was cancelled through [`crate::progress::Progress::cancel`].
     #[error("the bake was cancelled")]
     Cancelled,
+    /// A split bake's work folder is incomplete or does not fit this process: a shard's part
+    /// is missing, was written for another shard count, or the scene changed since
+    /// `bake prepare` ([`crate::bake::shard`]).
+    #[error("{dir}: {message}")]
+    Shard {
+        /// The work folder.
+        dir: PathBuf,
+        /// What is wrong and what to run.
+        message: String,
+    },
+    /// A `prepare` or `shard` process of a split bake did its part and stopped where it was
+    /// meant to (not a failure).
+    #[error("{done}")]
+    ShardPartDone {
+        /// What it did.
+        done: String,
+    },
 }
 
 /// Shorthand for results with [`BakeError`].

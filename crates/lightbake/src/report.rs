@@ -127,6 +127,10 @@ pub struct BakeReport {
     /// The seams and their stitch (the jumps across them before and after), when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<StitchStats>,
+    /// For the merge of a split bake: its split stages with every shard's part (items,
+    /// seconds, rays).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub split: Vec<SplitStage>,
     /// The irradiance volume, when one was baked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub irradiance_volume: Option<crate::probes::VolumeStats>,
@@ -273,4 +277,29 @@ impl BakeReport {
         }
         s
     }
+}
+
+/// What one shard's part of a split stage cost.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct ShardPart {
+    /// The shard.
+    pub index: u32,
+    /// Items it computed.
+    pub items: u64,
+    /// Seconds the stage took in it.
+    pub seconds: f64,
+    /// Closest-hit and any-hit rays it traced.
+    pub rays: [u64; 2],
+    /// Seconds from its process's start to the end of the stage (the replay of the stages
+    /// before included).
+    pub process_seconds: f64,
+}
+
+/// A split stage in the merged report: every shard's part.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SplitStage {
+    /// Stage name.
+    pub stage: String,
+    /// The parts, by shard.
+    pub parts: Vec<ShardPart>,
 }

@@ -10,6 +10,7 @@
 pub mod handle;
 mod passes;
 pub mod preview;
+pub mod shard;
 mod stages;
 
 use std::time::Instant;
@@ -40,6 +41,8 @@ use crate::settings::{BakeSettings, Method};
 use crate::unwrap::{Layout, unwrap_scene};
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
+use shard::Units;
+pub use shard::{Role, ShardRun};
 use stages::Stages;
 
 /// Rays of each kind the floor calibration traces.
@@ -83,6 +86,47 @@ pub fn bake_previewing(
     progress: &Progress,
     previews: &PreviewSlot,
 ) -> Result<BakeOutput> {
+    bake_with(scene, settings, progress, previews, None)
+}
+
+/// One process of a bake split across processes ([`shard`]): `run` says which (prepare,
+/// shard I of N, merge) and where the work folder is. The merge returns the bake, bit for bit
+/// the output of [`bake`] with the same scene and settings; prepare and the shards end with
+/// [`BakeError::ShardPartDone`] when they have done their part.
+///
+/// # Errors
+/// As [`bake`]; [`BakeError::Shard`] when the work folder is incomplete or from another
+/// preparation; [`BakeError::BadSetting`] for a target error (its rounds need each whole
+/// stage's estimate).
+pub fn bake_split(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    run: &ShardRun,
+) -> Result<BakeOutput> {
+    if let Some(t) = settings.target_error {
+        return Err(BakeError::BadSetting {
+            name: "target_error",
+            value: t.to_string(),
+            message: "a split bake takes fixed sample counts: its rounds would need every shard's estimate".into(),
+        });
+    }
+    bake_with(
+        scene,
+        settings,
+        progress,
+        &PreviewSlot::default(),
+        Some(run),
+    )
+}
+
+fn bake_with(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    previews: &PreviewSlot,
+    shards: Option<&ShardRun>,
+) -> Result<BakeOutput> {
     settings.validate()?;
     scene.validate()?;
     if settings.method == Method::Vpl
@@ -111,6 +155,7 @@ pub fn bake_previewing(
             settings,
             progress,
             previews,
+            shards,
             pool.current_num_threads(),
         )
     })
@@ -151,10 +196,11 @@ fn bake_in_pool(
     settings: &BakeSettings,
     progress: &Progress,
     previews: &PreviewSlot,
+    shards: Option<&ShardRun>,
     threads: usize,
 ) -> Result<BakeOutput> {
     let start = Instant::now();
-    let mut stages = Stages::new(progress, previews);
+    let mut stages = Stages::new(progress, previews, shards);
     let mut warnings = scene.warnings.clone();
 
     // Plan, and refuse early when the texel count alone would not fit.
@@ -262,6 +308,7 @@ fn bake_in_pool(
         seams: lit.seams,
         denoise: lit.denoise,
         irradiance_volume: volume_stats,
+        split: shards.map(ShardRun::split_stages).unwrap_or_default(),
         texels: lit.texels,
         triangles: scene.instanced_triangle_count(),
         threads,
@@ -332,6 +379,11 @@ fn light_scene(
         Ok(((), patches.rays, note))
     })?;
     stages.annotate(RayKind::Shadow, None);
+    if let Some(run) = stages.shards() {
+        // Prepare writes the work units here; the others check they are prepare's.
+        let units = Units::plan(&patches, settings, scene.lights.len(), plan.sky);
+        run.patches_known(units)?;
+    }
     lit.texels.patches = patches.patches.len();
     lit.texels.moved = patches.moved;
     lit.texels.partly_hidden = patches.rescued;
@@ -354,6 +406,7 @@ fn light_scene(
         plan,
     };
     let light = passes::lighting(&ctx, &emitters, stages, warnings)?;
+    stages.shard_stops()?;
     lit.radiosity = light.radiosity;
     lit.vpl = light.vpl;
     lit.indirect_reason = light.indirect_reason;

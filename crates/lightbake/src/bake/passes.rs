@@ -5,10 +5,11 @@
 
 use glam::Vec3;
 
-use super::stages::{Stages, scaled, until_target};
+use super::shard::ShardRun;
+use super::stages::{Stages, scaled, split, until_target};
 use super::{direct_pass_runs, valid};
 use crate::context::BakeContext;
-use crate::direct::{direct_light, error_method};
+use crate::direct::{DirectResult, direct_light_of, error_method};
 use crate::error::Result;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
 use crate::lights::Emitters;
@@ -84,6 +85,10 @@ pub(super) fn lighting(
         };
         stages.preview_direct(ctx, shown);
     }
+    if !(indirect_runs && settings.method == Method::Radiosity) {
+        // No split stage follows (instant radiosity and direct-only bakes): a shard stops.
+        stages.shard_stops()?;
+    }
     if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
         let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
         for (e, v) in light.irradiance.iter_mut().zip(&from_vpls) {
@@ -141,6 +146,8 @@ fn direct(
         // A variance needs samples to spread: the pilot takes at least 4.
         pilot.samples_per_texel = pilot.samples_per_texel.max(4);
     }
+    let shards = stages.shards();
+    let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
     let rounds = stages.run("direct", patches.patches.len() as u64, || {
         let mut rays = 0;
         let rounds = until_target(
@@ -157,7 +164,32 @@ fn direct(
                     settings: s,
                     ..*ctx
                 };
-                let r = direct_light(&c, emitters, progress);
+                // Split across the shards of a split bake (the rounds of a target error are
+                // refused there).
+                let (values, split_rays) = split(
+                    shards,
+                    "direct",
+                    patches.patches.len(),
+                    |p| p,
+                    |only| {
+                        let r = direct_light_of(&c, emitters, only, progress);
+                        let realtime = |i: usize| r.realtime.get(i).copied().unwrap_or_default();
+                        let values = (0..r.irradiance.len())
+                            .map(|i| (r.irradiance[i], r.standard_error[i], realtime(i)))
+                            .collect();
+                        (values, [0, r.rays])
+                    },
+                )?;
+                let r = DirectResult {
+                    irradiance: values.iter().map(|v| v.0).collect(),
+                    standard_error: values.iter().map(|v| v.1).collect(),
+                    rays: split_rays[1],
+                    realtime: if any_realtime {
+                        values.iter().map(|v| v.2).collect()
+                    } else {
+                        Vec::new()
+                    },
+                };
                 rays += r.rays;
                 // One sample has no spread: no estimate then.
                 let est = (s.samples_per_texel >= 2).then(|| {
@@ -448,6 +480,8 @@ fn radiosity_round(
     if plan.choice == SolverChoice::Hierarchical {
         return hierarchical_round(ctx, nodes, direct, plan, &suffix, stages);
     }
+    // The matrix solvers' stages are not split: a shard stops, the merge runs them.
+    stages.shard_stops()?;
     let source = radiosity::source(nodes, direct);
     let transport = if plan.choice.needs_matrix() {
         Some(
@@ -506,6 +540,33 @@ fn radiosity_round(
     })
 }
 
+/// A gather over every node (`compute(only)` of the nodes `only` marks), split across the
+/// shards of a split bake by the nodes' patches.
+fn gather_split(
+    shards: Option<&ShardRun>,
+    stage: &str,
+    nodes: &Nodes,
+    compute: impl FnOnce(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, hierarchical::GatherRays),
+) -> Result<(Vec<Vec3>, Vec<f32>, hierarchical::GatherRays)> {
+    let (values, rays) = split(
+        shards,
+        stage,
+        nodes.len(),
+        |i| nodes.patch[i] as usize,
+        |only| {
+            let (h, se, rays) = compute(only);
+            let values = h.into_iter().zip(se).collect();
+            (values, [rays.closest, rays.visibility])
+        },
+    )?;
+    let (h, se) = values.into_iter().unzip();
+    let rays = hierarchical::GatherRays {
+        closest: rays[0],
+        visibility: rays[1],
+    };
+    Ok((h, se, rays))
+}
+
 /// Rays per node of the hierarchical solve's correction gather: a quarter of the final
 /// gather's (at least 4). The field it gathers, ρ(H₁ − C), is a few per cent of the light,
 /// so its noise is small at fewer rays.
@@ -560,17 +621,20 @@ fn hierarchical_round(
         stages.preview_indirect(ctx, &per_patch, coarse.ambient);
     }
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
+    let shards = stages.shards();
     let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
-        let (h, se, rays) = hierarchical::final_gather(
-            ctx,
-            &mapper,
-            nodes,
-            &b,
-            s.transport_rays,
-            Gather::Final,
-            None,
-            progress,
-        );
+        let (h, se, rays) = gather_split(shards, "final gather", nodes, |only| {
+            hierarchical::final_gather(
+                ctx,
+                &mapper,
+                nodes,
+                &b,
+                s.transport_rays,
+                Gather::Final,
+                only,
+                progress,
+            )
+        })?;
         let note = gather_note(s.transport_rays, rays);
         Ok((
             (h, se, rays.visibility),
@@ -586,16 +650,18 @@ fn hierarchical_round(
     drop(coarse_per_node);
     let correction_rays = correction_rays(s.transport_rays);
     let correction = stages.run(&format!("correction{suffix}"), nodes.len() as u64, || {
-        let (d, se, rays) = hierarchical::final_gather(
-            ctx,
-            &mapper,
-            nodes,
-            &missed,
-            correction_rays,
-            Gather::Correction,
-            None,
-            progress,
-        );
+        let (d, se, rays) = gather_split(shards, "correction", nodes, |only| {
+            hierarchical::final_gather(
+                ctx,
+                &mapper,
+                nodes,
+                &missed,
+                correction_rays,
+                Gather::Correction,
+                only,
+                progress,
+            )
+        })?;
         let note = gather_note(correction_rays, rays);
         Ok((
             (d, se, rays.visibility),
@@ -606,6 +672,8 @@ fn hierarchical_round(
     let (mut correction, correction_error, visibility) = correction;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
+    // The last split stage: a shard process stops here (the rest is the merge's).
+    stages.shard_stops()?;
     // The light the coarse level misses is largest next to geometry (a corner darkens
     // within a few texels, inside a cell of one value), and reaches there through two more
     // reflections: near geometry the correction's own reflection is gathered too.

@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use super::preview::{self, PreviewKind, PreviewSlot};
+use super::shard::{Record, ShardRun};
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::ErrorEstimate;
@@ -13,24 +14,56 @@ use crate::progress::{Progress, RayKind, StageStats};
 use crate::settings::BakeSettings;
 use crate::unwrap::Layout;
 
+/// A split stage (see [`ShardRun::split`]) in a bake that may not be split (`shards` none:
+/// `compute` of every item).
+pub(super) fn split<T: Record>(
+    shards: Option<&ShardRun>,
+    stage: &str,
+    items: usize,
+    patch: impl Fn(usize) -> usize,
+    compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+) -> Result<(Vec<T>, [u64; 2])> {
+    match shards {
+        Some(run) => run.split(stage, items, patch, compute),
+        None => Ok(compute(None)),
+    }
+}
+
 /// The finished stages of one bake, in order.
 pub(super) struct Stages<'p> {
     pub(super) list: Vec<StageStats>,
     progress: &'p Progress,
     previews: &'p PreviewSlot,
+    /// The split bake this process is part of, if any.
+    shards: Option<&'p ShardRun>,
     /// The direct light the previews show (lux per patch), kept for the indirect preview
     /// when previews are asked for.
     preview_direct: Option<Vec<glam::Vec3>>,
 }
 
 impl<'p> Stages<'p> {
-    pub(super) fn new(progress: &'p Progress, previews: &'p PreviewSlot) -> Self {
+    pub(super) fn new(
+        progress: &'p Progress,
+        previews: &'p PreviewSlot,
+        shards: Option<&'p ShardRun>,
+    ) -> Self {
         Self {
             list: Vec::new(),
             progress,
             previews,
+            shards,
             preview_direct: None,
         }
+    }
+
+    /// The split bake this process is part of, if any.
+    pub(super) fn shards(&self) -> Option<&'p ShardRun> {
+        self.shards
+    }
+
+    /// Stops a shard process here: what follows is the merge's ([`ShardRun::shard_stops`]).
+    pub(super) fn shard_stops(&self) -> Result<()> {
+        self.shards.map_or(Ok(()), ShardRun::shard_stops)
     }
 
     /// Whether the bake publishes previews (and has a direct-light preview to build on).

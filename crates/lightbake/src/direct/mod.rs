@@ -85,6 +85,17 @@ pub fn direct_light(
     emitters: &Emitters,
     progress: &Progress,
 ) -> DirectResult {
+    direct_light_of(bake, emitters, None, progress)
+}
+
+/// [`direct_light`] of the patches `only` marks (all for `None`); the others get zero. Each
+/// patch's value does not depend on which others are computed.
+pub fn direct_light_of(
+    bake: &BakeContext<'_>,
+    emitters: &Emitters,
+    only: Option<&[bool]>,
+    progress: &Progress,
+) -> DirectResult {
     let ctx = Ctx {
         scene: bake.scene,
         layout: bake.layout,
@@ -102,13 +113,16 @@ pub fn direct_light(
         .patches
         .patches
         .par_chunks(256)
-        .flat_map_iter(|chunk| {
+        .enumerate()
+        .flat_map_iter(|(c, chunk)| {
             let cancelled = progress.is_cancelled();
             let mut local_rays = 0u64;
             let out: Vec<((Vec3, f32), Vec3)> = chunk
                 .iter()
-                .map(|p| {
-                    if cancelled || !p.is_valid() {
+                .enumerate()
+                .map(|(k, p)| {
+                    let skipped = only.is_some_and(|o| !o[256 * c + k]);
+                    if cancelled || skipped || !p.is_valid() {
                         ((Vec3::ZERO, 0.0), Vec3::ZERO)
                     } else {
                         let mut realtime = Vec3::ZERO;

@@ -1,0 +1,605 @@
+//! One bake split across processes (machines of a farm, run by any batch engine), with the
+//! same bits as one process.
+//!
+//! Every process runs the same deterministic pipeline. The layout and the texel patches are
+//! derived from the scene in each process (a hash of the patches, written by `prepare`, checks
+//! that they came out the same), and the stages whose work is per texel and heavy — direct
+//! light, the hierarchical solve's final gather and its correction — are *split*: each is cut
+//! into work units (contiguous runs of texel patches of about equal estimated rays,
+//! [`Units`]), shard *I* of *N* computes the units of its share and writes their values to
+//! `WORK/shards/I/STAGE.bin`, and whoever needs the whole stage (the other shards, for the
+//! next split stage; the merge) reads every shard's file. Each value is computed by the same
+//! function of its texel and the stages before, so the merged arrays are those of one
+//! process, bit for bit; what runs between the split stages (the coarse solve, which needs the
+//! direct light of every texel) runs again in each process that needs it.
+//!
+//! Roles ([`Role`]): *prepare* stops when the patches are known and writes `units.json`;
+//! a *shard* computes its part of each split stage in turn, waiting for the other shards'
+//! parts between stages (or, without waiting, computes its part of the first stage it has
+//! not done and stops, for engines that run the stages as separate waves); the *merge* reads
+//! every part and finishes the bake.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::atomic::StagedFiles;
+use crate::error::{BakeError, Result};
+use crate::raster::{Patch, Patches};
+pub use crate::report::{ShardPart, SplitStage};
+use crate::settings::BakeSettings;
+
+/// File of the work units in the work folder.
+pub const UNITS_FILE: &str = "units.json";
+
+/// Work units per bake (fewer when there are fewer patches).
+pub const UNITS: usize = 1024;
+
+/// What a process of a split bake does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// Derive the layout and patches, write the work units, stop.
+    Prepare,
+    /// Compute shard `index` of `count` of every split stage.
+    Shard {
+        /// This shard, 0-based.
+        index: u32,
+        /// Shards in all.
+        count: u32,
+        /// Wait (up to this long) for the other shards between split stages; `None`: stop
+        /// after computing the first stage whose part is missing.
+        wait: Option<Duration>,
+    },
+    /// Read every shard's parts and finish the bake.
+    Merge,
+}
+
+/// Work units: contiguous runs of texel patches with about equal estimated rays each.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Units {
+    /// First patch of each unit, then the number of patches.
+    pub starts: Vec<u32>,
+    /// Estimated rays of each unit.
+    pub rays: Vec<f64>,
+    /// Hash of the patches they were cut from (positions, normals, flags, keys).
+    pub patches_hash: u64,
+}
+
+/// Estimated rays of one patch: its direct samples and its gathers.
+fn patch_rays(p: &Patch, settings: &BakeSettings, lights: usize, sky: bool) -> f64 {
+    if !p.is_valid() {
+        return 1.0;
+    }
+    let spp = settings.samples_per_texel as f64;
+    let sky = if sky {
+        settings.sky_samples as f64
+    } else {
+        0.0
+    };
+    spp * (lights as f64 + 1.0) + sky + 1.25 * settings.transport_rays as f64
+}
+
+/// FNV-1a over every patch's identity and geometry.
+pub fn patches_hash(patches: &Patches) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |w: u32| {
+        for b in w.to_le_bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for p in &patches.patches {
+        for w in [
+            p.instance,
+            p.page,
+            p.x,
+            p.y,
+            p.triangle,
+            p.key,
+            p.flags as u32,
+        ] {
+            eat(w);
+        }
+        for v in [p.position, p.normal, p.geometric_normal] {
+            for c in v.to_array() {
+                eat(c.to_bits());
+            }
+        }
+    }
+    h
+}
+
+impl Units {
+    /// Cuts `patches` into at most [`UNITS`] units of about equal estimated rays (direct
+    /// samples of `lights` lights and the sky, gathers).
+    pub fn plan(patches: &Patches, settings: &BakeSettings, lights: usize, sky: bool) -> Self {
+        let costs: Vec<f64> = patches
+            .patches
+            .iter()
+            .map(|p| patch_rays(p, settings, lights, sky))
+            .collect();
+        let total: f64 = costs.iter().sum();
+        let units = UNITS.min(costs.len()).max(1);
+        let mut starts = vec![0u32];
+        let mut rays = Vec::new();
+        let mut acc = 0.0;
+        let mut unit = 0.0;
+        for (i, c) in costs.iter().enumerate() {
+            acc += c;
+            unit += c;
+            let k = starts.len() as f64;
+            if acc >= total * k / units as f64 && i + 1 < costs.len() && starts.len() < units {
+                starts.push(i as u32 + 1);
+                rays.push(unit);
+                unit = 0.0;
+            }
+        }
+        starts.push(costs.len() as u32);
+        rays.push(unit);
+        Self {
+            starts,
+            rays,
+            patches_hash: patches_hash(patches),
+        }
+    }
+
+    /// The units of each of `count` shards: contiguous runs cut at equal shares of the
+    /// estimated rays, as `(first unit, end unit)`.
+    pub fn shard_units(&self, count: u32) -> Vec<(usize, usize)> {
+        let total: f64 = self.rays.iter().sum();
+        let n = self.rays.len();
+        let mut out = Vec::with_capacity(count as usize);
+        let mut first = 0;
+        let mut acc = 0.0;
+        for s in 0..count as usize {
+            let goal = total * (s + 1) as f64 / count as f64;
+            let mut end = first;
+            while end < n && (s + 1 == count as usize || acc + 0.5 * self.rays[end] <= goal) {
+                acc += self.rays[end];
+                end += 1;
+            }
+            out.push((first, end));
+            first = end;
+        }
+        out
+    }
+
+    /// The shard of every patch, for `count` shards.
+    pub fn patch_shards(&self, count: u32) -> Vec<u32> {
+        let n = *self.starts.last().unwrap_or(&0) as usize;
+        let mut out = vec![0u32; n];
+        for (s, (a, b)) in self.shard_units(count).into_iter().enumerate() {
+            let (lo, hi) = (self.starts[a] as usize, self.starts[b] as usize);
+            out[lo..hi].fill(s as u32);
+        }
+        out
+    }
+}
+
+/// A value a split stage computes per item, as bytes (little-endian f32s).
+pub trait Record: Copy + Default {
+    /// Bytes per value.
+    const BYTES: usize;
+    /// Appends the value.
+    fn put(&self, out: &mut Vec<u8>);
+    /// Reads a value from `BYTES` bytes.
+    fn get(b: &[u8]) -> Self;
+}
+
+fn f32s(b: &[u8], k: usize) -> f32 {
+    f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]])
+}
+
+impl Record for (Vec3, f32) {
+    const BYTES: usize = 16;
+    fn put(&self, out: &mut Vec<u8>) {
+        for c in [self.0.x, self.0.y, self.0.z, self.1] {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    fn get(b: &[u8]) -> Self {
+        (Vec3::new(f32s(b, 0), f32s(b, 1), f32s(b, 2)), f32s(b, 3))
+    }
+}
+
+impl Record for (Vec3, f32, Vec3) {
+    const BYTES: usize = 28;
+    fn put(&self, out: &mut Vec<u8>) {
+        let (a, s, c) = self;
+        for v in [a.x, a.y, a.z, *s, c.x, c.y, c.z] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    fn get(b: &[u8]) -> Self {
+        (
+            Vec3::new(f32s(b, 0), f32s(b, 1), f32s(b, 2)),
+            f32s(b, 3),
+            Vec3::new(f32s(b, 4), f32s(b, 5), f32s(b, 6)),
+        )
+    }
+}
+
+/// Magic of a part file.
+const MAGIC: &[u8; 8] = b"LBSHARD1";
+
+/// A process of a split bake: its role and its work folder.
+#[derive(Debug)]
+pub struct ShardRun {
+    /// The work folder (`bake prepare`'s output).
+    pub dir: PathBuf,
+    /// What this process does.
+    pub role: Role,
+    /// Shards in all (read from the parts for a merge).
+    count: Mutex<Option<u32>>,
+    units: Mutex<Option<Units>>,
+    started: Instant,
+    split: Mutex<Vec<SplitStage>>,
+}
+
+/// The header of a part file, as JSON before its values.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct PartHeader {
+    stage: String,
+    count: u32,
+    patches_hash: u64,
+    values: u64,
+    part: ShardPart,
+}
+
+impl ShardRun {
+    /// A process of `role` over the work folder `dir`.
+    pub fn new(dir: &Path, role: Role) -> Self {
+        let count = match role {
+            Role::Shard { count, .. } => Some(count),
+            _ => None,
+        };
+        Self {
+            dir: dir.to_path_buf(),
+            role,
+            count: Mutex::new(count),
+            units: Mutex::new(None),
+            started: Instant::now(),
+            split: Mutex::new(Vec::new()),
+        }
+    }
+
+    fn err(&self, message: String) -> BakeError {
+        BakeError::Shard {
+            dir: self.dir.clone(),
+            message,
+        }
+    }
+
+    /// The split stages read so far, with every shard's part (for the merged report).
+    pub fn split_stages(&self) -> Vec<SplitStage> {
+        self.split.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
+    /// Called when the patches are known: *prepare* writes the units and stops; the others
+    /// read them and check that their patches are prepare's.
+    pub(super) fn patches_known(&self, units: Units) -> Result<()> {
+        let path = self.dir.join(UNITS_FILE);
+        if self.role == Role::Prepare {
+            let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
+            let mut staged = StagedFiles::new();
+            staged.stage(&path, &text)?;
+            staged.commit()?;
+            return Err(BakeError::ShardPartDone {
+                done: format!(
+                    "prepared {} work units over {} texel patches in {}",
+                    units.rays.len(),
+                    units.starts.last().unwrap_or(&0),
+                    self.dir.display()
+                ),
+            });
+        }
+        let text = std::fs::read(&path).map_err(|source| BakeError::Read {
+            path: path.clone(),
+            source,
+        })?;
+        let stored: Units = serde_json::from_slice(&text)
+            .map_err(|e| self.err(format!("{}: {e}", path.display())))?;
+        if stored.patches_hash != units.patches_hash {
+            return Err(self.err(
+                "this process's texel patches differ from prepare's: the scene, the settings or the baker changed since `bake prepare`; prepare again".into(),
+            ));
+        }
+        *self.units.lock().unwrap_or_else(|e| e.into_inner()) = Some(stored);
+        Ok(())
+    }
+
+    fn part_path(&self, index: u32, stage: &str) -> PathBuf {
+        self.dir
+            .join("shards")
+            .join(index.to_string())
+            .join(format!("{}.bin", stage.replace(' ', "_")))
+    }
+
+    /// The shards' count: this shard's, or (merge) the one every part of the first split
+    /// stage was written with.
+    fn shard_count(&self, stage: &str) -> Result<u32> {
+        if let Some(c) = *self.count.lock().unwrap_or_else(|e| e.into_inner()) {
+            return Ok(c);
+        }
+        let header = self.read_header(&self.part_path(0, stage)).map_err(|_| {
+            self.err(format!(
+                "no part of stage '{stage}' from shard 0: run `bake shard` for every shard first"
+            ))
+        })?;
+        *self.count.lock().unwrap_or_else(|e| e.into_inner()) = Some(header.count);
+        Ok(header.count)
+    }
+
+    fn read_header(&self, path: &Path) -> Result<PartHeader> {
+        let bytes = std::fs::read(path).map_err(|source| BakeError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(parse(&bytes)
+            .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?
+            .0)
+    }
+
+    /// Whether a shard process stops here: after its last split stage nothing is left for it
+    /// (the rest is the merge's).
+    pub(super) fn shard_stops(&self) -> Result<()> {
+        match self.role {
+            Role::Shard { index, count, .. } => Err(BakeError::ShardPartDone {
+                done: format!(
+                    "shard {index} of {count}: every split stage done; run `bake merge` when all shards are"
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// A split stage `stage` of `items` values: item `i` belongs to patch `patch(i)`.
+    /// `compute(only)` computes the items `only` marks (all for `None`) and returns the
+    /// values (zero elsewhere) and the (closest, any-hit) rays. Returns every value, computed
+    /// here or read from the shards' parts.
+    ///
+    /// # Errors
+    /// [`BakeError::ShardPartDone`] when this shard stops after its part;
+    /// [`BakeError::Shard`] when a part is missing, from another count or another
+    /// preparation.
+    pub(super) fn split<T: Record>(
+        &self,
+        stage: &str,
+        items: usize,
+        patch: impl Fn(usize) -> usize,
+        compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+    ) -> Result<(Vec<T>, [u64; 2])> {
+        let units = self.units.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let Some(units) = units else {
+            return Err(self.err("the work units are not known yet".into()));
+        };
+        let count = self.shard_count(stage)?;
+        let owner = units.patch_shards(count);
+        let shard_of = |i: usize| owner[patch(i)];
+        if let Role::Shard { index, wait, .. } = self.role {
+            self.check_counts(stage, count)?;
+            let own = self.part_path(index, stage);
+            // A part of this preparation and count is kept (a re-run resumes); any other is
+            // replaced.
+            let kept = self
+                .read_header(&own)
+                .is_ok_and(|h| h.count == count && h.patches_hash == units.patches_hash);
+            if !kept {
+                let start = Instant::now();
+                let mask: Vec<bool> = (0..items).map(|i| shard_of(i) == index).collect();
+                let (values, rays) = compute(Some(&mask));
+                let part = ShardPart {
+                    index,
+                    items: mask.iter().filter(|&&m| m).count() as u64,
+                    seconds: start.elapsed().as_secs_f64(),
+                    rays,
+                    process_seconds: self.started.elapsed().as_secs_f64(),
+                };
+                self.write_part(&own, stage, count, &units, &values, &mask, part)?;
+            }
+            match wait {
+                None if !self.all_there(stage, count) => {
+                    return Err(BakeError::ShardPartDone {
+                        done: format!(
+                            "shard {index} of {count}: stage '{stage}' done; the next stage needs every shard's"
+                        ),
+                    });
+                }
+                None => {}
+                Some(limit) => self.wait_for(stage, count, limit)?,
+            }
+        }
+        self.read_all(stage, items, count, &units, shard_of)
+    }
+
+    /// Refuses parts of `stage` that other shards wrote for another count.
+    fn check_counts(&self, stage: &str, count: u32) -> Result<()> {
+        let Ok(entries) = std::fs::read_dir(self.dir.join("shards")) else {
+            return Ok(());
+        };
+        for entry in entries.flatten() {
+            let Some(index) = entry
+                .file_name()
+                .to_str()
+                .and_then(|n| n.parse::<u32>().ok())
+            else {
+                continue;
+            };
+            if let Ok(h) = self.read_header(&self.part_path(index, stage))
+                && h.count != count
+            {
+                return Err(self.err(format!(
+                    "shard {index} wrote its part of stage '{stage}' as one of {} shards, not {count}: run every shard with the same --count (or prepare a new work folder)",
+                    h.count
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn all_there(&self, stage: &str, count: u32) -> bool {
+        (0..count).all(|s| self.read_header(&self.part_path(s, stage)).is_ok())
+    }
+
+    fn missing(&self, stage: &str, count: u32) -> Vec<u32> {
+        (0..count)
+            .filter(|&s| self.read_header(&self.part_path(s, stage)).is_err())
+            .collect()
+    }
+
+    fn wait_for(&self, stage: &str, count: u32, limit: Duration) -> Result<()> {
+        let start = Instant::now();
+        while !self.all_there(stage, count) {
+            if start.elapsed() > limit {
+                return Err(self.err(format!(
+                    "stage '{stage}': shards {:?} of {count} did not write their parts within {:.0} s",
+                    self.missing(stage, count),
+                    limit.as_secs_f64()
+                )));
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn write_part<T: Record>(
+        &self,
+        path: &Path,
+        stage: &str,
+        count: u32,
+        units: &Units,
+        values: &[T],
+        mask: &[bool],
+        part: ShardPart,
+    ) -> Result<()> {
+        let owned = mask.iter().filter(|&&m| m).count();
+        let header = PartHeader {
+            stage: stage.to_string(),
+            count,
+            patches_hash: units.patches_hash,
+            values: owned as u64,
+            part,
+        };
+        let head = serde_json::to_vec(&header).map_err(|e| self.err(e.to_string()))?;
+        let mut bytes = Vec::with_capacity(16 + head.len() + owned * T::BYTES);
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&(head.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&head);
+        for (v, _) in values.iter().zip(mask).filter(|(_, m)| **m) {
+            v.put(&mut bytes);
+        }
+        let mut staged = StagedFiles::new();
+        staged.stage(path, &bytes)?;
+        staged.commit()?;
+        Ok(())
+    }
+
+    fn read_all<T: Record>(
+        &self,
+        stage: &str,
+        items: usize,
+        count: u32,
+        units: &Units,
+        shard_of: impl Fn(usize) -> u32,
+    ) -> Result<(Vec<T>, [u64; 2])> {
+        let missing = self.missing(stage, count);
+        if !missing.is_empty() {
+            return Err(self.err(format!(
+                "stage '{stage}': no part from shards {missing:?} of {count}; run them (`bake shard --index I --count {count}`)"
+            )));
+        }
+        let mut values = vec![T::default(); items];
+        let mut rays = [0u64; 2];
+        let mut parts = Vec::new();
+        for s in 0..count {
+            let path = self.part_path(s, stage);
+            let bytes = std::fs::read(&path).map_err(|source| BakeError::Read {
+                path: path.clone(),
+                source,
+            })?;
+            let (header, data) = parse(&bytes)
+                .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?;
+            if header.count != count || header.patches_hash != units.patches_hash {
+                return Err(self.err(format!(
+                    "{} was written for {} shards of another preparation; run every shard of this one with --count {count}",
+                    path.display(),
+                    header.count
+                )));
+            }
+            let mut k = 0usize;
+            for (i, v) in values.iter_mut().enumerate() {
+                if shard_of(i) == s {
+                    let b = data.get(k * T::BYTES..(k + 1) * T::BYTES).ok_or_else(|| {
+                        self.err(format!(
+                            "{} holds fewer values than its share",
+                            path.display()
+                        ))
+                    })?;
+                    *v = T::get(b);
+                    k += 1;
+                }
+            }
+            rays[0] += header.part.rays[0];
+            rays[1] += header.part.rays[1];
+            parts.push(header.part);
+        }
+        self.split
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(SplitStage {
+                stage: stage.to_string(),
+                parts,
+            });
+        Ok((values, rays))
+    }
+}
+
+/// A part file's header and values.
+fn parse(bytes: &[u8]) -> Option<(PartHeader, &[u8])> {
+    if bytes.get(..8)? != MAGIC {
+        return None;
+    }
+    let len = u64::from_le_bytes(bytes.get(8..16)?.try_into().ok()?) as usize;
+    let header: PartHeader = serde_json::from_slice(bytes.get(16..16 + len)?).ok()?;
+    Some((header, &bytes[16 + len..]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_cut_even_shares_and_records_round_trip() {
+        let units = Units {
+            starts: (0..=10).map(|k| k * 10).collect(),
+            rays: vec![1.0, 1.0, 1.0, 5.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0],
+            patches_hash: 7,
+        };
+        let shares = units.shard_units(3);
+        assert_eq!(shares.len(), 3);
+        assert_eq!(shares[0].0, 0);
+        assert_eq!(shares[2].1, 10);
+        for w in shares.windows(2) {
+            assert_eq!(w[0].1, w[1].0, "contiguous");
+        }
+        let owner = units.patch_shards(3);
+        assert_eq!(owner.len(), 100);
+        assert!(owner.windows(2).all(|w| w[0] <= w[1]));
+        // One shard takes everything; more shards than units leaves some empty.
+        assert!(units.patch_shards(1).iter().all(|&s| s == 0));
+        assert_eq!(units.shard_units(16).len(), 16);
+        let v = (
+            Vec3::new(1.5, -2.0, f32::MIN_POSITIVE),
+            0.25f32,
+            Vec3::splat(3.0),
+        );
+        let mut b = Vec::new();
+        v.put(&mut b);
+        assert_eq!(b.len(), 28);
+        assert_eq!(<(Vec3, f32, Vec3)>::get(&b), v);
+    }
+}
