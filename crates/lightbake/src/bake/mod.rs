@@ -365,25 +365,40 @@ fn light_scene(
         );
         Ok((rays, 0, note))
     })?;
-    let mut patches = stages.run("raster", 1, || {
-        let p = Patches::build(scene, layout, &rays);
-        let note = format!("{} texel patches", p.patches.len());
-        Ok((p, 0, note))
-    })?;
-    stages.run("validity", patches.patches.len() as u64, || {
-        patches.fix_validity(scene, layout, &rays);
-        let note = format!(
-            "{} moved ({} seen only in part), {} hidden, {} visible but unlit",
-            patches.moved, patches.rescued, patches.invalid, patches.visible_unlit
-        );
-        Ok(((), patches.rays, note))
-    })?;
-    stages.annotate(RayKind::Shadow, None);
-    if let Some(run) = stages.shards() {
-        // Prepare writes the work units here; the others check they are prepare's.
-        let units = Units::plan(&patches, settings, scene.lights.len(), plan.sky);
-        run.patches_known(units)?;
-    }
+    let prepared = stages.shards().and_then(|run| run.prepared_patches(layout));
+    let patches = match prepared {
+        // A shard or the merge of a split bake reads prepare's patches.
+        Some(read) => stages.run("patches", 1, || {
+            let p = read?;
+            let note = format!(
+                "{} texel patches, read from the work folder",
+                p.patches.len()
+            );
+            Ok((p, 0, note))
+        })?,
+        None => {
+            let mut patches = stages.run("raster", 1, || {
+                let p = Patches::build(scene, layout, &rays);
+                let note = format!("{} texel patches", p.patches.len());
+                Ok((p, 0, note))
+            })?;
+            stages.run("validity", patches.patches.len() as u64, || {
+                patches.fix_validity(scene, layout, &rays);
+                let note = format!(
+                    "{} moved ({} seen only in part), {} hidden, {} visible but unlit",
+                    patches.moved, patches.rescued, patches.invalid, patches.visible_unlit
+                );
+                Ok(((), patches.rays, note))
+            })?;
+            stages.annotate(RayKind::Shadow, None);
+            if let Some(run) = stages.shards() {
+                // Prepare writes the patches and the work units here, and stops.
+                let units = Units::plan(&patches, layout, settings, scene.lights.len(), plan.sky);
+                run.prepared(units, &patches)?;
+            }
+            patches
+        }
+    };
     lit.texels.patches = patches.patches.len();
     lit.texels.moved = patches.moved;
     lit.texels.partly_hidden = patches.rescued;

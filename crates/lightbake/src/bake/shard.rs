@@ -6,7 +6,8 @@
 //! that they came out the same), and the stages whose work is per texel and heavy — direct
 //! light, the hierarchical solve's final gather and its correction — are *split*: each is cut
 //! into work units (contiguous runs of texel patches of about equal estimated rays,
-//! [`Units`]), shard *I* of *N* computes the units of its share and writes their values to
+//! [`Units`], dealt out to the shards in turn), shard *I* of *N* computes its units and
+//! writes their values to
 //! `WORK/shards/I/STAGE.bin`, and whoever needs the whole stage (the other shards, for the
 //! next split stage; the merge) reads every shard's file. Each value is computed by the same
 //! function of its texel and the stages before, so the merged arrays are those of one
@@ -31,9 +32,13 @@ use crate::error::{BakeError, Result};
 use crate::raster::{Patch, Patches};
 pub use crate::report::{ShardPart, SplitStage};
 use crate::settings::BakeSettings;
+use crate::unwrap::Layout;
 
 /// File of the work units in the work folder.
 pub const UNITS_FILE: &str = "units.json";
+
+/// File of the texel patches after the validity pass, in the work folder.
+pub const PATCHES_FILE: &str = "patches.bin";
 
 /// Work units per bake (fewer when there are fewer patches).
 pub const UNITS: usize = 1024;
@@ -66,6 +71,8 @@ pub struct Units {
     pub rays: Vec<f64>,
     /// Hash of the patches they were cut from (positions, normals, flags, keys).
     pub patches_hash: u64,
+    /// Hash of the lightmap layout the patches belong to ([`layout_hash`]).
+    pub layout_hash: u64,
 }
 
 /// Estimated rays of one patch: its direct samples and its gathers.
@@ -82,15 +89,50 @@ fn patch_rays(p: &Patch, settings: &BakeSettings, lights: usize, sky: bool) -> f
     spp * (lights as f64 + 1.0) + sky + 1.25 * settings.transport_rays as f64
 }
 
+/// FNV-1a over 32-bit words.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn eat(&mut self, w: u32) {
+        for b in w.to_le_bytes() {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+/// FNV-1a over the layout: pages, instance rectangles, every unwrap's UVs and triangles.
+pub fn layout_hash(layout: &Layout) -> u64 {
+    let mut h = Fnv::new();
+    for p in &layout.pages {
+        h.eat(p.width);
+        h.eat(p.height);
+    }
+    for r in layout.instances.iter().flatten() {
+        for w in [r.page, r.x, r.y, r.width, r.height] {
+            h.eat(w);
+        }
+    }
+    for u in layout.meshes.iter().flatten() {
+        h.eat(u.width);
+        h.eat(u.height);
+        for v in &u.uv1 {
+            h.eat(v.x.to_bits());
+            h.eat(v.y.to_bits());
+        }
+        u.indices.iter().for_each(|&i| h.eat(i));
+    }
+    h.0
+}
+
 /// FNV-1a over every patch's identity and geometry.
 pub fn patches_hash(patches: &Patches) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |w: u32| {
-        for b in w.to_le_bytes() {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
-    };
+    let mut h = Fnv::new();
+    let mut eat = |w: u32| h.eat(w);
     for p in &patches.patches {
         for w in [
             p.instance,
@@ -109,13 +151,144 @@ pub fn patches_hash(patches: &Patches) -> u64 {
             }
         }
     }
-    h
+    h.0
+}
+
+/// Magic of the patches file.
+const PATCHES_MAGIC: &[u8; 8] = b"LBPATCH1";
+
+/// The patches as bytes: every patch's fields as 21 little-endian words, the footprint
+/// lists, the page index and the validity counts.
+fn patches_bytes(patches: &Patches) -> Vec<u8> {
+    let mut out = Vec::with_capacity(64 + 84 * patches.patches.len());
+    let put = |w: u32, out: &mut Vec<u8>| out.extend_from_slice(&w.to_le_bytes());
+    out.extend_from_slice(PATCHES_MAGIC);
+    put(patches.patches.len() as u32, &mut out);
+    for p in &patches.patches {
+        for w in [p.instance, p.page, p.x, p.y] {
+            put(w, &mut out);
+        }
+        for v in [p.position, p.normal, p.geometric_normal] {
+            for c in v.to_array() {
+                put(c.to_bits(), &mut out);
+            }
+        }
+        for w in [
+            p.area.to_bits(),
+            p.texel_size.to_bits(),
+            p.triangle,
+            p.chart,
+            p.flags as u32,
+            p.footprint_start,
+            p.footprint_len,
+            p.key,
+        ] {
+            put(w, &mut out);
+        }
+    }
+    put(patches.footprint.len() as u32, &mut out);
+    for &t in &patches.footprint {
+        put(t, &mut out);
+    }
+    put(patches.page_index.len() as u32, &mut out);
+    for page in &patches.page_index {
+        put(page.len() as u32, &mut out);
+        for &i in page {
+            put(i, &mut out);
+        }
+    }
+    for c in [
+        patches.moved as u64,
+        patches.rescued as u64,
+        patches.invalid as u64,
+        patches.visible_unlit as u64,
+        patches.rays,
+    ] {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
+    out
+}
+
+/// [`patches_bytes`] read back; `None` when the bytes are not such a file.
+fn patches_from(bytes: &[u8]) -> Option<Patches> {
+    let mut at = 8;
+    if bytes.get(..8)? != PATCHES_MAGIC {
+        return None;
+    }
+    let mut word = || {
+        let w = u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
+        at += 4;
+        Some(w)
+    };
+    let n = word()? as usize;
+    let mut list = Vec::with_capacity(n);
+    for _ in 0..n {
+        let mut w = [0u32; 20];
+        for x in &mut w {
+            *x = word()?;
+        }
+        let v = |k: usize| {
+            Vec3::new(
+                f32::from_bits(w[k]),
+                f32::from_bits(w[k + 1]),
+                f32::from_bits(w[k + 2]),
+            )
+        };
+        list.push(Patch {
+            instance: w[0],
+            page: w[1],
+            x: w[2],
+            y: w[3],
+            position: v(4),
+            normal: v(7),
+            geometric_normal: v(10),
+            area: f32::from_bits(w[13]),
+            texel_size: f32::from_bits(w[14]),
+            triangle: w[15],
+            chart: w[16],
+            flags: w[17] as u8,
+            footprint_start: w[18],
+            footprint_len: w[19],
+            key: word()?,
+        });
+    }
+    let footprint_len = word()? as usize;
+    let footprint = (0..footprint_len)
+        .map(|_| word())
+        .collect::<Option<Vec<u32>>>()?;
+    let pages = word()? as usize;
+    let mut page_index = Vec::with_capacity(pages);
+    for _ in 0..pages {
+        let len = word()? as usize;
+        page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
+    }
+    let mut counts = [0u64; 5];
+    for c in &mut counts {
+        *c = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
+        at += 8;
+    }
+    Some(Patches {
+        patches: list,
+        footprint,
+        page_index,
+        moved: counts[0] as usize,
+        rescued: counts[1] as usize,
+        invalid: counts[2] as usize,
+        visible_unlit: counts[3] as usize,
+        rays: counts[4],
+    })
 }
 
 impl Units {
-    /// Cuts `patches` into at most [`UNITS`] units of about equal estimated rays (direct
-    /// samples of `lights` lights and the sky, gathers).
-    pub fn plan(patches: &Patches, settings: &BakeSettings, lights: usize, sky: bool) -> Self {
+    /// Cuts `patches` (of `layout`) into at most [`UNITS`] units of about equal estimated
+    /// rays (direct samples of `lights` lights and the sky, gathers).
+    pub fn plan(
+        patches: &Patches,
+        layout: &Layout,
+        settings: &BakeSettings,
+        lights: usize,
+        sky: bool,
+    ) -> Self {
         let costs: Vec<f64> = patches
             .patches
             .iter()
@@ -143,37 +316,29 @@ impl Units {
             starts,
             rays,
             patches_hash: patches_hash(patches),
+            layout_hash: layout_hash(layout),
         }
     }
 
-    /// The units of each of `count` shards: contiguous runs cut at equal shares of the
-    /// estimated rays, as `(first unit, end unit)`.
-    pub fn shard_units(&self, count: u32) -> Vec<(usize, usize)> {
-        let total: f64 = self.rays.iter().sum();
-        let n = self.rays.len();
-        let mut out = Vec::with_capacity(count as usize);
-        let mut first = 0;
-        let mut acc = 0.0;
-        for s in 0..count as usize {
-            let goal = total * (s + 1) as f64 / count as f64;
-            let mut end = first;
-            while end < n && (s + 1 == count as usize || acc + 0.5 * self.rays[end] <= goal) {
-                acc += self.rays[end];
-                end += 1;
-            }
-            out.push((first, end));
-            first = end;
+    /// The shard of every patch, for `count` shards: unit `u` goes to shard `u mod count`,
+    /// so every shard gets units from all over the atlas, and the stages whose costs vary
+    /// differently over it (direct light near many lights, gathers near geometry) are each
+    /// spread evenly.
+    pub fn patch_shards(&self, count: u32) -> Vec<u32> {
+        let n = *self.starts.last().unwrap_or(&0) as usize;
+        let mut out = vec![0u32; n];
+        for (u, w) in self.starts.windows(2).enumerate() {
+            out[w[0] as usize..w[1] as usize].fill(u as u32 % count.max(1));
         }
         out
     }
 
-    /// The shard of every patch, for `count` shards.
-    pub fn patch_shards(&self, count: u32) -> Vec<u32> {
-        let n = *self.starts.last().unwrap_or(&0) as usize;
-        let mut out = vec![0u32; n];
-        for (s, (a, b)) in self.shard_units(count).into_iter().enumerate() {
-            let (lo, hi) = (self.starts[a] as usize, self.starts[b] as usize);
-            out[lo..hi].fill(s as u32);
+    /// Estimated rays of each of `count` shards.
+    pub fn shard_rays(&self, count: u32) -> Vec<f64> {
+        let n = count.max(1) as usize;
+        let mut out = vec![0.0; n];
+        for (u, r) in self.rays.iter().enumerate() {
+            out[u % n] += r;
         }
         out
     }
@@ -278,37 +443,46 @@ impl ShardRun {
         self.split.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
-    /// Called when the patches are known: *prepare* writes the units and stops; the others
-    /// read them and check that their patches are prepare's.
-    pub(super) fn patches_known(&self, units: Units) -> Result<()> {
-        let path = self.dir.join(UNITS_FILE);
-        if self.role == Role::Prepare {
-            let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
-            let mut staged = StagedFiles::new();
-            staged.stage(&path, &text)?;
-            staged.commit()?;
-            return Err(BakeError::ShardPartDone {
-                done: format!(
-                    "prepared {} work units over {} texel patches in {}",
-                    units.rays.len(),
-                    units.starts.last().unwrap_or(&0),
-                    self.dir.display()
-                ),
-            });
-        }
-        let text = std::fs::read(&path).map_err(|source| BakeError::Read {
-            path: path.clone(),
-            source,
-        })?;
-        let stored: Units = serde_json::from_slice(&text)
-            .map_err(|e| self.err(format!("{}: {e}", path.display())))?;
-        if stored.patches_hash != units.patches_hash {
+    /// Called by *prepare* when the patches are known: writes them and the units, and stops.
+    pub(super) fn prepared(&self, units: Units, patches: &Patches) -> Result<()> {
+        let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
+        let mut staged = StagedFiles::new();
+        staged.stage(&self.dir.join(PATCHES_FILE), &patches_bytes(patches))?;
+        staged.stage(&self.dir.join(UNITS_FILE), &text)?;
+        staged.commit()?;
+        Err(BakeError::ShardPartDone {
+            done: format!(
+                "prepared {} work units over {} texel patches in {}",
+                units.rays.len(),
+                patches.patches.len(),
+                self.dir.display()
+            ),
+        })
+    }
+
+    /// For a shard or the merge: prepare's patches, read from the work folder after checking
+    /// that `layout` (derived again here) is prepare's; `None` for prepare itself.
+    pub(super) fn prepared_patches(&self, layout: &Layout) -> Option<Result<Patches>> {
+        (self.role != Role::Prepare).then(|| self.read_prepared(layout))
+    }
+
+    fn read_prepared(&self, layout: &Layout) -> Result<Patches> {
+        let read = |name: &str| {
+            let path = self.dir.join(name);
+            std::fs::read(&path).map_err(|source| BakeError::Read { path, source })
+        };
+        let units: Units = serde_json::from_slice(&read(UNITS_FILE)?)
+            .map_err(|e| self.err(format!("{UNITS_FILE}: {e}")))?;
+        if units.layout_hash != layout_hash(layout) {
             return Err(self.err(
-                "this process's texel patches differ from prepare's: the scene, the settings or the baker changed since `bake prepare`; prepare again".into(),
+                "this process's lightmap layout differs from prepare's: the scene, the settings or the baker changed since `bake prepare`; prepare again".into(),
             ));
         }
-        *self.units.lock().unwrap_or_else(|e| e.into_inner()) = Some(stored);
-        Ok(())
+        let patches = patches_from(&read(PATCHES_FILE)?)
+            .filter(|p| patches_hash(p) == units.patches_hash)
+            .ok_or_else(|| self.err(format!("{PATCHES_FILE} is damaged or not prepare's")))?;
+        *self.units.lock().unwrap_or_else(|e| e.into_inner()) = Some(units);
+        Ok(patches)
     }
 
     fn part_path(&self, index: u32, stage: &str) -> PathBuf {
@@ -578,20 +752,18 @@ mod tests {
             starts: (0..=10).map(|k| k * 10).collect(),
             rays: vec![1.0, 1.0, 1.0, 5.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0],
             patches_hash: 7,
+            layout_hash: 9,
         };
-        let shares = units.shard_units(3);
-        assert_eq!(shares.len(), 3);
-        assert_eq!(shares[0].0, 0);
-        assert_eq!(shares[2].1, 10);
-        for w in shares.windows(2) {
-            assert_eq!(w[0].1, w[1].0, "contiguous");
-        }
         let owner = units.patch_shards(3);
         assert_eq!(owner.len(), 100);
-        assert!(owner.windows(2).all(|w| w[0] <= w[1]));
+        assert_eq!(
+            (owner[0], owner[10], owner[20], owner[30], owner[99]),
+            (0, 1, 2, 0, 0)
+        );
+        assert_eq!(units.shard_rays(3), vec![9.0, 3.0, 3.0]);
         // One shard takes everything; more shards than units leaves some empty.
         assert!(units.patch_shards(1).iter().all(|&s| s == 0));
-        assert_eq!(units.shard_units(16).len(), 16);
+        assert_eq!(units.shard_rays(16)[12], 0.0);
         let v = (
             Vec3::new(1.5, -2.0, f32::MIN_POSITIVE),
             0.25f32,
