@@ -49,7 +49,7 @@
 //! | 12 | [`lightmap`] | pages of E/π, filled and dilated |
 //! | 13 | [`probes`] | irradiance volumes for dynamic objects, gathered from the lightmaps |
 //! | 14 | [`report`] | what a bake records about itself |
-//! | 15 | [`bake`](mod@bake) | the driver, [`BakeHandle`] and the progressive previews |
+//! | 15 | [`bake`](mod@bake) | the driver, [`BakeHandle`], the progressive previews and bakes split across processes |
 //! | 16 | [`output`] | EXR/HDR/KTX2 + PNG, irradiance volumes, baked glTF, manifest, report; atomically |
 //! | 17 | [`analysis`] | the reference path tracer, bakes scored against it at surface points, the convergence study |
 //!

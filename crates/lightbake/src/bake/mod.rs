@@ -6,6 +6,8 @@
 //! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
 //! writes it; [`BakeHandle`] runs both on a thread of their own. Work runs on a rayon pool of
 //! `settings.threads` threads; the result does not depend on the thread count.
+//! [`bake_previewing`] also publishes progressive previews ([`preview`]); [`bake_split`] is one
+//! process of a bake split across processes ([`shard`]).
 
 pub mod handle;
 mod passes;
@@ -365,11 +367,11 @@ fn light_scene(
         );
         Ok((rays, 0, note))
     })?;
-    let prepared = stages.shards().and_then(|run| run.prepared_patches(layout));
-    let patches = match prepared {
+    let reader = stages.shards().filter(|run| run.reads_patches());
+    let patches = match reader {
         // A shard or the merge of a split bake reads prepare's patches.
-        Some(read) => stages.run("patches", 1, || {
-            let p = read?;
+        Some(run) => stages.run("patches", 1, || {
+            let p = run.read_prepared(layout)?;
             let note = format!(
                 "{} texel patches, read from the work folder",
                 p.patches.len()

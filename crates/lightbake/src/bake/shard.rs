@@ -154,131 +154,6 @@ pub fn patches_hash(patches: &Patches) -> u64 {
     h.0
 }
 
-/// Magic of the patches file.
-const PATCHES_MAGIC: &[u8; 8] = b"LBPATCH1";
-
-/// The patches as bytes: every patch's fields as 21 little-endian words, the footprint
-/// lists, the page index and the validity counts.
-fn patches_bytes(patches: &Patches) -> Vec<u8> {
-    let mut out = Vec::with_capacity(64 + 84 * patches.patches.len());
-    let put = |w: u32, out: &mut Vec<u8>| out.extend_from_slice(&w.to_le_bytes());
-    out.extend_from_slice(PATCHES_MAGIC);
-    put(patches.patches.len() as u32, &mut out);
-    for p in &patches.patches {
-        for w in [p.instance, p.page, p.x, p.y] {
-            put(w, &mut out);
-        }
-        for v in [p.position, p.normal, p.geometric_normal] {
-            for c in v.to_array() {
-                put(c.to_bits(), &mut out);
-            }
-        }
-        for w in [
-            p.area.to_bits(),
-            p.texel_size.to_bits(),
-            p.triangle,
-            p.chart,
-            p.flags as u32,
-            p.footprint_start,
-            p.footprint_len,
-            p.key,
-        ] {
-            put(w, &mut out);
-        }
-    }
-    put(patches.footprint.len() as u32, &mut out);
-    for &t in &patches.footprint {
-        put(t, &mut out);
-    }
-    put(patches.page_index.len() as u32, &mut out);
-    for page in &patches.page_index {
-        put(page.len() as u32, &mut out);
-        for &i in page {
-            put(i, &mut out);
-        }
-    }
-    for c in [
-        patches.moved as u64,
-        patches.rescued as u64,
-        patches.invalid as u64,
-        patches.visible_unlit as u64,
-        patches.rays,
-    ] {
-        out.extend_from_slice(&c.to_le_bytes());
-    }
-    out
-}
-
-/// [`patches_bytes`] read back; `None` when the bytes are not such a file.
-fn patches_from(bytes: &[u8]) -> Option<Patches> {
-    let mut at = 8;
-    if bytes.get(..8)? != PATCHES_MAGIC {
-        return None;
-    }
-    let mut word = || {
-        let w = u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
-        at += 4;
-        Some(w)
-    };
-    let n = word()? as usize;
-    let mut list = Vec::with_capacity(n);
-    for _ in 0..n {
-        let mut w = [0u32; 20];
-        for x in &mut w {
-            *x = word()?;
-        }
-        let v = |k: usize| {
-            Vec3::new(
-                f32::from_bits(w[k]),
-                f32::from_bits(w[k + 1]),
-                f32::from_bits(w[k + 2]),
-            )
-        };
-        list.push(Patch {
-            instance: w[0],
-            page: w[1],
-            x: w[2],
-            y: w[3],
-            position: v(4),
-            normal: v(7),
-            geometric_normal: v(10),
-            area: f32::from_bits(w[13]),
-            texel_size: f32::from_bits(w[14]),
-            triangle: w[15],
-            chart: w[16],
-            flags: w[17] as u8,
-            footprint_start: w[18],
-            footprint_len: w[19],
-            key: word()?,
-        });
-    }
-    let footprint_len = word()? as usize;
-    let footprint = (0..footprint_len)
-        .map(|_| word())
-        .collect::<Option<Vec<u32>>>()?;
-    let pages = word()? as usize;
-    let mut page_index = Vec::with_capacity(pages);
-    for _ in 0..pages {
-        let len = word()? as usize;
-        page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
-    }
-    let mut counts = [0u64; 5];
-    for c in &mut counts {
-        *c = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
-        at += 8;
-    }
-    Some(Patches {
-        patches: list,
-        footprint,
-        page_index,
-        moved: counts[0] as usize,
-        rescued: counts[1] as usize,
-        invalid: counts[2] as usize,
-        visible_unlit: counts[3] as usize,
-        rays: counts[4],
-    })
-}
-
 impl Units {
     /// Cuts `patches` (of `layout`) into at most [`UNITS`] units of about equal estimated
     /// rays (direct samples of `lights` lights and the sky, gathers).
@@ -447,7 +322,7 @@ impl ShardRun {
     pub(super) fn prepared(&self, units: Units, patches: &Patches) -> Result<()> {
         let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
         let mut staged = StagedFiles::new();
-        staged.stage(&self.dir.join(PATCHES_FILE), &patches_bytes(patches))?;
+        staged.stage(&self.dir.join(PATCHES_FILE), &patches.to_bytes())?;
         staged.stage(&self.dir.join(UNITS_FILE), &text)?;
         staged.commit()?;
         Err(BakeError::ShardPartDone {
@@ -460,13 +335,15 @@ impl ShardRun {
         })
     }
 
-    /// For a shard or the merge: prepare's patches, read from the work folder after checking
-    /// that `layout` (derived again here) is prepare's; `None` for prepare itself.
-    pub(super) fn prepared_patches(&self, layout: &Layout) -> Option<Result<Patches>> {
-        (self.role != Role::Prepare).then(|| self.read_prepared(layout))
+    /// Whether this process reads prepare's patches (a shard or the merge) rather than making
+    /// them (prepare).
+    pub(super) fn reads_patches(&self) -> bool {
+        self.role != Role::Prepare
     }
 
-    fn read_prepared(&self, layout: &Layout) -> Result<Patches> {
+    /// Prepare's patches, read from the work folder after checking that `layout` (derived
+    /// again here) is prepare's.
+    pub(super) fn read_prepared(&self, layout: &Layout) -> Result<Patches> {
         let read = |name: &str| {
             let path = self.dir.join(name);
             std::fs::read(&path).map_err(|source| BakeError::Read { path, source })
@@ -478,7 +355,7 @@ impl ShardRun {
                 "this process's lightmap layout differs from prepare's: the scene, the settings or the baker changed since `bake prepare`; prepare again".into(),
             ));
         }
-        let patches = patches_from(&read(PATCHES_FILE)?)
+        let patches = Patches::from_bytes(&read(PATCHES_FILE)?)
             .filter(|p| patches_hash(p) == units.patches_hash)
             .ok_or_else(|| self.err(format!("{PATCHES_FILE} is damaged or not prepare's")))?;
         *self.units.lock().unwrap_or_else(|e| e.into_inner()) = Some(units);

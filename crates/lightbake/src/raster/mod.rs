@@ -7,8 +7,12 @@
 //! 3. [`validity`] (after the BVH exists): texels inside or behind geometry are moved out or
 //!    marked invalid; texels next to geometry are flagged.
 //! 4. [`footprint`]: the points of a texel's footprint that the lighting passes sample.
+//!
+//! [`persist`] writes the patches to bytes and reads them back (for bakes split across
+//! processes).
 
 pub mod footprint;
+pub mod persist;
 pub mod rasterize;
 pub mod surface;
 pub mod validity;

@@ -1,0 +1,178 @@
+//! Texel patches written to bytes and read back, bit for bit: what the first process of a
+//! bake split across processes (`bake prepare`) hands to the others, so that they skip the
+//! rasteriser and the validity pass.
+
+use glam::Vec3;
+
+use super::{Patch, Patches};
+
+/// Magic of the file.
+const MAGIC: &[u8; 8] = b"LBPATCH1";
+
+impl Patches {
+    /// The patches as bytes: every patch's fields as 21 little-endian words, the footprint
+    /// lists, the page index and the validity counts.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let patches = self;
+    let mut out = Vec::with_capacity(64 + 84 * patches.patches.len());
+    let put = |w: u32, out: &mut Vec<u8>| out.extend_from_slice(&w.to_le_bytes());
+    out.extend_from_slice(MAGIC);
+    put(patches.patches.len() as u32, &mut out);
+    for p in &patches.patches {
+        for w in [p.instance, p.page, p.x, p.y] {
+            put(w, &mut out);
+        }
+        for v in [p.position, p.normal, p.geometric_normal] {
+            for c in v.to_array() {
+                put(c.to_bits(), &mut out);
+            }
+        }
+        for w in [
+            p.area.to_bits(),
+            p.texel_size.to_bits(),
+            p.triangle,
+            p.chart,
+            p.flags as u32,
+            p.footprint_start,
+            p.footprint_len,
+            p.key,
+        ] {
+            put(w, &mut out);
+        }
+    }
+    put(patches.footprint.len() as u32, &mut out);
+    for &t in &patches.footprint {
+        put(t, &mut out);
+    }
+    put(patches.page_index.len() as u32, &mut out);
+    for page in &patches.page_index {
+        put(page.len() as u32, &mut out);
+        for &i in page {
+            put(i, &mut out);
+        }
+    }
+    for c in [
+        patches.moved as u64,
+        patches.rescued as u64,
+        patches.invalid as u64,
+        patches.visible_unlit as u64,
+        patches.rays,
+    ] {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
+    out
+}
+
+    /// [`Self::to_bytes`] read back; `None` when the bytes are not such a file.
+    pub fn from_bytes(bytes: &[u8]) -> Option<Patches> {
+    let mut at = 8;
+    if bytes.get(..8)? != MAGIC {
+        return None;
+    }
+    let mut word = || {
+        let w = u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
+        at += 4;
+        Some(w)
+    };
+    let n = word()? as usize;
+    let mut list = Vec::with_capacity(n);
+    for _ in 0..n {
+        let mut w = [0u32; 20];
+        for x in &mut w {
+            *x = word()?;
+        }
+        let v = |k: usize| {
+            Vec3::new(
+                f32::from_bits(w[k]),
+                f32::from_bits(w[k + 1]),
+                f32::from_bits(w[k + 2]),
+            )
+        };
+        list.push(Patch {
+            instance: w[0],
+            page: w[1],
+            x: w[2],
+            y: w[3],
+            position: v(4),
+            normal: v(7),
+            geometric_normal: v(10),
+            area: f32::from_bits(w[13]),
+            texel_size: f32::from_bits(w[14]),
+            triangle: w[15],
+            chart: w[16],
+            flags: w[17] as u8,
+            footprint_start: w[18],
+            footprint_len: w[19],
+            key: word()?,
+        });
+    }
+    let footprint_len = word()? as usize;
+    let footprint = (0..footprint_len)
+        .map(|_| word())
+        .collect::<Option<Vec<u32>>>()?;
+    let pages = word()? as usize;
+    let mut page_index = Vec::with_capacity(pages);
+    for _ in 0..pages {
+        let len = word()? as usize;
+        page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
+    }
+    let mut counts = [0u64; 5];
+    for c in &mut counts {
+        *c = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
+        at += 8;
+    }
+    Some(Patches {
+        patches: list,
+        footprint,
+        page_index,
+        moved: counts[0] as usize,
+        rescued: counts[1] as usize,
+        invalid: counts[2] as usize,
+        visible_unlit: counts[3] as usize,
+        rays: counts[4],
+    })
+}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn patches_round_trip_bit_for_bit() {
+        let p = Patch {
+            instance: 3,
+            page: 1,
+            x: 7,
+            y: 9,
+            position: Vec3::new(1.0, -0.0, f32::MIN_POSITIVE),
+            normal: Vec3::Y,
+            geometric_normal: Vec3::NEG_Z,
+            area: 0.25,
+            texel_size: 0.5,
+            triangle: 11,
+            chart: 2,
+            flags: Patch::VALID | Patch::MOVED,
+            footprint_start: 4,
+            footprint_len: 2,
+            key: 0xdead_beef,
+        };
+        let patches = Patches {
+            patches: vec![p, Patch { x: 8, ..p }],
+            footprint: vec![1, 2, 3, 4, 5, 6],
+            page_index: vec![vec![0, u32::MAX], vec![1]],
+            moved: 2,
+            rescued: 1,
+            invalid: 0,
+            visible_unlit: 0,
+            rays: 1 << 40,
+        };
+        let back = Patches::from_bytes(&patches.to_bytes()).unwrap();
+        assert_eq!(back.patches, patches.patches);
+        assert_eq!(back.footprint, patches.footprint);
+        assert_eq!(back.page_index, patches.page_index);
+        assert_eq!((back.moved, back.rescued, back.rays), (2, 1, 1 << 40));
+        assert!(Patches::from_bytes(b"not patches").is_none());
+        assert!(Patches::from_bytes(&patches.to_bytes()[..100]).is_none());
+    }
+}
