@@ -11,10 +11,10 @@ use bevy::light::GlobalAmbientLight;
 use bevy::mesh::{Indices, MeshAccessError};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use lightbake::{BakeError, BakeHandle, BakeOutput, BakeSettings, MeshUnwrap, Scene, UvOrigin};
-
-use lightbake::Layout;
 use lightbake::bake::PreviewKind;
+use lightbake::{
+    BakeError, BakeHandle, BakeOutput, BakeSettings, Layout, MeshUnwrap, Scene, UvOrigin,
+};
 
 use crate::components::{
     BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
@@ -30,12 +30,12 @@ use crate::volumes::spawn_bake_volumes;
 pub(crate) struct PendingRequest(Option<RequestBake>);
 
 /// What the bake task hands back.
-pub(crate) struct Finished {
-    pub(crate) output: BakeOutput,
+struct Finished {
+    output: BakeOutput,
     /// Asset paths of the page images written, when files were written.
-    pub(crate) page_paths: Option<Vec<String>>,
+    page_paths: Option<Vec<String>>,
     /// Asset paths of the irradiance volumes written, when files were written.
-    pub(crate) volume_paths: Option<Vec<String>>,
+    volume_paths: Option<Vec<String>>,
 }
 
 /// The running bake.

@@ -7,9 +7,10 @@
 //! bake merge WORK -o OUT [--threads T]
 //! ```
 //!
-//! `prepare` writes `WORK/work.json` (the command line, the scene's path and a hash of it)
-//! and `WORK/units.json` (the work units); each shard and the merge read the scene again
-//! from that path (absolute: every machine must see it there) and check the hash. A shard's
+//! `prepare` writes `WORK/work.json` (the command line, the scene's path and a hash of the
+//! document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
+//! `WORK/units.json` (the work units); each shard and the merge read the scene again from
+//! that path (absolute: every machine must see it there) and check the hash. A shard's
 //! index comes from `--index`, else `JOB_COMPLETION_INDEX` (Kubernetes Indexed Jobs), else
 //! `SLURM_ARRAY_TASK_ID` (Slurm job arrays).
 
@@ -26,6 +27,9 @@ use super::{Args, load, write_and_print};
 
 /// The work folder's description of the bake.
 const WORK_FILE: &str = "work.json";
+
+/// `work.json`'s format tag.
+const WORK_FORMAT: &str = "lightbake-work-2";
 
 /// `bake shard WORK`: compute one shard's part of every split stage.
 #[derive(Debug, Parser)]
@@ -73,7 +77,7 @@ struct Work {
     scene: PathBuf,
     /// `prepare`'s command line after the scene and without `-o` (the bake's flags).
     flags: Vec<String>,
-    /// FNV-1a of the glTF document and its buffers.
+    /// FNV-1a of the glTF document, its buffers and its images.
     scene_hash: u64,
 }
 
@@ -101,13 +105,24 @@ pub(super) fn dispatch(argv: &[OsString], exit_on_error: bool) -> Option<Result<
     })
 }
 
-/// FNV-1a of the document and its buffers.
-fn scene_hash(source: &lightbake::GltfSource) -> u64 {
+/// FNV-1a of the document, its buffers and its decoded images (sizes and texels): whatever
+/// of the scene's files a shard reads.
+fn scene_hash(imported: &lightbake::ImportedScene) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let text = serde_json::to_vec(&source.json).unwrap_or_default();
-    for b in text.iter().chain(source.buffers.iter().flatten()) {
-        h ^= *b as u64;
-        h = h.wrapping_mul(0x0100_0000_01b3);
+    let mut add = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= *b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    add(&serde_json::to_vec(&imported.source.json).unwrap_or_default());
+    for buffer in &imported.source.buffers {
+        add(buffer);
+    }
+    for t in &imported.scene.textures {
+        add(&t.width.to_le_bytes());
+        add(&t.height.to_le_bytes());
+        add(t.rgba8.as_flattened());
     }
     h
 }
@@ -140,10 +155,10 @@ fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
     let (settings, imported) = load(&args)?;
     let scene = std::path::absolute(&args.scene).map_err(|e| e.to_string())?;
     let work = Work {
-        format: "lightbake-work-1".into(),
+        format: WORK_FORMAT.into(),
         flags: bake_flags(tokens, &args.scene),
         scene,
-        scene_hash: scene_hash(&imported.source),
+        scene_hash: scene_hash(&imported),
     };
     std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let text = serde_json::to_vec_pretty(&work).map_err(|e| e.to_string())?;
@@ -170,6 +185,13 @@ fn reload(
     })?;
     let work: Work =
         serde_json::from_slice(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    if work.format != WORK_FORMAT {
+        return Err(format!(
+            "{}: format '{}', this bake reads '{WORK_FORMAT}': prepare again with this version",
+            path.display(),
+            work.format
+        ));
+    }
     let mut tokens = vec![
         "bake".to_string(),
         work.scene.to_string_lossy().into_owned(),
@@ -180,7 +202,7 @@ fn reload(
     let mut args = Args::try_parse_from(tokens).map_err(|e| format!("{}: {e}", path.display()))?;
     args.threads = threads;
     let (settings, imported) = load(&args)?;
-    if scene_hash(&imported.source) != work.scene_hash {
+    if scene_hash(&imported) != work.scene_hash {
         return Err(format!(
             "{} changed since `bake prepare`: prepare again",
             work.scene.display()

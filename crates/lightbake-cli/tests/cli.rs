@@ -595,7 +595,8 @@ fn a_split_bake_equals_the_one_process_bake_for_any_shard_count() {
 }
 
 /// A missing shard is named by the merge; a shard re-run rewrites only its own parts; a
-/// shard run with another count, or a scene changed since prepare, is refused.
+/// shard run with another count, or a scene (its document or an image it uses) changed since
+/// prepare, is refused.
 #[test]
 fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
     let dir = tempfile::tempdir().unwrap();
@@ -605,6 +606,21 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
         std::fs::copy(asset(f), scene_dir.join(f)).unwrap();
     }
     let scene = scene_dir.join("cornell_box.gltf");
+    // The first material takes its colour from an image file beside the scene.
+    let paint = scene_dir.join("paint.png");
+    let write_paint = |rgba: [u8; 4]| {
+        image::RgbaImage::from_pixel(4, 4, image::Rgba(rgba))
+            .save(&paint)
+            .unwrap()
+    };
+    write_paint([200, 100, 50, 255]);
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&scene).unwrap()).unwrap();
+    json["images"] = serde_json::json!([{ "uri": "paint.png" }]);
+    json["textures"] = serde_json::json!([{ "source": 0 }]);
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] =
+        serde_json::json!({ "index": 0 });
+    std::fs::write(&scene, serde_json::to_vec(&json).unwrap()).unwrap();
     let work = dir.path().join("work");
     let w = work.to_str().unwrap();
     let flags = [
@@ -652,10 +668,18 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
         .output()
         .unwrap();
     assert!(stderr_line(&out).contains("JOB_COMPLETION_INDEX"));
+    write_paint([200, 100, 51, 255]);
+    let out = bake(&["shard", w, "--index", "1", "--count", "3", "--no-wait"]);
+    assert!(
+        stderr_line(&out).contains("changed since"),
+        "{}",
+        stderr_line(&out)
+    );
+    write_paint([200, 100, 50, 255]);
     let mut text = std::fs::read_to_string(&scene).unwrap();
     text = text.replacen("\"asset\"", "\"extras\": {\"changed\": 1}, \"asset\"", 1);
     std::fs::write(&scene, text).unwrap();
-    let out = bake(&["shard", w, "--index", "1", "--count", "3"]);
+    let out = bake(&["shard", w, "--index", "1", "--count", "3", "--no-wait"]);
     assert!(
         stderr_line(&out).contains("changed since"),
         "{}",

@@ -1,9 +1,9 @@
 //! One bake split across processes (machines of a farm, run by any batch engine), with the
 //! same bits as one process.
 //!
-//! Every process runs the same deterministic pipeline. The layout and the texel patches are
-//! derived from the scene in each process (a hash of the patches, written by `prepare`, checks
-//! that they came out the same), and the stages whose work is per texel and heavy — direct
+//! Every process runs the same deterministic pipeline. Each derives the lightmap layout from
+//! the scene (checked against `prepare`'s by [`layout_hash`]) and reads the texel patches
+//! `prepare` wrote after the validity pass ([`PATCHES_FILE`]), and the stages whose work is per texel and heavy — direct
 //! light, the hierarchical solve's final gather and its correction — are *split*: each is cut
 //! into work units (contiguous runs of texel patches of about equal estimated rays,
 //! [`Units`], dealt out to the shards in turn), shard *I* of *N* computes its units and
@@ -14,7 +14,8 @@
 //! process, bit for bit; what runs between the split stages (the coarse solve, which needs the
 //! direct light of every texel) runs again in each process that needs it.
 //!
-//! Roles ([`Role`]): *prepare* stops when the patches are known and writes `units.json`;
+//! Roles ([`Role`]): *prepare* stops when the patches are known and writes them
+//! ([`PATCHES_FILE`]) and the work units ([`UNITS_FILE`]);
 //! a *shard* computes its part of each split stage in turn, waiting for the other shards'
 //! parts between stages (or, without waiting, computes its part of the first stage it has
 //! not done and stops, for engines that run the stages as separate waves); the *merge* reads
