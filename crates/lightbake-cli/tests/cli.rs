@@ -544,8 +544,10 @@ fn a_split_bake_equals_the_one_process_bake_for_any_shard_count() {
             };
             if waves {
                 // One stage per run, as engines that run the stages as separate waves do:
-                // three waves, the last finds nothing left for the matrix scene.
-                for _ in 0..3 {
+                // three waves, each computing one stage (the matrix scene has one split
+                // stage: its later waves find nothing left).
+                let stages = ["direct", "final_gather", "correction"];
+                for wave in 0..3 {
                     for i in 0..count {
                         let out = shard(i, &["--no-wait"]).output().unwrap();
                         assert!(
@@ -553,6 +555,13 @@ fn a_split_bake_equals_the_one_process_bake_for_any_shard_count() {
                             "{}",
                             String::from_utf8_lossy(&out.stderr)
                         );
+                    }
+                    for i in 0..count {
+                        let part = |s: &str| work.join(format!("shards/{i}/{s}.bin"));
+                        assert!(part("direct").exists());
+                        if let Some(next) = stages.get(wave + 1) {
+                            assert!(!part(next).exists(), "wave {wave} ran on to {next}");
+                        }
                     }
                 }
             } else {

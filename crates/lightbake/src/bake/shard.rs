@@ -453,10 +453,20 @@ impl ShardRun {
                 self.write_part(&own, stage, count, &units, &values, &mask, part)?;
             }
             match wait {
+                // Without waiting, a call computes one stage at most: the waves of an engine
+                // that runs the stages one by one each do the same work.
+                None if !kept => {
+                    return Err(BakeError::ShardPartDone {
+                        done: format!(
+                            "shard {index} of {count}: stage '{stage}' done; run the shard again for the next stage once every shard's part of this one is written"
+                        ),
+                    });
+                }
                 None if !self.all_there(stage, count) => {
                     return Err(BakeError::ShardPartDone {
                         done: format!(
-                            "shard {index} of {count}: stage '{stage}' done; the next stage needs every shard's"
+                            "shard {index} of {count}: stage '{stage}' was done already; the next stage waits for shards {:?}",
+                            self.missing(stage, count)
                         ),
                     });
                 }
