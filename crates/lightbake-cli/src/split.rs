@@ -3,14 +3,15 @@
 //!
 //! ```text
 //! bake prepare SCENE -o WORK [every bake flag]
-//! bake shard WORK [--index I] --count N [--no-wait] [--timeout S] [--threads T]
-//! bake merge WORK -o OUT [--threads T]
+//! bake shard WORK [--index I] --count N [--no-wait] [--timeout S] [--scene PATH] [--threads T]
+//! bake merge WORK -o OUT [--scene PATH] [--threads T]
 //! ```
 //!
 //! `prepare` writes `WORK/work.json` (the command line, the scene's path and a hash of the
 //! document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
-//! `WORK/units.json` (the work units); each shard and the merge read the scene again from
-//! that path (absolute: every machine must see it there) and check the hash. A shard's
+//! `WORK/units.json` (the work units); each shard and the merge read the scene again (from
+//! `--scene`, else that absolute path, else the same place relative to the work folder) and
+//! check the hash. A shard's
 //! index comes from `--index`, else `JOB_COMPLETION_INDEX` (Kubernetes Indexed Jobs), else
 //! `SLURM_ARRAY_TASK_ID` (Slurm job arrays).
 
@@ -47,6 +48,10 @@ struct ShardArgs {
     /// the other shards and going on (for engines that run the stages as separate waves).
     #[arg(long)]
     no_wait: bool,
+    /// The scene file, where this machine sees it. Default: where `prepare` read it, else
+    /// the same place relative to the work folder (for a shared volume mounted elsewhere).
+    #[arg(long)]
+    scene: Option<PathBuf>,
     /// Give up waiting for the other shards' parts after this many seconds.
     #[arg(long, default_value_t = 86_400.0)]
     timeout: f64,
@@ -64,6 +69,10 @@ struct MergeArgs {
     /// Output directory, as for a bake.
     #[arg(short, long)]
     output: PathBuf,
+    /// The scene file, where this machine sees it. Default: where `prepare` read it, else
+    /// the same place relative to the work folder (for a shared volume mounted elsewhere).
+    #[arg(long)]
+    scene: Option<PathBuf>,
     /// Worker threads (0 = every core). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -75,6 +84,10 @@ struct Work {
     format: String,
     /// The scene, absolute.
     scene: PathBuf,
+    /// The scene relative to the work folder (both with links resolved), when they share a
+    /// root.
+    #[serde(default)]
+    scene_from_work: Option<PathBuf>,
     /// `prepare`'s command line after the scene and without `-o` (the bake's flags).
     flags: Vec<String>,
     /// FNV-1a of the glTF document, its buffers and its images.
@@ -154,13 +167,18 @@ fn bake_flags(tokens: &[OsString], scene: &Path) -> Vec<String> {
 fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
     let (settings, imported) = load(&args)?;
     let scene = std::path::absolute(&args.scene).map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    let scene_from_work = match (args.scene.canonicalize(), args.output.canonicalize()) {
+        (Ok(scene), Ok(work)) => relative(&work, &scene),
+        _ => None,
+    };
     let work = Work {
         format: WORK_FORMAT.into(),
         flags: bake_flags(tokens, &args.scene),
         scene,
+        scene_from_work,
         scene_hash: scene_hash(&imported),
     };
-    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let text = serde_json::to_vec_pretty(&work).map_err(|e| e.to_string())?;
     let mut staged = lightbake::atomic::StagedFiles::new();
     staged
@@ -170,10 +188,51 @@ fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
     run_role(&imported, &settings, &args.output, Role::Prepare).map(|_| ())
 }
 
-/// The bake `work.json` describes, with `threads` threads.
+/// `to` as a path from the folder `from` (both absolute, links resolved); `None` when they
+/// have no common root.
+fn relative(from: &Path, to: &Path) -> Option<PathBuf> {
+    let from: Vec<_> = from.components().collect();
+    let to: Vec<_> = to.components().collect();
+    let common = from.iter().zip(&to).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return None;
+    }
+    let mut out = PathBuf::new();
+    for _ in common..from.len() {
+        out.push("..");
+    }
+    out.extend(&to[common..]);
+    Some(out)
+}
+
+/// The scene file of `work`: `chosen`, else where prepare read it, else the same place
+/// relative to the work folder.
+fn scene_path(work: &Work, work_dir: &Path, chosen: Option<&Path>) -> Result<PathBuf, String> {
+    if let Some(path) = chosen {
+        return Ok(path.to_path_buf());
+    }
+    if work.scene.exists() {
+        return Ok(work.scene.clone());
+    }
+    match &work.scene_from_work {
+        Some(rel) if work_dir.join(rel).exists() => Ok(work_dir.join(rel)),
+        _ => Err(format!(
+            "{}: no such file here{}: give its path on this machine with --scene",
+            work.scene.display(),
+            work.scene_from_work
+                .as_ref()
+                .map(|rel| format!(", nor at {}", work_dir.join(rel).display()))
+                .unwrap_or_default()
+        )),
+    }
+}
+
+/// The bake `work.json` describes, with `threads` threads, reading the scene from `scene`
+/// when given.
 fn reload(
     work_dir: &Path,
     threads: usize,
+    scene: Option<&Path>,
 ) -> Result<(lightbake::BakeSettings, lightbake::ImportedScene), String> {
     let path = work_dir.join(WORK_FILE);
     let text = std::fs::read(&path).map_err(|e| {
@@ -192,9 +251,10 @@ fn reload(
             work.format
         ));
     }
+    let scene = scene_path(&work, work_dir, scene)?;
     let mut tokens = vec![
         "bake".to_string(),
-        work.scene.to_string_lossy().into_owned(),
+        scene.to_string_lossy().into_owned(),
         "-o".into(),
         work_dir.to_string_lossy().into_owned(),
     ];
@@ -205,7 +265,7 @@ fn reload(
     if scene_hash(&imported) != work.scene_hash {
         return Err(format!(
             "{} changed since `bake prepare`: prepare again",
-            work.scene.display()
+            scene.display()
         ));
     }
     Ok((settings, imported))
@@ -247,7 +307,7 @@ fn shard(args: ShardArgs) -> Result<(), String> {
             args.count
         ));
     }
-    let (settings, imported) = reload(&args.work, args.threads)?;
+    let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
     let wait = (!args.no_wait).then(|| Duration::from_secs_f64(args.timeout.max(0.0)));
     let role = Role::Shard {
         index,
@@ -261,7 +321,7 @@ fn shard(args: ShardArgs) -> Result<(), String> {
 }
 
 fn merge(args: MergeArgs) -> Result<(), String> {
-    let (settings, imported) = reload(&args.work, args.threads)?;
+    let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
     let Some(output) = run_role(&imported, &settings, &args.work, Role::Merge)? else {
         return Err("internal error: the merge stopped early".into());
     };

@@ -685,8 +685,8 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
         stderr_line(&out)
     );
     write_paint([200, 100, 50, 255]);
-    let mut text = std::fs::read_to_string(&scene).unwrap();
-    text = text.replacen("\"asset\"", "\"extras\": {\"changed\": 1}, \"asset\"", 1);
+    let original = std::fs::read_to_string(&scene).unwrap();
+    let text = original.replacen("\"asset\"", "\"extras\": {\"changed\": 1}, \"asset\"", 1);
     std::fs::write(&scene, text).unwrap();
     let out = bake(&["shard", w, "--index", "1", "--count", "3", "--no-wait"]);
     assert!(
@@ -694,4 +694,30 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
         "{}",
         stderr_line(&out)
     );
+    std::fs::write(&scene, original).unwrap();
+    // The shared folder mounted elsewhere: the scene is found beside the work folder as it
+    // was, or where --scene says.
+    let mount = dir.path().join("mounted");
+    std::fs::create_dir_all(&mount).unwrap();
+    std::fs::rename(&scene_dir, mount.join("scene")).unwrap();
+    std::fs::rename(&work, mount.join("work")).unwrap();
+    let w = mount.join("work");
+    let w = w.to_str().unwrap();
+    run_ok(&["shard", w, "--index", "1", "--count", "3", "--no-wait"]);
+    assert!(mount.join("work/shards/1/direct.bin").exists());
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::rename(mount.join("scene"), &elsewhere).unwrap();
+    let out = bake(&["shard", w, "--index", "1", "--count", "3", "--no-wait"]);
+    assert!(
+        stderr_line(&out).contains("--scene"),
+        "{}",
+        stderr_line(&out)
+    );
+    let moved = elsewhere.join("cornell_box.gltf");
+    let args = ["--index", "1", "--count", "3", "--no-wait", "--scene"];
+    let mut cmd = vec!["shard", w];
+    cmd.extend_from_slice(&args);
+    cmd.push(moved.to_str().unwrap());
+    run_ok(&cmd);
+    assert!(mount.join("work/shards/1/final_gather.bin").exists());
 }
