@@ -11,9 +11,8 @@
 //! document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
 //! `WORK/units.json` (the work units); each shard and the merge read the scene again (from
 //! `--scene`, else that absolute path, else the same place relative to the work folder) and
-//! check the hash. A shard's
-//! index comes from `--index`, else `JOB_COMPLETION_INDEX` (Kubernetes Indexed Jobs), else
-//! `SLURM_ARRAY_TASK_ID` (Slurm job arrays).
+//! check the hash. A shard's index comes from `--index`, else `JOB_COMPLETION_INDEX`
+//! (Kubernetes Indexed Jobs), else `SLURM_ARRAY_TASK_ID` (Slurm job arrays).
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};

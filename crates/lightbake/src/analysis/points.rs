@@ -138,7 +138,7 @@ pub fn references(
         .collect()
 }
 
-/// Whether a point with geometric normal `normal` is open surface: at most [`OPEN_BACK`] of
+/// Whether a point with geometric normal `normal` is open surface: at most `OPEN_BACK` (2) of
 /// a cosine fan of 16 rays (scrambled by `key`) see the back of a single-sided surface.
 pub fn is_open(rays: &RayScene, position: Vec3, normal: Vec3, key: u32) -> bool {
     let origin = rays.offset(position, normal);

@@ -21,7 +21,7 @@ pub struct BakeHandle<T = BakeOutput> {
 }
 
 impl BakeHandle<BakeOutput> {
-    /// Starts [`bake`] of `scene` with `settings` on a new thread.
+    /// Starts [`bake`](super::bake()) of `scene` with `settings` on a new thread.
     ///
     /// # Errors
     /// [`BakeError::Thread`] when the thread cannot be started.
@@ -31,7 +31,7 @@ impl BakeHandle<BakeOutput> {
 }
 
 impl<T: Send + 'static> BakeHandle<T> {
-    /// Starts [`bake`] of `scene` with `settings` on a new thread named `lightbake`, then runs
+    /// Starts [`bake`](super::bake()) of `scene` with `settings` on a new thread named `lightbake`, then runs
     /// `then(output, &scene, &settings)` there (writing the outputs, say).
     ///
     /// # Errors

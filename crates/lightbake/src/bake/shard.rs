@@ -3,23 +3,22 @@
 //!
 //! Every process runs the same deterministic pipeline. Each derives the lightmap layout from
 //! the scene (checked against `prepare`'s by [`layout_hash`]) and reads the texel patches
-//! `prepare` wrote after the validity pass ([`PATCHES_FILE`]), and the stages whose work is per texel and heavy — direct
-//! light, the hierarchical solve's final gather and its correction — are *split*: each is cut
-//! into work units (contiguous runs of texel patches of about equal estimated rays,
-//! [`Units`], dealt out to the shards in turn), shard *I* of *N* computes its units and
-//! writes their values to
-//! `WORK/shards/I/STAGE.bin`, and whoever needs the whole stage (the other shards, for the
-//! next split stage; the merge) reads every shard's file. Each value is computed by the same
-//! function of its texel and the stages before, so the merged arrays are those of one
-//! process, bit for bit; what runs between the split stages (the coarse solve, which needs the
-//! direct light of every texel) runs again in each process that needs it.
+//! `prepare` wrote after the validity pass ([`PATCHES_FILE`]), and the stages whose work is
+//! per texel and heavy — direct light, the hierarchical solve's final gather and its
+//! correction — are *split*: each is cut into work units (contiguous runs of texel patches
+//! of about equal estimated rays, [`Units`], dealt out to the shards in turn), shard *I* of
+//! *N* computes its units and writes their values to `WORK/shards/I/STAGE.bin`, and whoever
+//! needs the whole stage (the other shards, for the next split stage; the merge) reads every
+//! shard's file. Each value is computed by the same function of its texel and the stages
+//! before, so the merged arrays are those of one process, bit for bit; what runs between the
+//! split stages (the coarse solve, which needs the direct light of every texel) runs again
+//! in each process that needs it.
 //!
 //! Roles ([`Role`]): *prepare* stops when the patches are known and writes them
-//! ([`PATCHES_FILE`]) and the work units ([`UNITS_FILE`]);
-//! a *shard* computes its part of each split stage in turn, waiting for the other shards'
-//! parts between stages (or, without waiting, computes its part of the first stage it has
-//! not done and stops, for engines that run the stages as separate waves); the *merge* reads
-//! every part and finishes the bake.
+//! ([`PATCHES_FILE`]) and the work units ([`UNITS_FILE`]); a *shard* computes its part of
+//! each split stage in turn, waiting for the other shards' parts between stages (or, without
+//! waiting, computes its part of the first stage it has not done and stops, for engines that
+//! run the stages as separate waves); the *merge* reads every part and finishes the bake.
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;

@@ -9,7 +9,7 @@
 //! a contact is mixed into the texels beside it. Each valid texel's value was computed over
 //! its own open footprint, so the lightmap knows what the light should be at a visible point
 //! q: the bilinear reconstruction of the texels that belong to q's surface — the valid texels
-//! whose representative point sees q as part of its own surface ([`Patches::sees`]:
+//! whose representative point sees q as part of its own surface (`Patches::sees`:
 //! decided per texel and per sample) — with their weights renormalised, g_q. The fit chooses
 //! the free texels' values x so that the plain four-texel reconstruction approaches it:
 //!

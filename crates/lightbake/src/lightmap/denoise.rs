@@ -3,7 +3,7 @@
 //!
 //! Every valid texel i has a value x_i (E/π) and the standard error σ_i of its luminance
 //! from the passes that sampled it (the direct pass's footprint blocks and the gathers'
-//! ray blocks, [`crate::radiosity::monte_carlo::gather`]), averaged (as a variance) over the
+//! ray blocks, `radiosity::monte_carlo::gather`), averaged (as a variance) over the
 //! texels the filter could mix with it: a few samples estimate one texel's variance poorly,
 //! and the variance changes slowly across a chart. The filter is a joint bilateral
 //! one (Tomasi & Manduchi 1998; guided by the surface, as lightmap denoisers such as

@@ -82,7 +82,7 @@ fn open_at(seam: &Seam, t: f32, rays: &RayScene) -> bool {
 
 /// Stitches `seams` on the assembled pages (after dilation: the padding texels the seam
 /// samples read start from their dilated values). Samples where geometry stands on the seam
-/// are left out ([`open_at`]).
+/// are left out (`open_at`).
 pub fn stitch(
     assembly: &mut Assembly,
     patches: &Patches,

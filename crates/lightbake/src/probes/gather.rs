@@ -7,7 +7,7 @@
 //! light is not known there and is left out); the sky for a ray that leaves the scene; black
 //! for the back of a single-sided surface (the inside of a solid). Emissive surfaces are
 //! reached by next-event estimation instead (a triangle picked by power, a point on it
-//! sampled as the direct pass does, [`emitter_direction`], and a shadow ray), so a small lamp
+//! sampled as the direct pass does, `emitter_direction`, and a shadow ray), so a small lamp
 //! seen from afar is not left to the few rays that happen to hit it; rays that hit an
 //! emitter take only what it reflects.
 //!

@@ -68,7 +68,7 @@ pub struct SolverPlan {
     /// Estimated bytes of the transport matrix (0 when not estimated).
     pub transport_estimate_bytes: u64,
     /// Bytes the solver allocates beside the matrix, with the nodes and the hit mapper
-    /// ([`SolverChoice::working_bytes`], [`hierarchical::planned_bytes`]).
+    /// ([`SolverChoice::working_bytes`], `hierarchical::planned_bytes`).
     pub solver_working_bytes: u64,
 }
 
