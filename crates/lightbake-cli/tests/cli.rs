@@ -721,3 +721,66 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
     run_ok(&cmd);
     assert!(mount.join("work/shards/1/final_gather.bin").exists());
 }
+
+/// A work folder prepared again (here with more direct-light samples, which leave the patches
+/// as they were) takes no part of the previous preparation: the merge refuses until the
+/// shards run again, then equals the one-process bake of the new settings.
+#[test]
+fn a_work_folder_prepared_again_takes_no_part_of_the_previous_preparation() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = asset("cornell_box.gltf");
+    let scene = scene.to_str().unwrap();
+    let work = dir.path().join("work");
+    let w = work.to_str().unwrap();
+    let flags = |samples: &'static str| {
+        [
+            "--quality",
+            "preview",
+            "--texel-density",
+            "32",
+            "--solver",
+            "hierarchical",
+            "--samples",
+            samples,
+        ]
+    };
+    let prepare = |samples: &'static str| {
+        let mut args = vec!["prepare", scene, "-o", w];
+        args.extend_from_slice(&flags(samples));
+        run_ok(&args);
+    };
+    let wave = || {
+        for i in ["0", "1", "2"] {
+            run_ok(&["shard", w, "--index", i, "--count", "3", "--no-wait"]);
+        }
+    };
+    prepare("4");
+    wave();
+    prepare("16");
+    let merged = dir.path().join("merged");
+    let m = merged.to_str().unwrap();
+    let out = bake(&["merge", w, "-o", m]);
+    assert!(!out.status.success());
+    assert!(
+        stderr_line(&out).contains("this preparation"),
+        "{}",
+        stderr_line(&out)
+    );
+    for _ in 0..3 {
+        wave();
+    }
+    run_ok(&["merge", w, "-o", m]);
+    let whole = dir.path().join("whole");
+    let mut args = vec![scene, "-o", whole.to_str().unwrap(), "--quiet"];
+    args.extend_from_slice(&flags("16"));
+    run_ok(&args);
+    let expected = outputs(&whole);
+    let got = outputs(&merged);
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        expected.keys().collect::<Vec<_>>()
+    );
+    for (name, bytes) in &expected {
+        assert!(got[name] == *bytes, "{} differs", name.display());
+    }
+}

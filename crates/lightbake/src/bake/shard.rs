@@ -73,6 +73,11 @@ pub struct Units {
     pub patches_hash: u64,
     /// Hash of the lightmap layout the patches belong to ([`layout_hash`]).
     pub layout_hash: u64,
+    /// The `prepare` run that wrote them (drawn from the clock and the process when it wrote
+    /// them; 0 before). Parts of another run are never taken: a work folder prepared again
+    /// with other settings may have the same patches, but not the same values.
+    #[serde(default)]
+    pub preparation: u64,
 }
 
 /// Estimated rays of one patch: its direct samples and its gathers.
@@ -103,6 +108,26 @@ impl Fnv {
             self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
         }
     }
+}
+
+/// An identifier of this `prepare` run: the clock, the process and the patches, mixed.
+fn preparation_id(units: &Units) -> u64 {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let mut h = Fnv::new();
+    for w in [
+        nanos as u32,
+        (nanos >> 32) as u32,
+        (nanos >> 64) as u32,
+        std::process::id(),
+        units.patches_hash as u32,
+        (units.patches_hash >> 32) as u32,
+    ] {
+        h.eat(w);
+    }
+    // 0 means "not prepared".
+    h.0.max(1)
 }
 
 /// FNV-1a over the layout: pages, instance rectangles, every unwrap's UVs and triangles.
@@ -192,6 +217,7 @@ impl Units {
             rays,
             patches_hash: patches_hash(patches),
             layout_hash: layout_hash(layout),
+            preparation: 0,
         }
     }
 
@@ -284,7 +310,8 @@ pub struct ShardRun {
 struct PartHeader {
     stage: String,
     count: u32,
-    patches_hash: u64,
+    /// [`Units::preparation`] of the work folder it was written for.
+    preparation: u64,
     values: u64,
     part: ShardPart,
 }
@@ -319,7 +346,8 @@ impl ShardRun {
     }
 
     /// Called by *prepare* when the patches are known: writes them and the units, and stops.
-    pub(super) fn prepared(&self, units: Units, patches: &Patches) -> Result<()> {
+    pub(super) fn prepared(&self, mut units: Units, patches: &Patches) -> Result<()> {
+        units.preparation = preparation_id(&units);
         let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
         let mut staged = StagedFiles::new();
         staged.stage(&self.dir.join(PATCHES_FILE), &patches.to_bytes())?;
@@ -375,13 +403,27 @@ impl ShardRun {
         if let Some(c) = *self.count.lock().unwrap_or_else(|e| e.into_inner()) {
             return Ok(c);
         }
-        let header = self.read_header(&self.part_path(0, stage)).map_err(|_| {
+        let header = self.current_header(0, stage).ok_or_else(|| {
             self.err(format!(
-                "no part of stage '{stage}' from shard 0: run `bake shard` for every shard first"
+                "no part of stage '{stage}' from shard 0 of this preparation: run `bake shard` for every shard first"
             ))
         })?;
         *self.count.lock().unwrap_or_else(|e| e.into_inner()) = Some(header.count);
         Ok(header.count)
+    }
+
+    /// The header of shard `index`'s part of `stage` when it was written for the work units
+    /// read here (this preparation).
+    fn current_header(&self, index: u32, stage: &str) -> Option<PartHeader> {
+        let preparation = self
+            .units
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()?
+            .preparation;
+        self.read_header(&self.part_path(index, stage))
+            .ok()
+            .filter(|h| h.preparation == preparation)
     }
 
     fn read_header(&self, path: &Path) -> Result<PartHeader> {
@@ -437,7 +479,7 @@ impl ShardRun {
             // replaced.
             let kept = self
                 .read_header(&own)
-                .is_ok_and(|h| h.count == count && h.patches_hash == units.patches_hash);
+                .is_ok_and(|h| h.count == count && h.preparation == units.preparation);
             if !kept {
                 let start = Instant::now();
                 let mask: Vec<bool> = (0..items).map(|i| shard_of(i) == index).collect();
@@ -489,7 +531,7 @@ impl ShardRun {
             else {
                 continue;
             };
-            if let Ok(h) = self.read_header(&self.part_path(index, stage))
+            if let Some(h) = self.current_header(index, stage)
                 && h.count != count
             {
                 return Err(self.err(format!(
@@ -502,12 +544,12 @@ impl ShardRun {
     }
 
     fn all_there(&self, stage: &str, count: u32) -> bool {
-        (0..count).all(|s| self.read_header(&self.part_path(s, stage)).is_ok())
+        (0..count).all(|s| self.current_header(s, stage).is_some())
     }
 
     fn missing(&self, stage: &str, count: u32) -> Vec<u32> {
         (0..count)
-            .filter(|&s| self.read_header(&self.part_path(s, stage)).is_err())
+            .filter(|&s| self.current_header(s, stage).is_none())
             .collect()
     }
 
@@ -541,7 +583,7 @@ impl ShardRun {
         let header = PartHeader {
             stage: stage.to_string(),
             count,
-            patches_hash: units.patches_hash,
+            preparation: units.preparation,
             values: owned as u64,
             part,
         };
@@ -584,7 +626,7 @@ impl ShardRun {
             })?;
             let (header, data) = parse(&bytes)
                 .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?;
-            if header.count != count || header.patches_hash != units.patches_hash {
+            if header.count != count || header.preparation != units.preparation {
                 return Err(self.err(format!(
                     "{} was written for {} shards of another preparation; run every shard of this one with --count {count}",
                     path.display(),
@@ -640,6 +682,7 @@ mod tests {
             rays: vec![1.0, 1.0, 1.0, 5.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0],
             patches_hash: 7,
             layout_hash: 9,
+            preparation: 1,
         };
         let owner = units.patch_shards(3);
         assert_eq!(owner.len(), 100);
