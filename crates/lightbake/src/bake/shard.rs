@@ -628,7 +628,7 @@ impl ShardRun {
                 .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?;
             if header.count != count || header.preparation != units.preparation {
                 return Err(self.err(format!(
-                    "{} was written for {} shards of another preparation; run every shard of this one with --count {count}",
+                    "{} was written for another preparation, or as one of {} shards, not {count}: run every shard of this preparation with --count {count}",
                     path.display(),
                     header.count
                 )));
