@@ -4,6 +4,7 @@
 //! when no Vulkan driver is installed (fails instead with `LIGHTBAKE_REQUIRE_VULKAN=1`, which
 //! `.ci/run` sets after installing one).
 
+mod render_common;
 #[path = "../examples/support/mod.rs"]
 mod support;
 
@@ -12,45 +13,14 @@ use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::render::view::Msaa;
-use bevy_lightbake::capture::CapturedFrame;
 use bevy_lightbake::prelude::*;
-use bevy_lightbake::sample::sample_lightmap;
 use bevy_lightbake::spawn::spawn_scene;
 use lightbake::scene::testscenes::{CORNELL_WHITE, CornellLight, cornell_box};
+use render_common::{lightmap_at, mean_at, pixel};
 
 const W: u32 = 320;
 const H: u32 = 240;
 const EV100: f32 = 8.0;
-
-/// The pixel where the camera sees world point `p`.
-fn pixel(world: &mut World, p: Vec3) -> (u32, u32) {
-    let mut q = world.query::<(&Camera, &GlobalTransform)>();
-    let (camera, t) = q.single(world).unwrap();
-    let v = camera.world_to_viewport(t, p).unwrap();
-    (v.x as u32, v.y as u32)
-}
-
-/// Baked E/π at the surface of `entity` nearest `point`.
-fn baked_at(world: &World, entity: Entity, point: Vec3) -> Vec3 {
-    let mesh = world
-        .resource::<Assets<Mesh>>()
-        .get(&world.get::<Mesh3d>(entity).unwrap().0)
-        .unwrap();
-    let lm = world.get::<Lightmap>(entity).unwrap();
-    let image = world.resource::<Assets<Image>>().get(&lm.image).unwrap();
-    sample_lightmap(
-        mesh,
-        world.get::<GlobalTransform>(entity).unwrap(),
-        lm.uv_rect,
-        image,
-        point,
-    )
-    .unwrap()
-}
-
-fn mean_at(frame: &CapturedFrame, (x, y): (u32, u32)) -> Vec3 {
-    frame.mean_linear(x - 2, y - 2, x + 3, y + 3)
-}
 
 #[test]
 fn rendered_cornell_box_shows_the_bake() {
@@ -97,13 +67,13 @@ fn rendered_cornell_box_shows_the_bake() {
     let shadow = Vec3::new(0.064, 0.0, 0.204); // in front of the short block, light hidden
     let near_red = Vec3::new(-0.26, 0.0, -0.05);
     let middle = Vec3::new(0.0, 0.0, -0.05);
-    let lit = mean_at(&frame, pixel(world, open));
-    let dark = mean_at(&frame, pixel(world, shadow));
+    let lit = mean_at(&frame, pixel(world, open), 2);
+    let dark = mean_at(&frame, pixel(world, shadow), 2);
     assert!(lit.x > 0.1, "the open floor is lit: {lit}");
     assert!(dark.x < 0.6 * lit.x, "shadow {dark} vs open floor {lit}");
     let (r, m) = (
-        mean_at(&frame, pixel(world, near_red)),
-        mean_at(&frame, pixel(world, middle)),
+        mean_at(&frame, pixel(world, near_red), 2),
+        mean_at(&frame, pixel(world, middle), 2),
     );
     assert!(
         r.x / r.y > 1.1 * m.x / m.y,
@@ -141,11 +111,11 @@ fn rendered_cornell_box_shows_the_bake() {
                     .unwrap();
                 let d = (wall_z - ray.origin.z) / ray.direction.z;
                 let on_wall = ray.origin + d * ray.direction.as_vec3();
-                expected += baked_at(world, back, on_wall);
+                expected += lightmap_at(world, back, on_wall);
             }
         }
         let expected = Vec3::from_array(CORNELL_WHITE.to_array()) * expected / 25.0 * exposure;
-        let rendered = mean_at(&frame, (px, py));
+        let rendered = mean_at(&frame, (px, py), 2);
         assert!(
             rendered.max_element() < 0.95,
             "clipped at ({x}, {y}): {rendered}"
