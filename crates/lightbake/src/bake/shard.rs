@@ -426,14 +426,21 @@ impl ShardRun {
             .filter(|h| h.preparation == preparation)
     }
 
+    /// The header of a part file, read without its values (shards waiting for each other
+    /// look at every part several times a second).
     fn read_header(&self, path: &Path) -> Result<PartHeader> {
-        let bytes = std::fs::read(path).map_err(|source| BakeError::Read {
+        use std::io::Read;
+        let io = |source| BakeError::Read {
             path: path.to_path_buf(),
             source,
-        })?;
-        Ok(parse(&bytes)
-            .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?
-            .0)
+        };
+        let not_part = || self.err(format!("{} is not a shard part", path.display()));
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let mut prefix = [0u8; 16];
+        file.read_exact(&mut prefix).map_err(io)?;
+        let mut head = vec![0u8; header_len(&prefix).ok_or_else(not_part)?];
+        file.read_exact(&mut head).map_err(io)?;
+        serde_json::from_slice(&head).map_err(|_| not_part())
     }
 
     /// Whether a shard process stops here: after its last split stage nothing is left for it
@@ -661,12 +668,20 @@ impl ShardRun {
     }
 }
 
-/// A part file's header and values.
-fn parse(bytes: &[u8]) -> Option<(PartHeader, &[u8])> {
-    if bytes.get(..8)? != MAGIC {
+/// The length of a part file's JSON header, from its first 16 bytes (the magic, then the
+/// length); `None` for anything else.
+fn header_len(prefix: &[u8]) -> Option<usize> {
+    if prefix.get(..8)? != MAGIC {
         return None;
     }
-    let len = u64::from_le_bytes(bytes.get(8..16)?.try_into().ok()?) as usize;
+    let len = u64::from_le_bytes(prefix.get(8..16)?.try_into().ok()?);
+    // A header is a few hundred bytes; a larger length is a damaged file.
+    (len <= 1 << 20).then_some(len as usize)
+}
+
+/// A part file's header and values.
+fn parse(bytes: &[u8]) -> Option<(PartHeader, &[u8])> {
+    let len = header_len(bytes)?;
     let header: PartHeader = serde_json::from_slice(bytes.get(16..16 + len)?).ok()?;
     Some((header, &bytes[16 + len..]))
 }
