@@ -18,8 +18,8 @@ use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightbake::report::BakePlan;
 use lightbake::{
-    BakeHandle, BakeSettings, Basis, ImageFormat, LightConvention, Method, OutputFormats, Progress,
-    Quality, Sequence, SolverChoice, import_gltf,
+    BakeHandle, BakeSettings, Basis, ImageFormat, ImportOptions, LightConvention, Method,
+    OutputFormats, Progress, Quality, Sequence, SolverChoice, import_gltf_with,
 };
 
 mod plot;
@@ -193,6 +193,10 @@ struct Args {
     /// planned within what the rest of the bake leaves of it.
     #[arg(long)]
     memory_budget: Option<u64>,
+    /// Refuse a bake the plan estimates to trace more rays than this (default 10¹¹, about
+    /// three hours at 10 Mrays/s).
+    #[arg(long)]
+    max_rays: Option<u64>,
     /// Target relative RMS error (0.02 = 2%): sample counts become a pilot, and each sampling
     /// stage raises them until its own error estimate reaches its share of the target.
     #[arg(long)]
@@ -200,6 +204,11 @@ struct Args {
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
     light_convention: LightConvention,
+    /// A folder besides the scene's own that its buffer and image URIs may read from (a
+    /// shared texture library); repeat for more. Without it, URIs that lead outside the
+    /// scene's folder are refused.
+    #[arg(long, value_name = "DIR")]
+    allow_read: Vec<PathBuf>,
     /// Print the plan and exit without baking.
     #[arg(long)]
     plan_only: bool,
@@ -231,6 +240,20 @@ struct ConvergenceArgs {
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
     light_convention: LightConvention,
+    /// A folder besides the scene's own that its URIs may read from; repeat for more.
+    #[arg(long, value_name = "DIR")]
+    allow_read: Vec<PathBuf>,
+}
+
+/// How a command line's scene is read: its light convention, the folders it may read from
+/// and the memory budget.
+fn import_options(settings: &BakeSettings, allow_read: &[PathBuf]) -> ImportOptions {
+    ImportOptions {
+        light_convention: settings.light_convention,
+        allow_read: allow_read.to_vec(),
+        memory_budget_bytes: settings.memory_budget_mib.saturating_mul(1 << 20),
+        ..ImportOptions::default()
+    }
 }
 
 mod convergence {
@@ -247,8 +270,8 @@ mod convergence {
             settings.texel_density_from_scene = false;
         }
         settings.validate().map_err(|e| e.to_string())?;
-        let imported =
-            import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
+        let imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))
+            .map_err(|e| e.to_string())?;
         let size = if args.quick {
             StudySize::Quick
         } else {
@@ -281,7 +304,7 @@ mod convergence {
             csv.push('\n');
         }
         let (svg, png) = plot::render(&study)?;
-        let mut files = StagedFiles::new();
+        let mut files = StagedFiles::new(&args.output);
         let out = &args.output;
         let stage = |files: &mut StagedFiles, name: &str, bytes: &[u8]| {
             files
@@ -363,6 +386,9 @@ fn settings_from(args: &Args) -> BakeSettings {
     if let Some(v) = args.memory_budget {
         s.memory_budget_mib = v;
     }
+    if let Some(v) = args.max_rays {
+        s.max_rays = v;
+    }
     s.target_error = args.target_error;
     s.light_convention = args.light_convention;
     s
@@ -417,8 +443,8 @@ fn parse_on_off(s: &str) -> Result<bool, String> {
 fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), String> {
     let settings = settings_from(args);
     settings.validate().map_err(|e| e.to_string())?;
-    let mut imported =
-        import_gltf(&args.scene, settings.light_convention).map_err(|e| e.to_string())?;
+    let mut imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))
+        .map_err(|e| e.to_string())?;
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }
@@ -442,6 +468,7 @@ fn run(args: Args) -> Result<(), String> {
         scene.lights.len()
     );
     print!("plan:\n{}", plan.describe());
+    plan.check_rays(&settings).map_err(|e| e.to_string())?;
     if args.plan_only {
         return Ok(());
     }
@@ -643,6 +670,7 @@ mod tests {
             "--threads=1",
             "--seed=37",
             "--memory-budget=41",
+            "--max-rays=1000000000",
             "--target-error=0.05",
             "--light-convention=bevy",
         ])

@@ -51,8 +51,9 @@ struct ShardArgs {
     /// the same place relative to the work folder (for a shared volume mounted elsewhere).
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// Give up waiting for the other shards' parts after this many seconds.
-    #[arg(long, default_value_t = 86_400.0)]
+    /// Give up waiting for the other shards' parts after this many seconds (0 to 10⁷, about
+    /// 116 days).
+    #[arg(long, default_value_t = 86_400.0, value_parser = parse_timeout)]
     timeout: f64,
     /// Worker threads (0 = every core). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
@@ -75,6 +76,22 @@ struct MergeArgs {
     /// Worker threads (0 = every core). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     threads: usize,
+}
+
+/// Longest wait for the other shards, s.
+const MAX_TIMEOUT: f64 = 1e7;
+
+/// `--timeout`: a number of seconds in [0, [`MAX_TIMEOUT`]].
+fn parse_timeout(text: &str) -> Result<f64, String> {
+    let t: f64 = text
+        .parse()
+        .map_err(|e| format!("{text:?} is not a number of seconds: {e}"))?;
+    if !(0.0..=MAX_TIMEOUT).contains(&t) {
+        return Err(format!(
+            "{text} is not a number of seconds from 0 to {MAX_TIMEOUT:e}"
+        ));
+    }
+    Ok(t)
 }
 
 /// `work.json`.
@@ -179,7 +196,7 @@ fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
         scene_hash: scene_hash(&imported),
     };
     let text = serde_json::to_vec_pretty(&work).map_err(|e| e.to_string())?;
-    let mut staged = lightbake::atomic::StagedFiles::new();
+    let mut staged = lightbake::atomic::StagedFiles::new(&args.output);
     staged
         .stage(&args.output.join(WORK_FILE), &text)
         .map_err(|e| e.to_string())?;
@@ -234,7 +251,7 @@ fn reload(
     scene: Option<&Path>,
 ) -> Result<(lightbake::BakeSettings, lightbake::ImportedScene), String> {
     let path = work_dir.join(WORK_FILE);
-    let text = std::fs::read(&path).map_err(|e| {
+    let text = lightbake::scene::resources::read_regular_file(&path, 1 << 20).map_err(|e| {
         format!(
             "{}: {e} (run `bake prepare SCENE -o {}` first)",
             path.display(),
@@ -307,7 +324,7 @@ fn shard(args: ShardArgs) -> Result<(), String> {
         ));
     }
     let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
-    let wait = (!args.no_wait).then(|| Duration::from_secs_f64(args.timeout.max(0.0)));
+    let wait = (!args.no_wait).then(|| Duration::from_secs_f64(args.timeout));
     let role = Role::Shard {
         index,
         count: args.count,

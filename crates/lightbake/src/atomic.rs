@@ -1,24 +1,51 @@
-//! Writing files so that nothing already written is lost.
+//! Writing a set of files so that readers see the old set or the new one.
 //!
-//! Every output is first written in full to a temporary file, then all of them are renamed
-//! into place together ([`StagedFiles::commit`]). A bake that fails or is cancelled before the
-//! commit leaves the previous outputs untouched; a reader never sees a half-written file.
+//! Every file of a set is first written in full into a *staging folder*: a private folder
+//! (mode 0700, a random name, created exclusively by `tempfile`) in the system temporary
+//! directory when that is on the destination's file system, else beside the destination
+//! folder. Files in it are created exclusively (`O_EXCL`), so nothing planted there in
+//! advance (a link to a file elsewhere) is ever written through. A game watching its assets
+//! folder (Bevy's `file_watcher`) then sees only the final renames (`IN_MOVED_TO` → a
+//! reload), never a temporary name.
 //!
-//! Temporary files go to the system temporary directory when it is on the same file system
-//! as the destination, so a game watching its assets folder (Bevy's `file_watcher`) only sees
-//! the final rename (`IN_MOVED_TO` → a reload), never the temporary name; otherwise they are
-//! written next to the destination under a hidden name.
+//! [`StagedFiles::commit`] first writes a journal into the staging folder — the list of
+//! renames — and renames it into place there: that rename is the instant the new set is
+//! committed. Then every file is renamed over its destination (each rename replaces one file
+//! atomically), and the staging folder is removed. A bake that fails or is killed before the
+//! journal is in place leaves every old file as it was. One killed while renaming leaves a
+//! committed journal behind: [`recover`] (which every commit and every `bake` into the folder
+//! runs first) finishes its renames, so the folder holds the whole new set; a rename that
+//! fails in a live process puts the old files back instead.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{BakeError, Result};
 
-/// Files written to temporary names, waiting to be renamed into place.
-#[derive(Debug, Default)]
+/// Prefix of every staging folder's name.
+const STAGE_PREFIX: &str = ".lightbake-stage-";
+
+/// The journal that commits a staging folder's renames.
+const JOURNAL: &str = "commit.json";
+
+/// The file naming the process that owns a staging folder.
+const OWNER: &str = "owner";
+
+/// Files written into a staging folder, waiting to be renamed into place under `root`.
+#[derive(Debug)]
 pub struct StagedFiles {
+    root: PathBuf,
+    stage: Option<tempfile::TempDir>,
     staged: Vec<(PathBuf, PathBuf)>,
+}
+
+/// A committed set of renames: staged file name → destination (absolute).
+#[derive(Debug, Serialize, Deserialize)]
+struct Journal {
+    root: PathBuf,
+    renames: Vec<(String, PathBuf)>,
 }
 
 fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> BakeError + '_ {
@@ -28,195 +55,234 @@ fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> BakeError + '_ {
     }
 }
 
-fn unique_suffix() -> String {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    format!(
-        "{}-{}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    )
+/// `path` with `.` steps and inner `..` steps resolved lexically, absolute.
+fn normalized(path: &Path) -> std::io::Result<PathBuf> {
+    let abs = std::path::absolute(path)?;
+    let mut out = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    Ok(out)
 }
 
 impl StagedFiles {
-    /// No files yet.
-    pub fn new() -> Self {
-        Self::default()
+    /// No files yet; every file staged must lie under the folder `root`.
+    pub fn new(root: &Path) -> Self {
+        Self {
+            root: normalized(root).unwrap_or_else(|_| root.to_path_buf()),
+            stage: None,
+            staged: Vec::new(),
+        }
     }
 
-    /// Writes `bytes` to a temporary file destined for `path`. The directory of `path` is
-    /// created if needed.
+    /// The staging folder, made on first use (after finishing any interrupted commit into
+    /// `root`).
+    fn stage_dir(&mut self) -> Result<&Path> {
+        if self.stage.is_none() {
+            std::fs::create_dir_all(&self.root).map_err(write_err(&self.root))?;
+            recover(&self.root)?;
+            let system = std::env::temp_dir();
+            let parent = self
+                .root
+                .parent()
+                .map_or_else(|| self.root.clone(), Path::to_path_buf);
+            let place = if same_file_system(&system, &self.root) {
+                system
+            } else {
+                parent
+            };
+            let dir = tempfile::Builder::new()
+                .prefix(STAGE_PREFIX)
+                .tempdir_in(&place)
+                .map_err(write_err(&place))?;
+            let owner = dir.path().join(OWNER);
+            create_new(&owner, std::process::id().to_string().as_bytes())
+                .map_err(write_err(&owner))?;
+            self.stage = Some(dir);
+        }
+        Ok(self.stage.as_ref().expect("made above").path())
+    }
+
+    /// Writes `bytes` to a new file in the staging folder, destined for `path` (under the
+    /// root; its folder is made at the commit).
     ///
     /// # Errors
-    /// [`BakeError::Write`] naming the destination.
+    /// [`BakeError::Write`] naming the destination (also when it lies outside the root).
     pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
-        let dir = path.parent().unwrap_or(Path::new("."));
-        std::fs::create_dir_all(dir).map_err(write_err(dir))?;
-        let name = path
-            .file_name()
-            .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-        let suffix = unique_suffix();
-        // Prefer the system temp dir (outside any watched folder), if a rename can reach.
-        let system_tmp = std::env::temp_dir().join(format!(".lightbake-{suffix}-{name}"));
-        let tmp = if same_file_system(&std::env::temp_dir(), dir) {
-            system_tmp
-        } else {
-            dir.join(format!(".{name}.lightbake-{suffix}.tmp"))
-        };
-        let result = (|| -> std::io::Result<()> {
-            let mut f = std::fs::File::create(&tmp)?;
-            f.write_all(bytes)?;
-            f.sync_all()
-        })();
-        if let Err(e) = result {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(write_err(path)(e));
+        let dest = normalized(path).map_err(write_err(path))?;
+        if !dest.starts_with(&self.root) || dest == self.root {
+            return Err(write_err(path)(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("it lies outside the output folder {}", self.root.display()),
+            )));
         }
-        self.staged.push((tmp, path.to_path_buf()));
+        let name = self.staged.len().to_string();
+        let file = self.stage_dir()?.join(&name);
+        create_new(&file, bytes).map_err(write_err(path))?;
+        self.staged.push((file, dest));
         Ok(())
     }
 
-    /// Destinations staged so far.
+    /// Destinations staged so far (absolute).
     pub fn destinations(&self) -> impl Iterator<Item = &Path> {
         self.staged.iter().map(|(_, d)| d.as_path())
     }
 
-    /// Renames every staged file into place, all or nothing: each existing destination is
-    /// first linked (or copied) to a hidden name beside it, then the new files are renamed
-    /// over the destinations; if any step fails, the old files are renamed back. The kept
-    /// copies are deleted at the end.
-    ///
-    /// Every rename replaces its destination atomically, so at every instant, even if the
-    /// process is killed, each destination holds either its complete old file or its
-    /// complete new one. (A kill inside the rename loop can leave some files new and some
-    /// old; hidden `.NAME.lightbake-old-*` copies left by a killed commit are removed by the
-    /// next commit to the same directory, and so are the temporaries of killed bakes, there
-    /// and in the system temp directory, once their process is gone.)
+    /// Commits the set: the journal first, then every file renamed into place. A failure
+    /// before the journal changes nothing; a rename that fails after it puts the old files
+    /// back.
     ///
     /// # Errors
-    /// [`BakeError::Write`] naming the destination that could not be replaced (the directory
+    /// [`BakeError::Write`] naming the destination that could not be replaced (the folder
     /// is then as it was before).
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
         let staged = std::mem::take(&mut self.staged);
+        let Some(stage) = self.stage.take() else {
+            return Ok(Vec::new());
+        };
         // 1. Refuse early what a rename cannot replace.
         for (_, dest) in &staged {
             if dest.is_dir() {
-                let e = std::io::Error::new(
+                return Err(write_err(dest)(std::io::Error::new(
                     std::io::ErrorKind::IsADirectory,
                     "a directory is in the way",
-                );
-                for (t, _) in &staged {
-                    let _ = std::fs::remove_file(t);
-                }
-                return Err(write_err(dest)(e));
+                )));
+            }
+            if let Some(dir) = dest.parent() {
+                std::fs::create_dir_all(dir).map_err(write_err(dir))?;
             }
         }
-        // 2. Keep a copy of each existing file (a hard link: the destination stays in place).
+        // 2. The journal, renamed into place: the set is committed.
+        let journal = Journal {
+            root: self.root.clone(),
+            renames: staged
+                .iter()
+                .map(|(file, dest)| {
+                    let name = file.file_name().unwrap_or_default().to_string_lossy();
+                    (name.into_owned(), dest.clone())
+                })
+                .collect(),
+        };
+        let text = serde_json::to_vec(&journal).map_err(|e| BakeError::Internal {
+            message: format!("the commit journal cannot be written: {e}"),
+        })?;
+        let pending = stage.path().join("journal.tmp");
+        create_new(&pending, &text).map_err(write_err(&pending))?;
+        std::fs::rename(&pending, stage.path().join(JOURNAL)).map_err(write_err(&pending))?;
+        // 3. Keep each old file (a hard link in the staging folder) until every rename is done.
         let mut aside: Vec<(PathBuf, PathBuf)> = Vec::new();
-        for (_, dest) in &staged {
-            remove_stale_copies(dest);
-            if dest.exists() {
-                let name = dest
-                    .file_name()
-                    .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-                let old = dest.with_file_name(format!(".{name}.lightbake-old-{}", unique_suffix()));
-                let kept = std::fs::hard_link(dest, &old)
-                    .or_else(|_| std::fs::copy(dest, &old).map(|_| ()));
-                if let Err(e) = kept {
-                    restore(&aside, &[]);
-                    for (t, _) in &staged {
-                        let _ = std::fs::remove_file(t);
-                    }
-                    return Err(write_err(dest)(e));
+        for (k, (_, dest)) in staged.iter().enumerate() {
+            if dest.is_file() {
+                let old = stage.path().join(format!("old-{k}"));
+                if std::fs::hard_link(dest, &old).is_ok() {
+                    aside.push((dest.clone(), old));
                 }
-                aside.push((dest.clone(), old));
             }
         }
-        // 3. Rename the new files in.
+        // 4. Rename the new files in.
         let mut placed: Vec<PathBuf> = Vec::new();
-        for (i, (tmp, dest)) in staged.iter().enumerate() {
-            if let Err(e) = rename_or_copy(tmp, dest) {
-                for (t, _) in &staged[i..] {
-                    let _ = std::fs::remove_file(t);
-                }
+        for (file, dest) in &staged {
+            if let Err(e) = rename_or_copy(file, dest) {
                 restore(&aside, &placed);
+                let _ = std::fs::remove_file(stage.path().join(JOURNAL));
                 return Err(write_err(dest)(e));
             }
             placed.push(dest.clone());
         }
-        // 4. Drop the old copies, and temporaries that killed bakes left behind.
-        for (_, old) in aside {
-            let _ = std::fs::remove_file(old);
-        }
-        let mut dirs: Vec<PathBuf> = vec![std::env::temp_dir()];
-        for dest in &placed {
-            let dir = dest.parent().unwrap_or(Path::new("."));
-            if !dirs.iter().any(|d| d == dir) {
-                dirs.push(dir.to_path_buf());
-            }
-        }
-        for dir in dirs {
-            sweep_orphans(&dir);
-        }
+        // 5. Done: the staging folder (the journal, the old copies) goes.
+        drop(stage);
         Ok(placed)
     }
 }
 
-/// The process that made temporary `name` (`.lightbake-PID-N-NAME` in the system temp
-/// directory, `.NAME.lightbake-PID-N.tmp` or `.lightbake-PID-N.tmp` beside an output), if it
-/// is one of ours.
-fn temp_owner(name: &str) -> Option<u32> {
-    let rest = if let Some(rest) = name.strip_prefix(".lightbake-") {
-        rest
-    } else if name.starts_with('.') && name.ends_with(".tmp") {
-        &name[name.rfind(".lightbake-")? + ".lightbake-".len()..]
-    } else {
-        return None;
-    };
-    let (pid, rest) = rest.split_once('-')?;
-    // The counter follows: digits, then `-NAME` or `.tmp`.
-    let counter_end = rest.find(|c: char| !c.is_ascii_digit())?;
-    (counter_end > 0).then_some(())?;
-    pid.parse().ok()
+/// Creates `path` exclusively (never through an existing file or link) with `bytes`, synced.
+fn create_new(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut f = std::fs::File::options()
+        .write(true)
+        .create_new(true)
+        .open(path)?;
+    f.write_all(bytes)?;
+    f.sync_all()
 }
 
-/// Whether the temporary owned by process `pid` and last modified `age` ago may belong to a
-/// bake still running. It is taken as dead only when it is over ten minutes old and its
-/// process is gone (where `/proc` tells; a bake on another machine writing to a shared folder
-/// is protected by the age), or, without `/proc`, when it is over a day old.
-fn maybe_running(pid: u32, age: std::time::Duration) -> bool {
-    if pid == std::process::id() || age < std::time::Duration::from_secs(600) {
+/// Finishes or discards the staging folders left by bakes into `root` that were killed: a
+/// committed one (its journal in place) has its remaining renames done, an uncommitted one is
+/// removed once its process is gone. Staging folders of live bakes are left alone.
+///
+/// # Errors
+/// [`BakeError::Write`] when a committed rename cannot be finished.
+pub fn recover(root: &Path) -> Result<()> {
+    let root = normalized(root).map_err(write_err(root))?;
+    let mut places = vec![std::env::temp_dir()];
+    if let Some(parent) = root.parent() {
+        places.push(parent.to_path_buf());
+    }
+    for place in places {
+        let Ok(entries) = std::fs::read_dir(&place) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let name = entry.file_name();
+            if !name.to_string_lossy().starts_with(STAGE_PREFIX) {
+                continue;
+            }
+            let dir = entry.path();
+            let Ok(meta) = std::fs::symlink_metadata(&dir) else {
+                continue;
+            };
+            if !meta.is_dir() || is_alive(&dir, &meta) {
+                continue;
+            }
+            let journal: Option<Journal> = std::fs::read(dir.join(JOURNAL))
+                .ok()
+                .and_then(|t| serde_json::from_slice(&t).ok());
+            match journal {
+                Some(j) if j.root == root => {
+                    for (name, dest) in &j.renames {
+                        let file = dir.join(name);
+                        if file.exists() && dest.starts_with(&root) {
+                            rename_or_copy(&file, dest).map_err(write_err(dest))?;
+                        }
+                    }
+                    let _ = std::fs::remove_dir_all(&dir);
+                }
+                // Another folder's commit: its own next bake finishes it.
+                Some(_) => {}
+                None => {
+                    let _ = std::fs::remove_dir_all(&dir);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether the staging folder `dir` may belong to a bake still running: its owner's process
+/// exists (where `/proc` tells), or it is younger than ten minutes (a bake on another machine
+/// writing to a shared folder), or, without `/proc`, younger than a day.
+fn is_alive(dir: &Path, meta: &std::fs::Metadata) -> bool {
+    let age = meta
+        .modified()
+        .ok()
+        .and_then(|m| m.elapsed().ok())
+        .unwrap_or_default();
+    let pid: Option<u32> = std::fs::read_to_string(dir.join(OWNER))
+        .ok()
+        .and_then(|t| t.trim().parse().ok());
+    if pid == Some(std::process::id()) || age < std::time::Duration::from_secs(600) {
         return true;
     }
     let proc = Path::new("/proc");
     if proc.join("self").exists() {
-        return proc.join(pid.to_string()).exists();
+        return pid.is_some_and(|p| proc.join(p.to_string()).exists());
     }
     age < std::time::Duration::from_secs(24 * 3600)
-}
-
-/// Removes the temporaries in `dir` whose bake was killed before it could delete them (see
-/// [`temp_owner`] and [`maybe_running`]).
-fn sweep_orphans(dir: &Path) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(pid) = temp_owner(&name.to_string_lossy()) else {
-            continue;
-        };
-        let Ok(meta) = entry.metadata() else {
-            continue;
-        };
-        let age = meta
-            .modified()
-            .ok()
-            .and_then(|m| m.elapsed().ok())
-            .unwrap_or_default();
-        if meta.is_file() && !maybe_running(pid, age) {
-            let _ = std::fs::remove_file(entry.path());
-        }
-    }
 }
 
 /// Undoes a partial commit: puts the old files back over the new ones (atomically) and
@@ -229,54 +295,24 @@ fn restore(aside: &[(PathBuf, PathBuf)], placed: &[PathBuf]) {
     }
     for (dest, old) in aside {
         let _ = std::fs::rename(old, dest);
-        // A rename between two links of one file does nothing (POSIX): the destination was
-        // never replaced, and the copy is dropped here.
-        let _ = std::fs::remove_file(old);
     }
 }
 
-/// Removes hidden copies of `dest` kept by an earlier commit that was killed before it could
-/// delete them (`.NAME.lightbake-old-*` beside it).
-fn remove_stale_copies(dest: &Path) {
-    let (Some(dir), Some(name)) = (dest.parent(), dest.file_name()) else {
-        return;
-    };
-    let prefix = format!(".{}.lightbake-old-", name.to_string_lossy());
-    let dir = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
-    };
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        if entry.file_name().to_string_lossy().starts_with(&prefix) {
-            let _ = std::fs::remove_file(entry.path());
-        }
-    }
-}
-
-impl Drop for StagedFiles {
-    /// Uncommitted temporaries are removed (a failed or cancelled bake leaves nothing behind).
-    fn drop(&mut self) {
-        for (tmp, _) in self.staged.drain(..) {
-            let _ = std::fs::remove_file(tmp);
-        }
-    }
-}
-
-/// Rename, falling back to copy-then-rename within the destination directory when the
-/// temporary is on another file system after all.
-fn rename_or_copy(tmp: &Path, dest: &Path) -> std::io::Result<()> {
-    match std::fs::rename(tmp, dest) {
+/// Rename, falling back to copy-then-rename within the destination's folder when the staging
+/// folder is on another file system after all.
+fn rename_or_copy(from: &Path, dest: &Path) -> std::io::Result<()> {
+    match std::fs::rename(from, dest) {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::CrossesDevices => {
             let dir = dest.parent().unwrap_or(Path::new("."));
-            let local = dir.join(format!(".lightbake-{}.tmp", unique_suffix()));
-            std::fs::copy(tmp, &local)?;
-            std::fs::remove_file(tmp)?;
-            std::fs::rename(&local, dest)
+            let local = tempfile::Builder::new()
+                .prefix(STAGE_PREFIX)
+                .tempfile_in(dir)?;
+            let mut src = std::fs::File::open(from)?;
+            std::io::copy(&mut src, &mut local.as_file())?;
+            local.as_file().sync_all()?;
+            local.persist(dest).map_err(|e| e.error)?;
+            std::fs::remove_file(from)
         }
         Err(e) => Err(e),
     }
@@ -300,48 +336,13 @@ fn same_file_system(_a: &Path, _b: &Path) -> bool {
 mod tests {
     use super::*;
 
-    #[test]
-    fn temporaries_of_dead_bakes_are_swept_and_live_ones_kept() {
-        assert_eq!(temp_owner(".lightbake-123-4-lightmap_0.exr"), Some(123));
-        assert_eq!(temp_owner(".scene.gltf.lightbake-77-0.tmp"), Some(77));
-        assert_eq!(temp_owner(".lightbake-9-12.tmp"), Some(9));
-        assert_eq!(temp_owner(".scene.gltf.lightbake-old-77-0"), None);
-        assert_eq!(temp_owner("lightbake-1-2-x"), None);
-        assert_eq!(temp_owner("notes.tmp"), None);
-        let dir = std::env::temp_dir().join(format!("lightbake-sweep-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        // No process has this id (Linux's pid_max is at most 2²²).
-        let dead = u32::MAX - 1;
-        let me = std::process::id();
-        let files = [
-            (format!(".out.exr.lightbake-{dead}-0.tmp"), false),
-            (format!(".lightbake-{dead}-3-out.exr"), false),
-            (format!(".out.exr.lightbake-{me}-0.tmp"), true),
-            ("keep.tmp".to_string(), true),
-        ];
-        let two_hours_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
-        for (name, _) in &files {
-            std::fs::write(dir.join(name), b"x").unwrap();
-            let f = std::fs::File::options()
-                .write(true)
-                .open(dir.join(name))
-                .unwrap();
-            f.set_modified(two_hours_ago).unwrap();
-        }
-        // A fresh temporary of a dead process may be a bake on another machine: kept.
-        let fresh = format!(".lightbake-{}-5-out.exr", u32::MAX - 1);
-        std::fs::write(dir.join(&fresh), b"x").unwrap();
-        let mut staged = StagedFiles::new();
-        staged.stage(&dir.join("out.exr"), b"new").unwrap();
-        staged.commit().unwrap();
-        for (name, kept) in &files {
-            // Without /proc only day-old files count as dead.
-            let expect = *kept || !Path::new("/proc/self").exists();
-            assert_eq!(dir.join(name).exists(), expect, "{name}");
-        }
-        assert!(dir.join(&fresh).exists());
-        assert_eq!(std::fs::read(dir.join("out.exr")).unwrap(), b"new");
-        std::fs::remove_dir_all(&dir).unwrap();
+    /// Names in `dir` that are ours (staging folders).
+    fn ours(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(STAGE_PREFIX))
+            .collect()
     }
 
     #[test]
@@ -349,34 +350,25 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let a = dir.path().join("a.txt");
         std::fs::write(&a, b"old").unwrap();
+        let staging;
         {
-            let mut s = StagedFiles::new();
+            let mut s = StagedFiles::new(dir.path());
             s.stage(&a, b"new").unwrap();
             s.stage(&dir.path().join("sub/b.txt"), b"b").unwrap();
+            staging = s.stage.as_ref().unwrap().path().to_path_buf();
+            assert!(staging.is_dir());
             assert_eq!(std::fs::read(&a).unwrap(), b"old");
             // dropped without commit
         }
+        assert!(!staging.exists());
         assert_eq!(std::fs::read(&a).unwrap(), b"old");
         assert!(!dir.path().join("sub/b.txt").exists());
-        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .filter_map(|e| e.ok())
-            .filter(|e| e.file_name().to_string_lossy().contains("lightbake"))
-            .collect();
-        assert!(leftovers.is_empty());
-
-        let mut s = StagedFiles::new();
+        let mut s = StagedFiles::new(dir.path());
         s.stage(&a, b"new").unwrap();
         let written = s.commit().unwrap();
-        assert_eq!(written, vec![a.clone()]);
+        assert_eq!(written, vec![normalized(&a).unwrap()]);
         assert_eq!(std::fs::read(&a).unwrap(), b"new");
-        // No set-aside copies are left behind.
-        assert!(std::fs::read_dir(dir.path()).unwrap().all(|e| {
-            !e.unwrap()
-                .file_name()
-                .to_string_lossy()
-                .contains("lightbake")
-        }));
+        assert!(ours(dir.path()).is_empty());
     }
 
     #[test]
@@ -385,26 +377,89 @@ mod tests {
         let (a, b, c) = (
             dir.path().join("a"),
             dir.path().join("b"),
-            dir.path().join("c"),
+            dir.path().join("c/d"),
         );
         std::fs::write(&a, b"old a").unwrap();
         std::fs::write(&b, b"old b").unwrap();
-        let mut s = StagedFiles::new();
+        let mut s = StagedFiles::new(dir.path());
         s.stage(&a, b"new a").unwrap();
         s.stage(&b, b"new b").unwrap();
         s.stage(&c, b"new c").unwrap();
-        // Make the last rename fail: a non-empty directory where `c` goes.
-        std::fs::create_dir(&c).unwrap();
-        std::fs::write(c.join("x"), b"").unwrap();
+        // Make the last rename fail: a non-empty directory where `c/d` goes.
+        std::fs::create_dir_all(c.join("x")).unwrap();
         assert!(s.commit().is_err());
         assert_eq!(std::fs::read(&a).unwrap(), b"old a");
         assert_eq!(std::fs::read(&b).unwrap(), b"old b");
         assert!(c.is_dir());
-        let names: Vec<String> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        assert_eq!(names.len(), 3, "{names:?}");
+    }
+
+    #[test]
+    fn a_commit_killed_while_renaming_is_finished_by_the_next() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir_all(&out).unwrap();
+        for f in ["a", "b", "c"] {
+            std::fs::write(out.join(f), b"old").unwrap();
+        }
+        // A dead bake's staging folder beside the output: journal written, one of three
+        // files renamed.
+        let stage = dir.path().join(format!("{STAGE_PREFIX}dead"));
+        std::fs::create_dir_all(&stage).unwrap();
+        std::fs::write(stage.join(OWNER), (u32::MAX - 1).to_string()).unwrap();
+        for (k, f) in ["a", "b", "c"].iter().enumerate() {
+            std::fs::write(stage.join(k.to_string()), format!("new {f}")).unwrap();
+        }
+        let root = normalized(&out).unwrap();
+        let journal = Journal {
+            root: root.clone(),
+            renames: ["a", "b", "c"]
+                .iter()
+                .enumerate()
+                .map(|(k, f)| (k.to_string(), root.join(f)))
+                .collect(),
+        };
+        std::fs::write(stage.join(JOURNAL), serde_json::to_vec(&journal).unwrap()).unwrap();
+        std::fs::rename(stage.join("0"), out.join("a")).unwrap();
+        // An uncommitted staging folder of a dead bake, and one of a live bake.
+        let dead = dir.path().join(format!("{STAGE_PREFIX}uncommitted"));
+        std::fs::create_dir_all(&dead).unwrap();
+        std::fs::write(dead.join(OWNER), (u32::MAX - 1).to_string()).unwrap();
+        let live = dir.path().join(format!("{STAGE_PREFIX}live"));
+        std::fs::create_dir_all(&live).unwrap();
+        std::fs::write(live.join(OWNER), std::process::id().to_string()).unwrap();
+        let two_hours_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
+        for d in [&stage, &dead, &live] {
+            std::fs::File::open(d)
+                .unwrap()
+                .set_modified(two_hours_ago)
+                .unwrap();
+        }
+        recover(&out).unwrap();
+        for f in ["a", "b", "c"] {
+            assert_eq!(
+                std::fs::read_to_string(out.join(f)).unwrap(),
+                format!("new {f}")
+            );
+        }
+        assert!(!stage.exists());
+        assert_eq!(!dead.exists(), Path::new("/proc/self").exists());
+        assert!(live.exists());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn files_outside_the_root_and_planted_names_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let mut s = StagedFiles::new(&out);
+        assert!(s.stage(&dir.path().join("x"), b"y").is_err());
+        assert!(s.stage(&out.join("../x"), b"y").is_err());
+        s.stage(&out.join("ok"), b"y").unwrap();
+        // A file planted under the next staged name is not written through.
+        let stage = s.stage.as_ref().unwrap().path().to_path_buf();
+        std::os::unix::fs::symlink(dir.path().join("victim"), stage.join("1")).unwrap();
+        assert!(s.stage(&out.join("next"), b"z").is_err());
+        assert!(!dir.path().join("victim").exists());
     }
 
     #[test]
@@ -412,8 +467,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let blocker = dir.path().join("file");
         std::fs::write(&blocker, b"x").unwrap();
-        let mut s = StagedFiles::new();
-        let err = s.stage(&blocker.join("inside.txt"), b"y").unwrap_err();
+        let mut s = StagedFiles::new(dir.path());
+        s.stage(&blocker.join("inside.txt"), b"y").unwrap();
+        let err = s.commit().unwrap_err();
         assert!(err.to_string().contains("file"), "{err}");
     }
 }

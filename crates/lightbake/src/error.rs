@@ -164,6 +164,18 @@ pub enum BakeError {
         /// The largest items of the estimate.
         breakdown: String,
     },
+    /// The bake would trace more rays than allowed.
+    #[error(
+        "the bake would trace an estimated {estimated:.2e} rays ({breakdown}), more than the ray budget of {budget:e} (--max-rays); lower the sample counts or the texel density, or raise the budget"
+    )]
+    OverRayBudget {
+        /// Estimated rays.
+        estimated: f64,
+        /// The budget.
+        budget: u64,
+        /// What drives the estimate.
+        breakdown: String,
+    },
     /// xatlas could not unwrap a mesh.
     #[error("mesh '{mesh}': lightmap unwrap failed: {message}")]
     Unwrap {
@@ -171,6 +183,15 @@ pub enum BakeError {
         mesh: String,
         /// What went wrong.
         message: String,
+    },
+    /// The output would replace a file the bake read (`-o` onto the scene's own folder, or
+    /// an output named like one of its inputs).
+    #[error("{output}: the bake would overwrite its input {input}; write it to another folder")]
+    OverwritesInput {
+        /// The output folder or file.
+        output: PathBuf,
+        /// The input (the scene's folder, the scene file, a buffer or an image).
+        input: PathBuf,
     },
     /// An image could not be encoded.
     #[error("cannot encode {path}: {message}")]

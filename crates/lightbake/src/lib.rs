@@ -100,7 +100,9 @@ pub use plan::texel_density as chosen_texel_density;
 pub use progress::{Progress, ProgressSnapshot};
 pub use report::BakeReport;
 pub use scene::Scene;
-pub use scene::gltf_import::{GltfSource, ImportedScene, import_gltf};
+pub use scene::gltf_import::{
+    GltfSource, ImportOptions, ImportedScene, import_gltf, import_gltf_with,
+};
 pub use settings::{
     BakeSettings, Basis, ImageFormat, LightConvention, Method, OutputFormats, Quality, Sequence,
     SolverChoice,

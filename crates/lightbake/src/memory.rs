@@ -175,8 +175,7 @@ pub fn covered_texels(unwrap: &MeshUnwrap) -> f64 {
 
 /// This process's peak resident memory so far (`VmHWM` in `/proc/self/status`), bytes; `None`
 /// where the system has no such file. The benches and `tests/memory.rs` compare it with the
-/// plan.
-#[cfg(feature = "internals")]
+/// plan, and the report records it.
 pub fn peak_resident_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let kib: u64 = status

@@ -65,6 +65,11 @@ pub struct BakePlan {
     pub sky: bool,
     /// No light at all: the lightmaps are black.
     pub nothing_to_bake: bool,
+    /// Texels the baked surfaces cover at the density, estimated from their area.
+    pub estimated_texels: f64,
+    /// Rays the bake is estimated to trace (validity, direct light, sky, the indirect pass,
+    /// the volume's probes), an order-of-magnitude figure for refusing what cannot finish.
+    pub estimated_rays: f64,
     /// Per instance, the indices of the lights evaluated for it.
     #[serde(skip)]
     lights_per_instance: Vec<Vec<u32>>,
@@ -109,7 +114,11 @@ impl BakePlan {
         stages.extend(facts.light_stages());
         stages.push(facts.indirect_stage());
         stages.extend(facts.output_stages());
+        let estimated_texels = covered_area(scene) * (texel_density as f64).powi(2);
+        let estimated_rays = estimated_texels * facts.rays_per_texel() + facts.volume_rays(estimated_texels);
         Self {
+            estimated_texels,
+            estimated_rays,
             texel_density,
             texel_density_source,
             meshes_to_unwrap: unwrapping,
@@ -121,6 +130,26 @@ impl BakePlan {
             nothing_to_bake,
             lights_per_instance,
         }
+    }
+
+    /// Refuses a bake estimated to trace more than `settings.max_rays` rays.
+    ///
+    /// # Errors
+    /// [`crate::BakeError::OverRayBudget`] with the estimate and what drives it.
+    pub fn check_rays(&self, settings: &BakeSettings) -> crate::Result<()> {
+        if self.estimated_rays > settings.max_rays as f64 {
+            return Err(crate::BakeError::OverRayBudget {
+                estimated: self.estimated_rays,
+                budget: settings.max_rays,
+                breakdown: format!(
+                    "about {:.3e} texels at {} texels/m, {:.0} rays each",
+                    self.estimated_texels,
+                    density_text(self.texel_density),
+                    self.estimated_rays / self.estimated_texels.max(1.0)
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// Indices of the lights to evaluate for instance `i`.
@@ -151,9 +180,11 @@ impl BakePlan {
     /// A human-readable plan, one line per stage and per skipped light.
     pub fn describe(&self) -> String {
         let mut s = format!(
-            "texel density {} texels/m (from {})\n",
+            "texel density {} texels/m (from {}); about {:.3e} texels and {:.2e} rays\n",
             density_text(self.texel_density),
-            self.texel_density_source
+            self.texel_density_source,
+            self.estimated_texels,
+            self.estimated_rays
         );
         if self.nothing_to_bake {
             s.push_str("NOTHING TO BAKE: no light reaches the scene, nothing is emissive and the sky is black; the lightmaps will be black.\n");
@@ -224,6 +255,20 @@ pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
             format_area(area)
         ),
     )
+}
+
+/// The baked surfaces' area, each instance's weighted by its density scale squared, m².
+fn covered_area(scene: &Scene) -> f64 {
+    scene
+        .instances
+        .iter()
+        .enumerate()
+        .filter(|(_, inst)| inst.bake)
+        .map(|(i, inst)| {
+            let scale = inst.texel_density_scale as f64;
+            scene.instance_area(i) as f64 * scale * scale
+        })
+        .sum()
 }
 
 /// A density to four significant digits (whole numbers as they are).
@@ -328,6 +373,50 @@ struct Facts<'a> {
     sky: bool,
     /// Something is lit: the lighting stages run.
     work: bool,
+}
+
+impl Facts<'_> {
+    /// Rays per covered texel, roughly: the validity pass's, direct samples for every light
+    /// that reaches a baked instance (emissive surfaces as one more), sky rays, and the
+    /// indirect pass's gathers (radiosity's final gather and correction and its coarse
+    /// level's share; instant radiosity's shadow rays, about two VPLs per particle).
+    fn rays_per_texel(&self) -> f64 {
+        let s = self.settings;
+        if !self.work {
+            return 16.0;
+        }
+        let lights = self.lights as f64 + if self.area_lights { 1.0 } else { 0.0 };
+        let direct = s.samples_per_texel as f64 * lights;
+        let sky = if self.sky { s.sky_samples as f64 } else { 0.0 };
+        let cluster = (s.cluster_texels as f64).powi(2);
+        let indirect = match s.method {
+            Method::Direct => 0.0,
+            Method::Radiosity => 1.5 * s.transport_rays as f64 + 4.0 * s.cluster_rays as f64 / cluster,
+            Method::Vpl | Method::Hybrid => {
+                2.0 * s.vpl_particles as f64
+                    + if s.vpl_bias_compensation {
+                        s.vpl_compensation_rays as f64
+                    } else {
+                        0.0
+                    }
+            }
+        };
+        16.0 + direct + sky + indirect
+    }
+
+    /// The irradiance volume's rays: at most 65 536 probes by default (2²⁰ with an explicit
+    /// spacing), each with its rays and a quarter as many emitter samples.
+    fn volume_rays(&self, texels: f64) -> f64 {
+        let s = self.settings;
+        if !(s.irradiance_volume && self.work) {
+            return 0.0;
+        }
+        let probes = match s.probe_spacing {
+            None => 65_536f64.min(texels.max(1.0)),
+            Some(_) => (1u64 << 20) as f64,
+        };
+        probes * 1.25 * s.probe_rays as f64
+    }
 }
 
 fn stage(name: &str, run: bool, reason: String) -> PlannedStage {

@@ -147,6 +147,10 @@ pub struct BakeReport {
     pub warnings: Vec<String>,
     /// Wall time of the whole bake (writing excluded), seconds.
     pub total_seconds: f64,
+    /// The process's peak resident memory when the bake ended, MiB (`VmHWM`; none where the
+    /// system does not say).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_resident_mib: Option<f64>,
     /// Files written, relative to the output directory (filled in by the writer).
     pub outputs: Vec<String>,
 }
@@ -207,7 +211,7 @@ impl BakeReport {
         }
         let rays = self.total_rays();
         s.push_str(&format!(
-            "{:<14} {:>8.3}s {:>12} {:>8} {:>8}  {} threads\n",
+            "{:<14} {:>8.3}s {:>12} {:>8} {:>8}  {} threads{}\n",
             "total",
             self.total_seconds,
             rays,
@@ -217,7 +221,10 @@ impl BakeReport {
                 "-".into()
             },
             pct(&self.error),
-            self.threads
+            self.threads,
+            self.peak_resident_mib
+                .map(|m| format!(", peak memory {m:.0} MiB"))
+                .unwrap_or_default()
         ));
         if let Some(e) = &self.error {
             s.push_str(&format!(

@@ -316,6 +316,10 @@ pub struct BakeSettings {
     /// Refuse a bake whose estimated memory exceeds this many MiB; the transport matrix and
     /// the solver are planned within what the rest of the bake leaves of it. Default 8192.
     pub memory_budget_mib: u64,
+    /// Refuse a bake the plan estimates to trace more rays than this
+    /// ([`crate::report::BakePlan`]'s estimate: texels × rays per texel, probes × rays per
+    /// probe). Range 10⁶..=10¹⁵. Default 10¹¹ (about three hours at 10 Mrays/s).
+    pub max_rays: u64,
     /// Target relative RMS error of the lightmap (e.g. 0.02 for 2%; see
     /// [`crate::error_estimate`]). When set, the sample counts above become the pilot: each
     /// Monte Carlo stage measures its own error, predicts the count that reaches its share of
@@ -397,6 +401,7 @@ impl BakeSettings {
             seed: 0,
             threads: 0,
             memory_budget_mib: 8192,
+            max_rays: 100_000_000_000,
             target_error: None,
             formats: OutputFormats::default(),
             light_convention: LightConvention::GltfSpec,
@@ -563,6 +568,9 @@ impl BakeSettings {
         }
         if !(1..=65_536).contains(&self.probe_rays) {
             return Err(bad("probe_rays", self.probe_rays, "must be 1..=65536"));
+        }
+        if !(1_000_000..=1_000_000_000_000_000).contains(&self.max_rays) {
+            return Err(bad("max_rays", self.max_rays, "must be 10⁶..=10¹⁵ rays"));
         }
         if self.memory_budget_mib == 0 {
             return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));

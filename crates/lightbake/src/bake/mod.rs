@@ -143,8 +143,21 @@ fn bake_with(
             ),
         });
     }
+    // More workers than cores only add contention (and 10⁵ of them would take the machine's
+    // thread limit): clamped, with a warning.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut notes = Vec::new();
+    let threads = if settings.threads > cores {
+        notes.push(format!(
+            "threads = {} is more than the machine's {cores} cores; the bake uses {cores}",
+            settings.threads
+        ));
+        cores
+    } else {
+        settings.threads
+    };
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.threads)
+        .num_threads(threads)
         .build()
         .map_err(|e| BakeError::BadSetting {
             name: "threads",
@@ -159,6 +172,7 @@ fn bake_with(
             previews,
             shards,
             pool.current_num_threads(),
+            notes,
         )
     })
 }
@@ -200,10 +214,12 @@ fn bake_in_pool(
     previews: &PreviewSlot,
     shards: Option<&ShardRun>,
     threads: usize,
+    notes: Vec<String>,
 ) -> Result<BakeOutput> {
     let start = Instant::now();
     let mut stages = Stages::new(progress, previews, shards);
     let mut warnings = scene.warnings.clone();
+    warnings.extend(notes);
 
     // Plan, and refuse early when the texel count alone would not fit.
     let mut plan = stages.run("plan", 1, || {
@@ -212,6 +228,7 @@ fn bake_in_pool(
         Ok((plan, 0, note))
     })?;
     memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;
+    plan.check_rays(settings)?;
 
     let layout = stages.run("unwrap", scene.meshes.len() as u64, || {
         let layout = unwrap_scene(scene, settings, plan.texel_density)?;
@@ -319,6 +336,7 @@ fn bake_in_pool(
         error: lit.error,
         floor,
         total_seconds,
+        peak_resident_mib: memory::peak_resident_bytes().map(|b| b as f64 / 1048576.0),
         outputs: Vec::new(),
     };
     Ok(BakeOutput {
@@ -371,7 +389,7 @@ fn light_scene(
     let patches = match reader {
         // A shard or the merge of a split bake reads prepare's patches.
         Some(run) => stages.run("patches", 1, || {
-            let p = run.read_prepared(layout)?;
+            let p = run.read_prepared(layout, rays.triangles.len(), scene.instances.len())?;
             let note = format!(
                 "{} texel patches, read from the work folder",
                 p.patches.len()

@@ -221,6 +221,33 @@ impl Units {
         }
     }
 
+    /// Checks units read from a file against the patches they cut: at least one unit, starts
+    /// rising strictly from 0 to `patches`, one ray estimate per unit, finite and non-negative.
+    ///
+    /// # Errors
+    /// The first violation.
+    pub fn check(&self, patches: usize) -> std::result::Result<(), String> {
+        let units = self.rays.len();
+        if units == 0 || units > UNITS || self.starts.len() != units + 1 {
+            return Err(format!(
+                "{} starts for {units} units (at most {UNITS})",
+                self.starts.len()
+            ));
+        }
+        if self.starts[0] != 0 || *self.starts.last().unwrap_or(&0) as usize != patches {
+            return Err(format!(
+                "the units do not run from patch 0 to patch {patches}"
+            ));
+        }
+        if self.starts.windows(2).any(|w| w[0] >= w[1]) && patches > 0 {
+            return Err("the units' starts do not rise".into());
+        }
+        if self.rays.iter().any(|r| !(r.is_finite() && *r >= 0.0)) {
+            return Err("a unit's ray estimate is not a finite number".into());
+        }
+        Ok(())
+    }
+
     /// The shard of every patch, for `count` shards: unit `u` goes to shard `u mod count`,
     /// so every shard gets units from all over the atlas, and the stages whose costs vary
     /// differently over it (direct light near many lights, gathers near geometry) are each
@@ -349,7 +376,7 @@ impl ShardRun {
     pub(super) fn prepared(&self, mut units: Units, patches: &Patches) -> Result<()> {
         units.preparation = preparation_id(&units);
         let text = serde_json::to_vec(&units).map_err(|e| self.err(e.to_string()))?;
-        let mut staged = StagedFiles::new();
+        let mut staged = StagedFiles::new(&self.dir);
         staged.stage(&self.dir.join(PATCHES_FILE), &patches.to_bytes())?;
         staged.stage(&self.dir.join(UNITS_FILE), &text)?;
         staged.commit()?;
@@ -370,22 +397,41 @@ impl ShardRun {
     }
 
     /// Prepare's patches, read from the work folder after checking that `layout` (derived
-    /// again here) is prepare's.
-    pub(super) fn read_prepared(&self, layout: &Layout) -> Result<Patches> {
-        let read = |name: &str| {
+    /// again here, over `triangles` ray triangles and `instances` instances) is prepare's,
+    /// and that the files agree with it and with each other.
+    pub(super) fn read_prepared(
+        &self,
+        layout: &Layout,
+        triangles: usize,
+        instances: usize,
+    ) -> Result<Patches> {
+        let read = |name: &str, limit: u64| {
             let path = self.dir.join(name);
-            std::fs::read(&path).map_err(|source| BakeError::Read { path, source })
+            crate::scene::resources::read_regular_file(&path, limit).map_err(|message| {
+                BakeError::Read {
+                    path,
+                    source: std::io::Error::other(message),
+                }
+            })
         };
-        let units: Units = serde_json::from_slice(&read(UNITS_FILE)?)
+        let units: Units = serde_json::from_slice(&read(UNITS_FILE, 1 << 20)?)
             .map_err(|e| self.err(format!("{UNITS_FILE}: {e}")))?;
         if units.layout_hash != layout_hash(layout) {
             return Err(self.err(
                 "this process's lightmap layout differs from prepare's: the scene, the settings or the baker changed since `bake prepare`; prepare again".into(),
             ));
         }
-        let patches = Patches::from_bytes(&read(PATCHES_FILE)?)
+        // At most 84 bytes a texel of the layout, its footprints and its page index.
+        let limit = 256 * layout.page_texels() + (1 << 20);
+        let patches = Patches::from_bytes(&read(PATCHES_FILE, limit)?)
             .filter(|p| patches_hash(p) == units.patches_hash)
             .ok_or_else(|| self.err(format!("{PATCHES_FILE} is damaged or not prepare's")))?;
+        patches
+            .check(layout, triangles, instances)
+            .map_err(|e| self.err(format!("{PATCHES_FILE} is damaged: {e}")))?;
+        units
+            .check(patches.patches.len())
+            .map_err(|e| self.err(format!("{UNITS_FILE} is damaged: {e}")))?;
         *self.units.lock().unwrap_or_else(|e| e.into_inner()) = Some(units);
         Ok(patches)
     }
@@ -435,7 +481,8 @@ impl ShardRun {
             source,
         };
         let not_part = || self.err(format!("{} is not a shard part", path.display()));
-        let mut file = std::fs::File::open(path).map_err(io)?;
+        let (mut file, _) = crate::scene::resources::open_regular_file(path)
+            .map_err(|m| io(std::io::Error::other(m)))?;
         let mut prefix = [0u8; 16];
         file.read_exact(&mut prefix).map_err(io)?;
         let mut head = vec![0u8; header_len(&prefix).ok_or_else(not_part)?];
@@ -477,6 +524,12 @@ impl ShardRun {
             return Err(self.err("the work units are not known yet".into()));
         };
         let count = self.shard_count(stage)?;
+        if count == 0 || count as usize > units.rays.len() {
+            return Err(self.err(format!(
+                "a split into {count} shards, but the work folder has {} work units: run at most that many shards (--count)",
+                units.rays.len()
+            )));
+        }
         let owner = units.patch_shards(count);
         let shard_of = |i: usize| owner[patch(i)];
         if let Role::Shard { index, wait, .. } = self.role {
@@ -602,7 +655,7 @@ impl ShardRun {
         for (v, _) in values.iter().zip(mask).filter(|(_, m)| **m) {
             v.put(&mut bytes);
         }
-        let mut staged = StagedFiles::new();
+        let mut staged = StagedFiles::new(path.parent().unwrap_or(&self.dir));
         staged.stage(path, &bytes)?;
         staged.commit()?;
         Ok(())
@@ -627,9 +680,12 @@ impl ShardRun {
         let mut parts = Vec::new();
         for s in 0..count {
             let path = self.part_path(s, stage);
-            let bytes = std::fs::read(&path).map_err(|source| BakeError::Read {
-                path: path.clone(),
-                source,
+            let limit = (16 + (1 << 20) + items * T::BYTES) as u64;
+            let bytes = crate::scene::resources::read_regular_file(&path, limit).map_err(|m| {
+                BakeError::Read {
+                    path: path.clone(),
+                    source: std::io::Error::other(m),
+                }
             })?;
             let (header, data) = parse(&bytes)
                 .ok_or_else(|| self.err(format!("{} is not a shard part", path.display())))?;

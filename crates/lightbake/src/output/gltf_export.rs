@@ -9,7 +9,7 @@
 //! next to a `.gltf`, or the `BIN` chunk of a `.glb`. External images are copied next to a
 //! `.gltf` output, or embedded in a `.glb`.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
@@ -21,6 +21,7 @@ use crate::scene::extras::{
 use crate::scene::glb::glb;
 use crate::scene::gltf_accessor::read_dense;
 use crate::scene::gltf_import::GltfSource;
+use crate::scene::resources::{percent_decode, percent_encode_path, used_buffer_views};
 use crate::scene::{GltfPrimitiveRef, Scene};
 use crate::unwrap::{Layout, MeshUnwrap};
 
@@ -70,31 +71,16 @@ fn ensure_array(json: &mut Value, key: &str) {
     }
 }
 
-/// Percent-decodes a relative URI (`%20` → space).
-fn decode_uri(uri: &str) -> String {
-    let bytes = uri.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' && i + 2 < bytes.len() {
-            if let Ok(v) = u8::from_str_radix(&uri[i + 1..i + 3], 16) {
-                out.push(v);
-                i += 3;
-                continue;
-            }
-        }
-        out.push(bytes[i]);
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
 /// Builds the baked glTF. `lightmaps` lists (node, lightmap) for every baked primitive;
-/// `stem` is the output file name without extension.
+/// `stem` is the output file name without extension; `reserved` names the other files of
+/// the output folder (relative, `/`-separated), which copied images never replace.
+///
+/// Only bytes the import read go out: the buffer views in use (not whole buffers), and the
+/// image files the import read under its read rule.
 ///
 /// # Errors
-/// [`BakeError::BadAccessor`] / [`BakeError::BadGltf`] if the source cannot be re-read,
-/// [`BakeError::Read`] for an external image that cannot be copied.
+/// [`BakeError::BadAccessor`] / [`BakeError::BadGltf`] if the source cannot be re-read or a
+/// buffer view in use lies outside its buffer.
 pub fn baked_gltf(
     source: &GltfSource,
     original: &Scene,
@@ -102,6 +88,7 @@ pub fn baked_gltf(
     lightmaps: &[(usize, NodeLightmap)],
     volumes: &[VolumeExtras],
     stem: &str,
+    reserved: &[String],
 ) -> Result<BakedGltf> {
     let path = &source.path;
     let mut json = source.json.clone();
@@ -111,8 +98,8 @@ pub fn baked_gltf(
     for key in ["buffers", "bufferViews", "accessors"] {
         ensure_array(&mut json, key);
     }
-    // 1. Every buffer merged into one blob, the views pointed at it.
-    let mut blob = merge_buffers(&mut json, &source.buffers);
+    // 1. The buffer views in use copied into one blob, the others dropped.
+    let mut blob = merge_buffers(&mut json, &source.buffers).map_err(|m| err(path, m))?;
     // 2. Unwrapped primitives rewritten.
     for (m, unwrap) in layout.meshes.iter().enumerate() {
         let (Some(unwrap), Some(src)) = (unwrap, original.meshes[m].source) else {
@@ -143,7 +130,11 @@ pub fn baked_gltf(
     write_scene_volumes(&mut json, volumes);
     mark_lights_baked(&mut json, original);
     // 5. Images copied (gltf) or embedded (glb), then one buffer and the container.
-    let mut files = images(&mut json, &mut blob, source)?;
+    let mut taken: HashSet<String> = reserved.iter().map(|r| r.to_lowercase()).collect();
+    for ext in ["gltf", "glb", "bin"] {
+        taken.insert(format!("{stem}.{ext}").to_lowercase());
+    }
+    let mut files = images(&mut json, &mut blob, source, &mut taken);
     while blob.len() % 4 != 0 {
         blob.push(0);
     }
@@ -153,7 +144,7 @@ pub fn baked_gltf(
         files.push((PathBuf::from(format!("{stem}.glb")), glb(text, &blob)));
     } else {
         let bin = format!("{stem}.bin");
-        json["buffers"] = json!([{ "byteLength": blob.len(), "uri": bin }]);
+        json["buffers"] = json!([{ "byteLength": blob.len(), "uri": percent_encode_path(&bin) }]);
         let text = serde_json::to_vec_pretty(&json).map_err(|e| err(path, e.to_string()))?;
         files.push((PathBuf::from(format!("{stem}.gltf")), text));
         files.push((PathBuf::from(bin), blob));
@@ -167,28 +158,60 @@ struct Out<'a> {
     blob: &'a mut Vec<u8>,
 }
 
-/// Concatenates every buffer (16-byte aligned) and points the buffer views at the result.
-fn merge_buffers(json: &mut Value, buffers: &[Vec<u8>]) -> Vec<u8> {
+/// Copies every buffer view in use into one blob (each at its old offset modulo 16, so every
+/// accessor keeps its alignment), drops the views nothing uses and renumbers the references.
+///
+/// # Errors
+/// A view in use that lies outside its buffer.
+fn merge_buffers(json: &mut Value, buffers: &[Vec<u8>]) -> std::result::Result<Vec<u8>, String> {
+    let used = used_buffer_views(json);
+    let views = json["bufferViews"].as_array().cloned().unwrap_or_default();
     let mut blob = Vec::new();
-    let mut base = Vec::with_capacity(buffers.len());
-    for b in buffers {
-        while blob.len() % 16 != 0 {
-            blob.push(0);
+    let mut kept = Vec::new();
+    let mut renumber = vec![None; views.len()];
+    for (v, view) in views.iter().enumerate() {
+        if !used[v] {
+            continue;
         }
-        base.push(blob.len());
-        blob.extend_from_slice(b);
-    }
-    for view in json["bufferViews"]
-        .as_array_mut()
-        .expect("array")
-        .iter_mut()
-    {
         let b = view["buffer"].as_u64().unwrap_or(0) as usize;
         let offset = view["byteOffset"].as_u64().unwrap_or(0) as usize;
-        view["buffer"] = json!(0);
-        view["byteOffset"] = json!(base.get(b).copied().unwrap_or(0) + offset);
+        let length = view["byteLength"].as_u64().unwrap_or(0) as usize;
+        let bytes = buffers
+            .get(b)
+            .and_then(|data| data.get(offset..offset.checked_add(length)?))
+            .ok_or_else(|| {
+                format!("bufferView {v} (bytes {offset}..+{length} of buffer {b}) lies outside its buffer")
+            })?;
+        while blob.len() % 16 != offset % 16 {
+            blob.push(0);
+        }
+        let mut out = view.clone();
+        out["buffer"] = json!(0);
+        out["byteOffset"] = json!(blob.len());
+        blob.extend_from_slice(bytes);
+        renumber[v] = Some(kept.len());
+        kept.push(out);
     }
-    blob
+    json["bufferViews"] = Value::Array(kept);
+    let mut stack: Vec<&mut Value> = vec![json];
+    while let Some(v) = stack.pop() {
+        match v {
+            Value::Object(map) => {
+                for (k, child) in map.iter_mut() {
+                    if k == "bufferView"
+                        && let Some(i) = child.as_u64()
+                    {
+                        *child = json!(renumber.get(i as usize).copied().flatten().unwrap_or(0));
+                    } else {
+                        stack.push(child);
+                    }
+                }
+            }
+            Value::Array(list) => stack.extend(list.iter_mut()),
+            _ => {}
+        }
+    }
+    Ok(blob)
 }
 
 /// Gives a primitive its `TEXCOORD_1` and, when xatlas split its vertices, gathers every
@@ -417,61 +440,82 @@ fn mark_lights_baked(json: &mut Value, original: &Scene) {
     }
 }
 
-/// External images: embedded in the blob for a `.glb`, or returned as files to copy next to
-/// a `.gltf` (paths leaving the folder go to `textures/`).
+/// External images the import read: embedded in the blob for a `.glb`, or returned as files
+/// to copy next to a `.gltf` — at their own relative path when it stays inside the folder and
+/// no other output file has it (`taken`), else under `textures/` with a free name — their
+/// URIs percent-encoded. Images the import did not read keep their URIs and are not copied.
 fn images(
     json: &mut Value,
     blob: &mut Vec<u8>,
     source: &GltfSource,
-) -> Result<Vec<(PathBuf, Vec<u8>)>> {
+    taken: &mut HashSet<String>,
+) -> Vec<(PathBuf, Vec<u8>)> {
     let mut files = Vec::new();
-    let source_dir = source.path.parent().unwrap_or(Path::new("."));
     let image_count = json
         .get("images")
         .and_then(Value::as_array)
         .map_or(0, Vec::len);
     for i in 0..image_count {
-        let Some(uri) = json["images"][i]
-            .get("uri")
-            .and_then(Value::as_str)
-            .map(str::to_string)
-        else {
+        let (Some(uri), Some(Some(bytes))) = (
+            json["images"][i]
+                .get("uri")
+                .and_then(Value::as_str)
+                .map(str::to_string),
+            source.images.get(i),
+        ) else {
             continue;
         };
-        if uri.starts_with("data:") {
-            continue;
-        }
-        let rel = decode_uri(&uri);
-        let file = source_dir.join(&rel);
-        let bytes = std::fs::read(&file).map_err(|e| BakeError::Read {
-            path: file.clone(),
-            source: e,
-        })?;
+        let rel = percent_decode(&uri).unwrap_or_default();
         if source.is_glb {
-            let mime = if rel.to_ascii_lowercase().ends_with(".png") {
-                "image/png"
-            } else {
-                "image/jpeg"
-            };
-            let view = push_view(json, blob, &bytes, None);
+            let png = bytes.starts_with(b"\x89PNG");
+            let view = push_view(json, blob, bytes, None);
             let image = json["images"][i]
                 .as_object_mut()
                 .expect("image is an object");
             image.remove("uri");
             image.insert("bufferView".into(), json!(view));
-            image.insert("mimeType".into(), json!(mime));
+            image.insert(
+                "mimeType".into(),
+                json!(if png { "image/png" } else { "image/jpeg" }),
+            );
         } else {
-            let safe = !rel.contains("..") && !Path::new(&rel).is_absolute();
-            let dest = if safe {
-                PathBuf::from(&rel)
-            } else {
-                PathBuf::from("textures").join(Path::new(&rel).file_name().unwrap_or_default())
-            };
-            json["images"][i]["uri"] = json!(dest.to_string_lossy().replace('\\', "/"));
-            files.push((dest, bytes));
+            let dest = image_destination(&rel, taken);
+            json["images"][i]["uri"] = json!(percent_encode_path(&dest));
+            files.push((PathBuf::from(dest), bytes.clone()));
         }
     }
-    Ok(files)
+    files
+}
+
+/// Where a copied image goes: `rel` with `.` and inner `..` steps resolved when it stays
+/// inside the folder and is free, else `textures/NAME` (or `textures/STEM-K.EXT`) free.
+fn image_destination(rel: &str, taken: &mut HashSet<String>) -> String {
+    let mut parts: Vec<&str> = Vec::new();
+    let mut inside = true;
+    for part in rel.split(['/', '\\']) {
+        match part {
+            "" | "." => {}
+            ".." => inside &= parts.pop().is_some(),
+            p => parts.push(p),
+        }
+    }
+    let name = parts.last().copied().unwrap_or("image");
+    let mut candidates = Vec::new();
+    if inside && !parts.is_empty() {
+        candidates.push(parts.join("/"));
+    }
+    candidates.push(format!("textures/{name}"));
+    let (stem, ext) = match name.rsplit_once('.') {
+        Some((s, e)) if !s.is_empty() => (s, format!(".{e}")),
+        _ => (name, String::new()),
+    };
+    let dest = candidates
+        .into_iter()
+        .chain((1..).map(|k| format!("textures/{stem}-{k}{ext}")))
+        .find(|c| !taken.contains(&c.to_lowercase()))
+        .expect("an endless list has a free name");
+    taken.insert(dest.to_lowercase());
+    dest
 }
 
 fn dimensions_name(d: gltf::accessor::Dimensions) -> &'static str {

@@ -80,7 +80,10 @@ pub fn write_outputs(
     source: Option<&GltfSource>,
     settings: &BakeSettings,
 ) -> Result<Written> {
-    let mut staged = StagedFiles::new();
+    if let Some(source) = source {
+        refuse_own_folder(dir, source)?;
+    }
+    let mut staged = StagedFiles::new(dir);
     let pages = page_files(output, settings);
     stage_pages(&mut staged, dir, output, &pages)?;
     for (i, volume) in output.irradiance_volume.iter().enumerate() {
@@ -114,9 +117,45 @@ pub fn write_outputs(
         })
         .collect();
     stage_json(&mut staged, &report_path, &report)?;
+    if let Some(source) = source {
+        for dest in staged.destinations() {
+            if let Some(input) = source.inputs.iter().find(|i| same_file(dest, i)) {
+                return Err(BakeError::OverwritesInput {
+                    output: dest.to_path_buf(),
+                    input: input.clone(),
+                });
+            }
+        }
+    }
     Ok(Written {
         files: staged.commit()?,
     })
+}
+
+/// Refuses an output folder that is the scene's own (its outputs would sit among, and may
+/// replace, the scene's files).
+fn refuse_own_folder(dir: &Path, source: &GltfSource) -> Result<()> {
+    let scene_dir = match source.path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let (Ok(a), Ok(b)) = (dir.canonicalize(), scene_dir.canonicalize())
+        && a == b
+    {
+        return Err(BakeError::OverwritesInput {
+            output: dir.to_path_buf(),
+            input: scene_dir.to_path_buf(),
+        });
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` are the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
 }
 
 /// Stages every page in every format asked for.
@@ -182,6 +221,13 @@ fn stage_baked_gltf(
         };
         node_lightmaps.push((node, lightmap));
     }
+    // The other outputs' names: pages and volumes staged so far, the manifest and report.
+    let reserved: Vec<String> = staged
+        .destinations()
+        .filter_map(|p| p.strip_prefix(dir).ok())
+        .map(|p| p.to_string_lossy().replace('\\', "/"))
+        .chain(["manifest.json".to_string(), "report.json".to_string()])
+        .collect();
     let baked = gltf_export::baked_gltf(
         source,
         original,
@@ -189,6 +235,7 @@ fn stage_baked_gltf(
         &node_lightmaps,
         &volumes(output),
         &stem,
+        &reserved,
     )?;
     for (rel, bytes) in &baked.files {
         staged.stage(&dir.join(rel), bytes)?;

@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use super::{Patch, Patches};
+use crate::unwrap::Layout;
 
 /// Magic of the file.
 const MAGIC: &[u8; 8] = b"LBPATCH1";
@@ -75,6 +76,12 @@ impl Patches {
         Some(w)
     };
     let n = word()? as usize;
+    // Counts are checked against the bytes that remain before anything is allocated: a
+    // patch is 21 words, a footprint entry one.
+    let remaining = |at: usize| bytes.len().saturating_sub(at) / 4;
+    if n.checked_mul(21)? > remaining(12) {
+        return None;
+    }
     let mut list = Vec::with_capacity(n);
     for _ in 0..n {
         let mut w = [0u32; 20];
@@ -107,13 +114,22 @@ impl Patches {
         });
     }
     let footprint_len = word()? as usize;
+    if footprint_len > bytes.len() / 4 {
+        return None;
+    }
     let footprint = (0..footprint_len)
         .map(|_| word())
         .collect::<Option<Vec<u32>>>()?;
     let pages = word()? as usize;
+    if pages > bytes.len() / 4 {
+        return None;
+    }
     let mut page_index = Vec::with_capacity(pages);
     for _ in 0..pages {
         let len = word()? as usize;
+        if len > bytes.len() / 4 {
+            return None;
+        }
         page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
     }
     let mut counts = [0u64; 5];
@@ -132,6 +148,57 @@ impl Patches {
         rays: counts[4],
     })
 }
+}
+
+impl Patches {
+    /// Checks patches read from a file against the layout and the scene they claim to be of:
+    /// every index (instance, page, texel, triangle, footprint run, page entry) in range,
+    /// every value finite. The file's hash covers the patches' identities, not their
+    /// footprints, so this is what stands between an edited file and an out-of-range read.
+    ///
+    /// # Errors
+    /// The first violation.
+    pub fn check(&self, layout: &Layout, triangles: usize, instances: usize) -> Result<(), String> {
+        if self.page_index.len() != layout.pages.len() {
+            return Err(format!(
+                "{} page indices for {} pages",
+                self.page_index.len(),
+                layout.pages.len()
+            ));
+        }
+        for (page, (index, size)) in self.page_index.iter().zip(&layout.pages).enumerate() {
+            if index.len() as u64 != size.width as u64 * size.height as u64 {
+                return Err(format!("page {page}'s index does not cover its texels"));
+            }
+            if let Some(bad) = index
+                .iter()
+                .find(|&&i| i != u32::MAX && i as usize >= self.patches.len())
+            {
+                return Err(format!("page {page} names patch {bad}, beyond the patches"));
+            }
+        }
+        for (i, p) in self.patches.iter().enumerate() {
+            let page = layout.pages.get(p.page as usize);
+            let in_page = page.is_some_and(|s| p.x < s.width && p.y < s.height);
+            let footprint_end = p.footprint_start as u64 + p.footprint_len as u64;
+            let ok = in_page
+                && (p.instance as usize) < instances
+                && (p.triangle as usize) < triangles
+                && footprint_end <= self.footprint.len() as u64
+                && p.position.is_finite()
+                && p.normal.is_finite()
+                && p.geometric_normal.is_finite()
+                && p.area.is_finite()
+                && p.texel_size.is_finite();
+            if !ok {
+                return Err(format!("patch {i} lies outside the layout or the scene"));
+            }
+        }
+        if let Some(bad) = self.footprint.iter().find(|&&t| t as usize >= triangles) {
+            return Err(format!("a footprint names triangle {bad}, beyond the scene's {triangles}"));
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

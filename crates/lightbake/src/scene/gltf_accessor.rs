@@ -23,6 +23,9 @@ pub struct Dense {
     pub normalized: bool,
 }
 
+/// Largest accessor without a bufferView (all zeros but for its sparse values), bytes: 1 GiB.
+pub const MAX_ZERO_FILLED_BYTES: usize = 1 << 30;
+
 fn bad(context: &str, message: impl Into<String>) -> BakeError {
     BakeError::BadAccessor {
         context: context.to_string(),
@@ -57,8 +60,9 @@ fn view_range<'b, B: std::ops::Deref<Target = [u8]>>(
             format!("buffer {} is not loaded", view.buffer().index()),
         )
     })?;
-    let abs_start = view.offset() + start;
-    let abs_end = view.offset() + end;
+    let overflow = || bad(context, "byte range overflows");
+    let abs_start = view.offset().checked_add(start).ok_or_else(overflow)?;
+    let abs_end = view.offset().checked_add(end).ok_or_else(overflow)?;
     data.get(abs_start..abs_end).ok_or_else(|| {
         bad(
             context,
@@ -95,41 +99,81 @@ pub fn read_dense<B: std::ops::Deref<Target = [u8]>>(
     let count = accessor.count();
     let total = count
         .checked_mul(element_size)
-        .ok_or_else(|| bad(context, "element count overflows"))?;
-    let mut bytes = vec![0u8; total];
-    if let Some(view) = accessor.view() {
-        let stride = view.stride().unwrap_or(element_size);
-        if stride < element_size {
+        .ok_or_else(|| bad(context, format!("{count} elements overflow")))?;
+    // Every count is checked against the bytes that back it before anything is allocated.
+    let source = match accessor.view() {
+        Some(view) => {
+            let stride = view.stride().unwrap_or(element_size);
+            if stride < element_size {
+                return Err(bad(
+                    context,
+                    format!("byteStride {stride} is smaller than the element size {element_size}"),
+                ));
+            }
+            let span = match count {
+                0 => 0,
+                _ => stride
+                    .checked_mul(count - 1)
+                    .and_then(|s| s.checked_add(element_size))
+                    .ok_or_else(|| bad(context, format!("{count} elements overflow")))?,
+            };
+            Some((
+                view_range(&view, buffers, accessor.offset(), span, context)?,
+                stride,
+            ))
+        }
+        None if total > MAX_ZERO_FILLED_BYTES => {
             return Err(bad(
                 context,
-                format!("byteStride {stride} is smaller than the element size {element_size}"),
+                format!(
+                    "{count} elements without a bufferView would be {total} bytes of zeros, more than the {MAX_ZERO_FILLED_BYTES} allowed"
+                ),
             ));
         }
-        if count > 0 {
-            let span = stride * (count - 1) + element_size;
-            let src = view_range(&view, buffers, accessor.offset(), span, context)?;
-            for (i, dst) in bytes.chunks_exact_mut(element_size).enumerate() {
-                dst.copy_from_slice(&src[i * stride..i * stride + element_size]);
+        None => None,
+    };
+    let sparse_parts = match accessor.sparse() {
+        Some(sparse) => {
+            let n = sparse.count();
+            if n > count {
+                return Err(bad(
+                    context,
+                    format!("sparse count {n} exceeds the accessor's count {count}"),
+                ));
             }
+            let idx = sparse.indices();
+            let index_size = match idx.index_type() {
+                gltf::accessor::sparse::IndexType::U8 => 1,
+                gltf::accessor::sparse::IndexType::U16 => 2,
+                gltf::accessor::sparse::IndexType::U32 => 4,
+            };
+            let overflow = || bad(context, format!("sparse count {n} overflows"));
+            let index_bytes = view_range(
+                &idx.view(),
+                buffers,
+                idx.offset(),
+                n.checked_mul(index_size).ok_or_else(overflow)?,
+                &format!("{context} sparse indices"),
+            )?;
+            let vals = sparse.values();
+            let value_bytes = view_range(
+                &vals.view(),
+                buffers,
+                vals.offset(),
+                n.checked_mul(element_size).ok_or_else(overflow)?,
+                &format!("{context} sparse values"),
+            )?;
+            Some((n, index_size, index_bytes, value_bytes))
+        }
+        None => None,
+    };
+    let mut bytes = vec![0u8; total];
+    if let Some((src, stride)) = source {
+        for (i, dst) in bytes.chunks_exact_mut(element_size).enumerate() {
+            dst.copy_from_slice(&src[i * stride..i * stride + element_size]);
         }
     }
-    if let Some(sparse) = accessor.sparse() {
-        let n = sparse.count();
-        let idx = sparse.indices();
-        let index_size = match idx.index_type() {
-            gltf::accessor::sparse::IndexType::U8 => 1,
-            gltf::accessor::sparse::IndexType::U16 => 2,
-            gltf::accessor::sparse::IndexType::U32 => 4,
-        };
-        let index_bytes = view_range(&idx.view(), buffers, idx.offset(), n * index_size, context)?;
-        let vals = sparse.values();
-        let value_bytes = view_range(
-            &vals.view(),
-            buffers,
-            vals.offset(),
-            n * element_size,
-            context,
-        )?;
+    if let Some((n, index_size, index_bytes, value_bytes)) = sparse_parts {
         for k in 0..n {
             let b = &index_bytes[k * index_size..(k + 1) * index_size];
             let target = match index_size {

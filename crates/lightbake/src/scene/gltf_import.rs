@@ -15,6 +15,8 @@ use gltf::mesh::Mode;
 
 use super::extras::{self, LightExtras, NodeExtras, SceneExtras};
 use super::gltf_accessor::{read_indices, read_uv, read_vec3};
+use super::gltf_data::{Budget, ImageError, Images, read_buffers};
+use super::resources::{ReadPolicy, read_regular_file};
 use super::{
     GltfPrimitiveRef, Instance, Light, LightKind, Material, Mesh, Scene, Texture, TextureRef, Wrap,
 };
@@ -28,8 +30,15 @@ pub struct GltfSource {
     pub path: PathBuf,
     /// The JSON document, verbatim (unknown extensions and extras included).
     pub json: serde_json::Value,
-    /// Every buffer's bytes, in order (the GLB `BIN` chunk for buffer 0 of a `.glb`).
+    /// Every buffer's bytes, in order (the GLB `BIN` chunk for buffer 0 of a `.glb`); empty
+    /// for a buffer no buffer view in use lies in (it is not read).
     pub buffers: Vec<Vec<u8>>,
+    /// The file bytes of every image read from a URI (`None` for embedded images and images
+    /// no texture uses), for the baked glTF to copy.
+    pub images: Vec<Option<Vec<u8>>>,
+    /// Every file the import read, canonical (the scene file, buffer files, image files):
+    /// the outputs may not replace them.
+    pub inputs: Vec<PathBuf>,
     /// Whether the source is binary glTF.
     pub is_glb: bool,
 }
@@ -43,18 +52,69 @@ pub struct ImportedScene {
     pub source: GltfSource,
 }
 
-/// Reads a `.gltf` or `.glb` file.
+/// How a glTF file is read: the light convention, the folders its URIs may read from besides
+/// its own, and the limits that keep a hostile file from exhausting the machine.
+#[derive(Clone, Debug)]
+pub struct ImportOptions {
+    /// How punctual lights' intensities and colours are read. Default glTF's.
+    pub light_convention: LightConvention,
+    /// Folders besides the scene file's own that buffer and image URIs may name (shared
+    /// texture libraries; the CLI's `--allow-read`). Default none.
+    pub allow_read: Vec<PathBuf>,
+    /// Bytes the import may hold: the buffers it reads, image files and decoded images.
+    /// Default 8 GiB (the bake's default memory budget).
+    pub memory_budget_bytes: u64,
+    /// Most mesh instances and lights the node graph may place (each path from a scene root
+    /// to a node counts; counted before the graph is expanded). Default 1 000 000.
+    pub max_instances: u64,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        Self {
+            light_convention: LightConvention::default(),
+            allow_read: Vec::new(),
+            memory_budget_bytes: 8192 << 20,
+            max_instances: 1_000_000,
+        }
+    }
+}
+
+impl ImportOptions {
+    /// The defaults with `convention`.
+    pub fn with_convention(convention: LightConvention) -> Self {
+        Self {
+            light_convention: convention,
+            ..Self::default()
+        }
+    }
+}
+
+/// Reads a `.gltf` or `.glb` file with the default [`ImportOptions`] and `convention`.
 ///
 /// # Errors
-/// [`BakeError::Read`] for a missing file, [`BakeError::BadGltf`] for a malformed document,
-/// [`BakeError::MissingBuffer`], [`BakeError::BadAccessor`] and the validation errors of
-/// [`Scene::validate`], each naming the file, mesh or node at fault.
+/// As [`import_gltf_with`].
 pub fn import_gltf(path: &Path, convention: LightConvention) -> Result<ImportedScene> {
-    let bytes = std::fs::read(path).map_err(|source| BakeError::Read {
-        path: path.to_path_buf(),
-        source,
+    import_gltf_with(path, &ImportOptions::with_convention(convention))
+}
+
+/// Reads a `.gltf` or `.glb` file. Its buffer and image URIs are read only inside its folder
+/// and `options.allow_read` ([`super::resources`]).
+///
+/// # Errors
+/// [`BakeError::Read`] for a missing file, [`BakeError::BadGltf`] for a malformed document
+/// or a node graph over the instance limit, [`BakeError::MissingBuffer`] for a buffer that
+/// cannot be read (or may not be: its URI leaves the allowed folders),
+/// [`BakeError::BadAccessor`] and the validation errors of [`Scene::validate`], each naming
+/// the file, mesh or node at fault.
+pub fn import_gltf_with(path: &Path, options: &ImportOptions) -> Result<ImportedScene> {
+    let bytes = read_regular_file(path, options.memory_budget_bytes).map_err(|message| {
+        BakeError::Read {
+            path: path.to_path_buf(),
+            source: std::io::Error::other(message),
+        }
     })?;
-    import_gltf_slice(&bytes, path, convention)
+    import_gltf_slice_with(&bytes, path, options)
 }
 
 /// Like [`import_gltf`] for bytes already in memory; `path` names the file in messages and
@@ -66,6 +126,18 @@ pub fn import_gltf_slice(
     bytes: &[u8],
     path: &Path,
     convention: LightConvention,
+) -> Result<ImportedScene> {
+    import_gltf_slice_with(bytes, path, &ImportOptions::with_convention(convention))
+}
+
+/// Like [`import_gltf_with`] for bytes already in memory.
+///
+/// # Errors
+/// As [`import_gltf_with`].
+pub fn import_gltf_slice_with(
+    bytes: &[u8],
+    path: &Path,
+    options: &ImportOptions,
 ) -> Result<ImportedScene> {
     let bad_gltf = |message: String| BakeError::BadGltf {
         path: path.to_path_buf(),
@@ -86,45 +158,35 @@ pub fn import_gltf_slice(
         bad_gltf("not a valid glTF (the gltf crate's validator failed on it)".into())
     })?;
     let gltf = parsed.map_err(|e| bad_gltf(e.to_string()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
     let document = gltf.document;
-    let mut blob = gltf.blob;
+    let policy = ReadPolicy::new(path, &options.allow_read)?;
+    let mut budget = Budget::new(options.memory_budget_bytes);
 
-    // Buffers, one by one so a failure names the buffer.
-    let mut buffers = Vec::new();
-    for buffer in document.buffers() {
-        let uri = match buffer.source() {
-            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => "<data URI>".to_string(),
-            gltf::buffer::Source::Uri(u) => u.to_string(),
-            gltf::buffer::Source::Bin => "<GLB BIN chunk>".to_string(),
-        };
-        let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
-            .map_err(|e| BakeError::MissingBuffer {
-                path: path.to_path_buf(),
-                index: buffer.index(),
-                uri: uri.clone(),
-                message: e.to_string(),
-            })?;
-        if data.len() < buffer.length() {
-            return Err(BakeError::MissingBuffer {
-                path: path.to_path_buf(),
-                index: buffer.index(),
-                uri,
-                message: format!(
-                    "holds {} bytes but the document declares {}",
-                    data.len(),
-                    buffer.length()
-                ),
-            });
-        }
-        buffers.push(data);
+    // The node graph's size before it is expanded: a small graph can have 2⁴⁰ paths.
+    let roots = scene_roots(&document);
+    let placed = count_placements(&document, &roots).map_err(bad_gltf)?;
+    if placed > options.max_instances {
+        return Err(bad_gltf(format!(
+            "its node graph places {placed} mesh instances and lights (every path from a scene root counts), more than the limit of {} instances",
+            options.max_instances
+        )));
     }
-
+    let mut inputs: Vec<PathBuf> = path.canonicalize().into_iter().collect();
+    let buffers = read_buffers(
+        path,
+        &document,
+        &json,
+        gltf.blob,
+        &policy,
+        &mut budget,
+        &mut inputs,
+    )?;
     let mut importer = Importer {
         document: &document,
         buffers: &buffers,
-        base,
-        convention,
+        images: Images::new(&document, &buffers, &policy),
+        budget,
+        convention: options.light_convention,
         scene: Scene {
             name: path
                 .file_name()
@@ -134,27 +196,18 @@ pub fn import_gltf_slice(
         mesh_map: HashMap::new(),
         texture_map: HashMap::new(),
     };
-    importer.materials();
-    let gltf_scene = document
+    importer.materials()?;
+    if let Some(s) = document
         .default_scene()
-        .or_else(|| document.scenes().next());
-    if let Some(s) = &gltf_scene {
+        .or_else(|| document.scenes().next())
+    {
         importer.scene_extras(s.extras());
-        for node in s.nodes() {
-            importer.node(&node, Mat4::IDENTITY, 0)?;
-        }
-    } else {
-        // No scenes: every root node is shown.
-        let mut is_child = vec![false; document.nodes().len()];
-        for n in document.nodes() {
-            for c in n.children() {
-                is_child[c.index()] = true;
-            }
-        }
-        for n in document.nodes().filter(|n| !is_child[n.index()]) {
-            importer.node(&n, Mat4::IDENTITY, 0)?;
-        }
     }
+    for node in &roots {
+        importer.node(node, Mat4::IDENTITY, 0)?;
+    }
+    let images = std::mem::take(&mut importer.images.files);
+    inputs.append(&mut importer.images.paths);
     let scene = importer.scene;
     scene.validate()?;
     Ok(ImportedScene {
@@ -162,22 +215,87 @@ pub fn import_gltf_slice(
         source: GltfSource {
             path: path.to_path_buf(),
             json,
-            buffers: buffers.into_iter().map(|b| b.0).collect(),
+            buffers,
+            images,
+            inputs,
             is_glb,
         },
     })
 }
 
+/// The nodes a scene shows: the default scene's (or the first's) roots, or every node that is
+/// no other's child when the file has no scenes.
+fn scene_roots(document: &gltf::Document) -> Vec<gltf::Node<'_>> {
+    if let Some(s) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    {
+        return s.nodes().collect();
+    }
+    let mut is_child = vec![false; document.nodes().len()];
+    for n in document.nodes() {
+        for c in n.children() {
+            is_child[c.index()] = true;
+        }
+    }
+    document.nodes().filter(|n| !is_child[n.index()]).collect()
+}
+
+/// The deepest node hierarchy read (a deeper one is taken for a cycle).
+const MAX_DEPTH: usize = 256;
+
+/// Mesh primitives and lights the graph places, counting every path from `roots` (saturating),
+/// without expanding it: each node's count is memoised.
+///
+/// # Errors
+/// A hierarchy deeper than [`MAX_DEPTH`] (a cycle).
+fn count_placements(
+    document: &gltf::Document,
+    roots: &[gltf::Node<'_>],
+) -> std::result::Result<u64, String> {
+    fn visit(
+        node: &gltf::Node<'_>,
+        depth: usize,
+        memo: &mut [Option<u64>],
+    ) -> std::result::Result<u64, String> {
+        if let Some(c) = memo[node.index()] {
+            return Ok(c);
+        }
+        if depth > MAX_DEPTH {
+            let name = node
+                .name()
+                .map_or_else(|| format!("node {}", node.index()), str::to_string);
+            return Err(format!(
+                "node '{name}': the hierarchy is deeper than {MAX_DEPTH} levels (a cycle?)"
+            ));
+        }
+        let mut count =
+            node.mesh().map_or(0, |m| m.primitives().len() as u64) + node.light().map_or(0, |_| 1);
+        for child in node.children() {
+            count = count.saturating_add(visit(&child, depth + 1, memo)?);
+        }
+        memo[node.index()] = Some(count);
+        Ok(count)
+    }
+    let mut memo = vec![None; document.nodes().len()];
+    let mut total = 0u64;
+    for root in roots {
+        total = total.saturating_add(visit(root, 0, &mut memo)?);
+    }
+    Ok(total)
+}
+
 struct Importer<'a> {
     document: &'a gltf::Document,
-    buffers: &'a [gltf::buffer::Data],
-    base: &'a Path,
+    buffers: &'a [Vec<u8>],
+    images: Images<'a>,
+    budget: Budget,
     convention: LightConvention,
     scene: Scene,
     /// (glTF mesh, primitive) → scene mesh (None when skipped).
     mesh_map: HashMap<(usize, usize), Option<usize>>,
-    /// glTF texture → scene texture (None when it could not be loaded).
-    texture_map: HashMap<usize, Option<usize>>,
+    /// (image, wrap u, wrap v) → scene texture (None when it could not be loaded).
+    texture_map: HashMap<(usize, Wrap, Wrap), Option<usize>>,
 }
 
 /// Triangle-list indices of a primitive drawn in `mode` (strips and fans converted).
@@ -223,7 +341,7 @@ impl Importer<'_> {
         }
     }
 
-    fn materials(&mut self) {
+    fn materials(&mut self) -> Result<()> {
         let document = self.document;
         for m in document.materials() {
             let name = m.name().map_or_else(
@@ -231,12 +349,14 @@ impl Importer<'_> {
                 str::to_string,
             );
             let pbr = m.pbr_metallic_roughness();
-            let base_color_texture = pbr
-                .base_color_texture()
-                .and_then(|info| self.texture(&info.texture(), info.tex_coord(), &name));
-            let emissive_texture = m
-                .emissive_texture()
-                .and_then(|info| self.texture(&info.texture(), info.tex_coord(), &name));
+            let base_color_texture = match pbr.base_color_texture() {
+                Some(info) => self.texture(&info.texture(), info.tex_coord(), &name)?,
+                None => None,
+            };
+            let emissive_texture = match m.emissive_texture() {
+                Some(info) => self.texture(&info.texture(), info.tex_coord(), &name)?,
+                None => None,
+            };
             let strength = m.emissive_strength().unwrap_or(1.0);
             self.scene.materials.push(Material {
                 name,
@@ -248,72 +368,86 @@ impl Importer<'_> {
                 double_sided: m.double_sided(),
             });
         }
+        Ok(())
     }
 
+    /// The scene texture of a glTF texture: its image decoded once (shared by every texture
+    /// with the same image and wrap modes). An image that cannot be used leaves the material
+    /// with its factors (a warning); one whose URI breaks the read rule stops the import.
     fn texture(
         &mut self,
         texture: &gltf::Texture<'_>,
         tex_coord: u32,
         material: &str,
-    ) -> Option<TextureRef> {
-        let index = texture.index();
-        if let Some(cached) = self.texture_map.get(&index) {
-            return cached.map(|t| TextureRef {
+    ) -> Result<Option<TextureRef>> {
+        let image = texture.source();
+        let sampler = texture.sampler();
+        let (wrap_u, wrap_v) = (wrap_mode(sampler.wrap_s()), wrap_mode(sampler.wrap_t()));
+        let key = (image.index(), wrap_u, wrap_v);
+        let as_ref = |t: Option<usize>| {
+            t.map(|t| TextureRef {
                 texture: t,
                 tex_coord,
-            });
+            })
+        };
+        if let Some(cached) = self.texture_map.get(&key) {
+            return Ok(as_ref(*cached));
         }
-        let image = texture.source();
         let label = match image.source() {
             gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => uri.to_string(),
             _ => format!("image {}", image.index()),
         };
-        let loaded = gltf::image::Data::from_source(image.source(), Some(self.base), self.buffers);
-        let result = match loaded {
-            Ok(data) => match to_rgba8(&data) {
-                Some(rgba8) => {
-                    let sampler = texture.sampler();
-                    self.scene.textures.push(Texture {
-                        name: label,
-                        width: data.width,
-                        height: data.height,
-                        rgba8,
-                        wrap_u: wrap_mode(sampler.wrap_s()),
-                        wrap_v: wrap_mode(sampler.wrap_t()),
-                    });
-                    Some(self.scene.textures.len() - 1)
-                }
-                None => {
-                    self.scene.warnings.push(format!(
-                        "material '{material}': texture {index} ({label}) has pixel format {:?}, which is not supported; using the material's factors only",
-                        data.format
-                    ));
-                    None
-                }
-            },
-            Err(e) => {
+        let result = match self.images.decode(image.index(), &mut self.budget) {
+            Ok(decoded) => {
+                self.budget
+                    .take(
+                        decoded.rgba8.len() as u64 * 4,
+                        &format!("texture {} ({label})", texture.index()),
+                    )
+                    .map_err(|message| BakeError::BadGltf {
+                        path: PathBuf::from(&self.scene.name),
+                        message: format!("material '{material}': {message}"),
+                    })?;
+                self.scene.textures.push(Texture {
+                    name: label,
+                    width: decoded.width,
+                    height: decoded.height,
+                    rgba8: decoded.rgba8.clone(),
+                    wrap_u,
+                    wrap_v,
+                });
+                Some(self.scene.textures.len() - 1)
+            }
+            Err(ImageError::Unusable(e)) => {
                 self.scene.warnings.push(format!(
-                    "material '{material}': texture {index} ({label}) cannot be loaded ({e}); using the material's factors only"
+                    "material '{material}': texture {} ({label}) cannot be loaded ({e}); using the material's factors only",
+                    texture.index()
                 ));
                 None
             }
+            Err(ImageError::Refused(e)) => {
+                return Err(BakeError::BadGltf {
+                    path: PathBuf::from(&self.scene.name),
+                    message: format!(
+                        "material '{material}': image {} ({label}) is refused: {e}",
+                        image.index()
+                    ),
+                });
+            }
         };
-        self.texture_map.insert(index, result);
-        result.map(|t| TextureRef {
-            texture: t,
-            tex_coord,
-        })
+        self.texture_map.insert(key, result);
+        Ok(as_ref(result))
     }
 
     fn node(&mut self, node: &gltf::Node<'_>, parent: Mat4, depth: usize) -> Result<()> {
         let name = node
             .name()
             .map_or_else(|| format!("node {}", node.index()), str::to_string);
-        if depth > 256 {
+        if depth > MAX_DEPTH {
             return Err(BakeError::BadGltf {
                 path: PathBuf::from(&self.scene.name),
                 message: format!(
-                    "node '{name}': the hierarchy is deeper than 256 levels (a cycle?)"
+                    "node '{name}': the hierarchy is deeper than {MAX_DEPTH} levels (a cycle?)"
                 ),
             });
         }
@@ -592,37 +726,6 @@ impl Mesh {
         probe.normals = vec![Vec3::Y; self.positions.len()];
         probe.validate()
     }
-}
-
-/// Converts decoded glTF image data to RGBA8 (16-bit channels keep their high byte).
-fn to_rgba8(data: &gltf::image::Data) -> Option<Vec<[u8; 4]>> {
-    use gltf::image::Format;
-    let p = &data.pixels;
-    let px = (data.width * data.height) as usize;
-    let out: Vec<[u8; 4]> = match data.format {
-        Format::R8 => p.iter().map(|&r| [r, r, r, 255]).collect(),
-        Format::R8G8 => p
-            .chunks_exact(2)
-            .map(|c| [c[0], c[0], c[0], c[1]])
-            .collect(),
-        Format::R8G8B8 => p.chunks_exact(3).map(|c| [c[0], c[1], c[2], 255]).collect(),
-        Format::R8G8B8A8 => p
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
-            .collect(),
-        Format::R16 => p.chunks_exact(2).map(|c| [c[1], c[1], c[1], 255]).collect(),
-        Format::R16G16 => p
-            .chunks_exact(4)
-            .map(|c| [c[1], c[1], c[1], c[3]])
-            .collect(),
-        Format::R16G16B16 => p.chunks_exact(6).map(|c| [c[1], c[3], c[5], 255]).collect(),
-        Format::R16G16B16A16 => p
-            .chunks_exact(8)
-            .map(|c| [c[1], c[3], c[5], c[7]])
-            .collect(),
-        _ => return None,
-    };
-    (out.len() == px).then_some(out)
 }
 
 /// Every accessor a mesh primitive names (attributes, indices) exists.

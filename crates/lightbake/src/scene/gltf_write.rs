@@ -357,8 +357,9 @@ pub fn write_scene_gltf(scene: &Scene, path: &std::path::Path) -> crate::Result<
         .file_stem()
         .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
     let bin_name = format!("{stem}.bin");
-    let (json, bin) = scene_to_gltf(scene, &bin_name);
-    let mut staged = crate::atomic::StagedFiles::new();
+    let (json, bin) = scene_to_gltf(scene, &super::resources::percent_encode_path(&bin_name));
+    let mut staged =
+        crate::atomic::StagedFiles::new(path.parent().unwrap_or(std::path::Path::new(".")));
     staged.stage(path, &json)?;
     staged.stage(&path.with_file_name(bin_name), &bin)?;
     staged.commit()?;

@@ -26,11 +26,13 @@ pub const MAX_COORDINATE: f32 = 1e9;
 pub mod extras;
 pub mod glb;
 pub mod gltf_accessor;
+pub mod gltf_data;
 pub mod gltf_import;
 pub mod gltf_write;
 mod light;
 mod material;
 mod mesh;
+pub mod resources;
 #[cfg(any(test, feature = "testscenes"))]
 pub mod testscenes;
 mod texture;

@@ -5,7 +5,7 @@ use glam::{Vec2, Vec4};
 use crate::color::srgb8_to_linear;
 
 /// How a texture wraps outside [0, 1].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Wrap {
     /// Tile (glTF default).
     #[default]
