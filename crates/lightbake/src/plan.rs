@@ -12,7 +12,10 @@
 
 use serde::Serialize;
 
+use glam::Vec3;
+
 use crate::lights::LightSource;
+use crate::lights::tree::MANY_LIGHTS;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
 
@@ -313,6 +316,7 @@ fn uv_sources(scene: &Scene, settings: &BakeSettings, baked: &[usize]) -> (usize
 fn light_reaches(scene: &Scene, baked: &[usize]) -> (Vec<LightReach>, Vec<Vec<u32>>) {
     let mut lights_per_instance = vec![Vec::new(); scene.instances.len()];
     let mut lights = Vec::new();
+    let bounds: Vec<(Vec3, Vec3)> = baked.iter().map(|&ii| scene.instance_bounds(ii)).collect();
     for (li, light) in scene.lights.iter().enumerate() {
         let mut reach = LightReach {
             light: light.name.clone(),
@@ -323,8 +327,7 @@ fn light_reaches(scene: &Scene, baked: &[usize]) -> (Vec<LightReach>, Vec<Vec<u3
             skip_reasons: Vec::new(),
         };
         let mut reasons: Vec<(String, Vec<String>)> = Vec::new();
-        for &ii in baked {
-            let (lo, hi) = scene.instance_bounds(ii);
+        for (&ii, &(lo, hi)) in baked.iter().zip(&bounds) {
             match light.misses(lo, hi) {
                 Some(why) => {
                     reach.skipped += 1;
@@ -385,7 +388,17 @@ impl Facts<'_> {
         if !self.work {
             return 16.0;
         }
-        let lights = self.lights as f64 + if self.area_lights { 1.0 } else { 0.0 };
+        let lights = if self.lights > MANY_LIGHTS {
+            // One from the light tree, and the suns one by one.
+            1.0 + self
+                .scene
+                .lights
+                .iter()
+                .filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. }))
+                .count() as f64
+        } else {
+            self.lights as f64
+        } + if self.area_lights { 1.0 } else { 0.0 };
         let direct = s.samples_per_texel as f64 * lights;
         let sky = if self.sky { s.sky_samples as f64 } else { 0.0 };
         let cluster = (s.cluster_texels as f64).powi(2);
@@ -497,6 +510,12 @@ impl Facts<'_> {
                     "no light reaches a baked instance (range, cone or zero intensity)".to_string()
                 } else if vpl_only {
                     as_vpls.to_string()
+                } else if self.lights > MANY_LIGHTS {
+                    format!(
+                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes one light from a light tree (by power over distance²) instead of all",
+                        self.lights,
+                        scene.lights.len()
+                    )
                 } else {
                     format!(
                         "{} of {} light(s) reach baked instances",

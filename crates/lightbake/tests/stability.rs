@@ -609,3 +609,55 @@ fn overlapping_emitters_are_named_and_meshes_are_not() {
         furnace.report.warnings
     );
 }
+
+/// A surface no light reaches at all (a plane under the floor, facing down into nothing) has
+/// texels of exactly zero light and zero estimated noise, their neighbours too. The
+/// denoiser's strength there is 0/0: it must keep the texels at zero, and every written
+/// value stay finite, at every preset that denoises.
+#[test]
+fn a_surface_no_light_reaches_stays_black_and_finite_through_the_denoiser() {
+    let mut s = Scene::default();
+    let white = s.add_material(Material::diffuse("white", Vec3::splat(0.7)));
+    let floor = s.add_mesh(Mesh {
+        material: Some(white),
+        ..lightbake::scene::testscenes::plane("floor", 2.0)
+    });
+    s.instances.push(Instance::new("floor", floor, Affine3A::IDENTITY));
+    // The same plane 1 m lower, turned to face down: nothing is below it.
+    s.instances.push(Instance::new(
+        "underside",
+        floor,
+        Affine3A::from_translation(Vec3::new(0.0, -1.0, 0.0))
+            * Affine3A::from_rotation_x(std::f32::consts::PI),
+    ));
+    s.lights.push(lightbake::scene::Light {
+        name: "lamp".into(),
+        kind: lightbake::scene::LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 10.0,
+        range: None,
+        position: Vec3::new(0.2, 1.0, 0.1),
+        direction: Vec3::NEG_Y,
+        bake: lightbake::scene::LightBake::Full,
+    });
+    for preset in [BakeSettings::medium(), BakeSettings::high()] {
+        let mut settings = preset;
+        settings.texel_density = Some(24.0);
+        settings.texel_density_from_scene = false;
+        // The hierarchical solve (the default above 32 768 nodes) gives the per-texel noise
+        // the denoiser works from.
+        settings.solver = SolverChoice::Hierarchical;
+        assert!(settings.denoise);
+        let out = bake(&s, &settings);
+        assert!(all_finite(&out), "a non-finite texel");
+        let denoise = out.report.denoise.as_ref().expect("the denoiser ran");
+        assert!(denoise.mean_strength.is_finite(), "{denoise:?}");
+        let under = out.layout.instances[1].unwrap();
+        let page = &out.pages[under.page as usize];
+        for y in under.y..under.y + under.height {
+            for x in under.x..under.x + under.width {
+                assert_eq!(page.get(x, y), Vec3::ZERO, "texel ({x}, {y}) of the underside");
+            }
+        }
+    }
+}

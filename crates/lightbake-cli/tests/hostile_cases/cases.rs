@@ -606,11 +606,19 @@ pub fn large() -> Vec<Case> {
             Doc::grid(500, 500, 0.2, 3.0),
             600.0,
         ),
+        // A million loose charts need more than a 2048² page holds at 2 texels of padding.
         auto(
             "triangle soup of 10⁶ triangles",
             Doc::soup(1_000_000),
             600.0,
-        ),
+        )
+        .with_args(&["--max-page-size", "8192"]),
+        auto(
+            "triangle soup of 10⁶ triangles, default page",
+            Doc::soup(1_000_000),
+            600.0,
+        )
+        .expecting(Expect::Refuse("--max-page-size")),
         auto("10⁵ point lights", lights, 600.0),
         auto("20 000 instances of the box", boxes, 600.0),
     ]

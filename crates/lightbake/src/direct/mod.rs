@@ -21,11 +21,12 @@ use crate::bvh::RayScene;
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::error_estimate::standard_error;
-use crate::lights::{Emitters, LightSource, sky};
+use crate::lights::tree::{LightTree, MANY_LIGHTS};
+use crate::lights::{Emitters, LightSource, SceneDisc, sky};
 use crate::plan::BakePlan;
 use crate::progress::Progress;
 use crate::raster::{Footprint, Patch, Patches, Surface, SurfacePoint};
-use crate::sampling::sobol_02;
+use crate::sampling::{hash, sobol_02, unit_float};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::unwrap::Layout;
@@ -39,6 +40,7 @@ mod stream {
     pub const SKY: u32 = 3;
     pub const EMITTER: u32 = 4;
     pub const EMITTER_PICK: u32 = 5;
+    pub const LIGHT_PICK: u32 = 6;
     pub const LIGHT: u32 = 100;
 }
 
@@ -69,6 +71,29 @@ struct Ctx<'a> {
     plan: &'a BakePlan,
     emitters: &'a Emitters,
     closed_form: bool,
+    /// The lights sampled one per footprint sample, for instances reached by more than
+    /// [`MANY_LIGHTS`] ([`LightTree`]); empty otherwise.
+    tree: LightTree,
+    /// The lights of those instances the tree leaves out (suns, lights without power),
+    /// evaluated one by one; sorted.
+    untreed: Vec<u32>,
+}
+
+/// The light tree of a pass, over every light that reaches an instance with more than
+/// [`MANY_LIGHTS`] lights (empty when none has), and those lights it leaves out.
+fn light_tree(bake: &BakeContext<'_>) -> (LightTree, Vec<u32>) {
+    let mut ids: Vec<u32> = (0..bake.scene.instances.len())
+        .filter(|&i| bake.plan.lights_for(i).len() > MANY_LIGHTS)
+        .flat_map(|i| bake.plan.lights_for(i).iter().copied())
+        .collect();
+    if ids.is_empty() {
+        return (LightTree::default(), Vec::new());
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    let tree = LightTree::build(bake.scene, &ids, &SceneDisc::covering(bake.rays));
+    let untreed = ids.into_iter().filter(|&li| !tree.holds(li)).collect();
+    (tree, untreed)
 }
 
 /// Direct irradiance per patch (lux) of the scene's own emitters, without progress or error
@@ -96,6 +121,7 @@ pub fn direct_light_of(
     only: Option<&[bool]>,
     progress: &Progress,
 ) -> DirectResult {
+    let (tree, untreed) = light_tree(bake);
     let ctx = Ctx {
         scene: bake.scene,
         layout: bake.layout,
@@ -106,6 +132,8 @@ pub fn direct_light_of(
         plan: bake.plan,
         emitters,
         closed_form: emitters.list.len() <= bake.settings.max_closed_form_emitters as usize,
+        tree,
+        untreed,
     };
     let ray_count = AtomicU64::new(0);
     let any_realtime = bake.scene.lights.iter().any(|l| !l.direct_is_baked());
@@ -256,18 +284,40 @@ fn add_lights(
     realtime: &mut Vec3,
     rays: &mut u64,
 ) {
-    for &li in ctx.plan.lights_for(p.instance as usize) {
+    let lights = ctx.plan.lights_for(p.instance as usize);
+    let sampled = lights.len() > MANY_LIGHTS && !ctx.tree.is_empty();
+    let mut add = |li: u32, weight: f32| {
         let light = &ctx.scene.lights[li as usize];
         let u = sobol_02(s, p.rng(ctx.settings.seed, stream::LIGHT + li));
         if let Some(incident) = light.incident(sp, u, ctx.rays) {
             *rays += 1;
             if incident.visible(ctx.rays, origin) {
-                *e += incident.irradiance;
+                *e += incident.irradiance * weight;
                 if !light.direct_is_baked() {
-                    *realtime += incident.irradiance;
+                    *realtime += incident.irradiance * weight;
                 }
             }
         }
+    };
+    if !sampled {
+        for &li in lights {
+            add(li, 1.0);
+        }
+        return;
+    }
+    // Many lights: those outside the tree (the sun) one by one, then one from the tree,
+    // weighted by 1/p (a light the plan culled for this instance adds nothing).
+    for &li in ctx.untreed.iter().filter(|li| lights.binary_search(li).is_ok()) {
+        add(li, 1.0);
+    }
+    let u = unit_float(hash(
+        p.rng(ctx.settings.seed, stream::LIGHT_PICK) ^ s.wrapping_mul(0x9e37_79b9),
+    ));
+    if let Some((li, pdf)) = ctx.tree.pick(sp.position, sp.normal, u)
+        && lights.binary_search(&li).is_ok()
+        && pdf > 0.0
+    {
+        add(li, 1.0 / pdf);
     }
 }
 

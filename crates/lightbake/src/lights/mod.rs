@@ -21,6 +21,7 @@ pub mod point;
 pub mod rect;
 pub mod sky;
 pub mod spot;
+pub mod tree;
 
 use glam::{Vec2, Vec3};
 

@@ -10,10 +10,10 @@ use crate::settings::BakeSettings;
 
 /// Texels a mesh's longest extent gets at least, so a mesh smaller than a texel still has a
 /// chart.
-const MIN_MESH_TEXELS: f32 = 2.0;
+pub(super) const MIN_MESH_TEXELS: f32 = 2.0;
 
 /// The power of two that scales `extent` into [1, 2) (1 for an empty or non-finite extent).
-fn unit_scale(extent: f32) -> f32 {
+pub(super) fn unit_scale(extent: f32) -> f32 {
     if !(extent.is_finite() && extent > 0.0) {
         return 1.0;
     }
@@ -22,7 +22,7 @@ fn unit_scale(extent: f32) -> f32 {
 }
 
 /// The longest side of a mesh's bounding box, mesh units.
-fn mesh_extent(mesh: &Mesh) -> f32 {
+pub(super) fn mesh_extent(mesh: &Mesh) -> f32 {
     let (lo, hi) = mesh.positions.iter().fold(
         (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),

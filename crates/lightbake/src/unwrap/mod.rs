@@ -14,6 +14,7 @@
 mod atlas;
 mod existing;
 mod pack;
+mod pieces;
 pub mod xatlas;
 
 use atlas::xatlas_unwrap;
@@ -33,7 +34,8 @@ use crate::settings::BakeSettings;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum UvOrigin {
-    /// Unwrapped by xatlas.
+    /// Unwrapped by lightbake: xatlas, with a big mesh's planar regions charted directly
+    /// and the rest given to xatlas in pieces (`unwrap::pieces`).
     Xatlas,
     /// The mesh's own `TEXCOORD_1`, validated and kept.
     Existing,
@@ -237,6 +239,15 @@ fn area_scale(mesh: &Mesh, transform: &glam::Affine3A) -> f32 {
 /// # Errors
 /// [`BakeError::Unwrap`] when xatlas refuses a mesh.
 pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Result<Layout> {
+    // xatlas' workers are kept to the bake's thread count.
+    let threads = match settings.threads {
+        0 => 0,
+        n => n.min(std::thread::available_parallelism().map_or(1, |c| c.get())),
+    };
+    xatlas::with_thread_limit(threads, || unwrap_meshes(scene, settings, density))
+}
+
+fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result<Layout> {
     let mut layout = Layout {
         meshes: vec![None; scene.meshes.len()],
         instances: vec![None; scene.instances.len()],
@@ -274,11 +285,11 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
                         "mesh '{}': its TEXCOORD_1 cannot be used ({problem}); unwrapped again with xatlas",
                         mesh.name
                     ));
-                    xatlas_unwrap(mesh, request, settings, &mut layout.warnings, &mut small)?
+                    unwrap_mesh(mesh, request, settings, &mut layout.warnings, &mut small)?
                 }
             }
         } else {
-            xatlas_unwrap(mesh, request, settings, &mut layout.warnings, &mut small)?
+            unwrap_mesh(mesh, request, settings, &mut layout.warnings, &mut small)?
         };
         if small {
             raised.push(mesh.name.as_str());
@@ -302,6 +313,21 @@ pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Res
     }
     pack_instances(scene, settings, &mut layout);
     Ok(layout)
+}
+
+/// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]).
+fn unwrap_mesh(
+    mesh: &Mesh,
+    request: Density,
+    settings: &BakeSettings,
+    warnings: &mut Vec<String>,
+    raised: &mut bool,
+) -> Result<MeshUnwrap> {
+    if mesh.triangle_count() > pieces::BIG_MESH_TRIANGLES {
+        pieces::unwrap_in_pieces(mesh, request, settings, warnings, raised)
+    } else {
+        xatlas_unwrap(mesh, request, settings, warnings, raised)
+    }
 }
 
 /// Whether a texture of the mesh's material is mapped by `TEXCOORD_1`.

@@ -13,6 +13,7 @@
 #![allow(unsafe_code)]
 
 use std::ffi::c_void;
+use std::cell::Cell;
 use std::sync::Once;
 
 // Keep the static library built by xatlas-rs on the link line.
@@ -280,6 +281,76 @@ pub enum XatlasError {
     Other(u32),
 }
 
+thread_local! {
+    /// Cores xatlas' workers may run on when started from this thread (0: every core).
+    static THREAD_LIMIT: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Runs `f` with xatlas' workers (started by [`generate`] on this thread) kept to `threads`
+/// cores (0: no limit).
+pub fn with_thread_limit<T>(threads: usize, f: impl FnOnce() -> T) -> T {
+    let old = THREAD_LIMIT.with(|c| c.replace(threads));
+    let out = f();
+    THREAD_LIMIT.with(|c| c.set(old));
+    out
+}
+
+/// Restores the calling thread's CPU affinity when dropped.
+struct Affinity(#[cfg(target_os = "linux")] Option<libc::cpu_set_t>);
+
+/// Keeps the calling thread (and the threads it starts) to the first `threads` of the cores
+/// it may run on, until the returned guard drops; nothing when `threads` is 0 or not fewer.
+#[cfg(target_os = "linux")]
+fn limit_affinity(threads: usize) -> Affinity {
+    if threads == 0 {
+        return Affinity(None);
+    }
+    // SAFETY: a zeroed `cpu_set_t` is a valid empty set; `sched_getaffinity` writes at most
+    // `size_of::<cpu_set_t>()` bytes into it for the calling thread (pid 0).
+    let mut old: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    let size = size_of::<libc::cpu_set_t>();
+    // SAFETY: as above.
+    if unsafe { libc::sched_getaffinity(0, size, &mut old) } != 0 {
+        return Affinity(None);
+    }
+    // SAFETY: zeroed sets are valid; the CPU_* helpers read and write within the set.
+    let mut new: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    let mut kept = 0;
+    for cpu in 0..libc::CPU_SETSIZE as usize {
+        // SAFETY: `cpu` is below `CPU_SETSIZE`.
+        if kept < threads && unsafe { libc::CPU_ISSET(cpu, &old) } {
+            // SAFETY: as above.
+            unsafe { libc::CPU_SET(cpu, &mut new) };
+            kept += 1;
+        }
+    }
+    // SAFETY: `old` is the set read above.
+    let total = unsafe { libc::CPU_COUNT(&old) } as usize;
+    if kept == 0 || kept >= total {
+        return Affinity(None);
+    }
+    // SAFETY: `new` is a valid, non-empty subset of the thread's allowed cores.
+    if unsafe { libc::sched_setaffinity(0, size, &new) } != 0 {
+        return Affinity(None);
+    }
+    Affinity(Some(old))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn limit_affinity(_threads: usize) -> Affinity {
+    Affinity()
+}
+
+impl Drop for Affinity {
+    fn drop(&mut self) {
+        #[cfg(target_os = "linux")]
+        if let Some(old) = self.0 {
+            // SAFETY: `old` is the set this thread had before `limit_affinity`.
+            unsafe { libc::sched_setaffinity(0, size_of::<libc::cpu_set_t>(), &old) };
+        }
+    }
+}
+
 fn silence_xatlas_output() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
@@ -401,8 +472,12 @@ pub fn generate(
         padding: pack_options.padding,
     };
 
+    // xatlas starts a worker per core in `Create`; they inherit the creating thread's CPU
+    // affinity, so a bake limited to N threads keeps xatlas to N cores.
+    let restore = limit_affinity(THREAD_LIMIT.with(Cell::get));
     // SAFETY: `Create` has no preconditions and returns a fresh atlas owned by `handle`.
     let handle = AtlasHandle(unsafe { ffi::create() });
+    drop(restore);
     assert!(!handle.0.is_null(), "xatlas::Create returned null");
     // SAFETY: `decl` points at slices that outlive the call (xatlas copies the data); the
     // strides match the element types and every index was checked against `vertex_count`.
