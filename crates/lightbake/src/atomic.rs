@@ -56,7 +56,7 @@ fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> BakeError + '_ {
 }
 
 /// `path` with `.` steps and inner `..` steps resolved lexically, absolute.
-fn normalized(path: &Path) -> std::io::Result<PathBuf> {
+pub(crate) fn normalized(path: &Path) -> std::io::Result<PathBuf> {
     let abs = std::path::absolute(path)?;
     let mut out = PathBuf::new();
     for c in abs.components() {

@@ -127,9 +127,14 @@ pub fn write_outputs(
             }
         }
     }
-    Ok(Written {
-        files: staged.commit()?,
-    })
+    // Named as the caller named the folder.
+    let root = crate::atomic::normalized(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let files = staged
+        .commit()?
+        .into_iter()
+        .map(|p| p.strip_prefix(&root).map_or(p.clone(), |rel| dir.join(rel)))
+        .collect();
+    Ok(Written { files })
 }
 
 /// Refuses an output folder that is the scene's own (its outputs would sit among, and may
