@@ -207,6 +207,19 @@ pub enum BakeError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// A stage produced a NaN or an infinity (a bug in lightbake): the bake stops before
+    /// anything is written (the finite checks of [`mod@crate::bake`]).
+    #[error(
+        "internal error: the {stage} stage produced the non-finite value {value} at {place}; nothing was written (a bug in lightbake; please report it with the scene)"
+    )]
+    NonFinite {
+        /// The stage whose output held it.
+        stage: String,
+        /// Where: texel, page and instance, or probe.
+        place: String,
+        /// The value, printed.
+        value: String,
+    },
     /// A bug in lightbake (a panic on the bake's thread, say); please report it.
     #[error("internal error: {message} (a bug in lightbake; please report it)")]
     Internal {

@@ -622,7 +622,8 @@ fn a_surface_no_light_reaches_stays_black_and_finite_through_the_denoiser() {
         material: Some(white),
         ..lightbake::scene::testscenes::plane("floor", 2.0)
     });
-    s.instances.push(Instance::new("floor", floor, Affine3A::IDENTITY));
+    s.instances
+        .push(Instance::new("floor", floor, Affine3A::IDENTITY));
     // The same plane 1 m lower, turned to face down: nothing is below it.
     s.instances.push(Instance::new(
         "underside",
@@ -656,7 +657,11 @@ fn a_surface_no_light_reaches_stays_black_and_finite_through_the_denoiser() {
         let page = &out.pages[under.page as usize];
         for y in under.y..under.y + under.height {
             for x in under.x..under.x + under.width {
-                assert_eq!(page.get(x, y), Vec3::ZERO, "texel ({x}, {y}) of the underside");
+                assert_eq!(
+                    page.get(x, y),
+                    Vec3::ZERO,
+                    "texel ({x}, {y}) of the underside"
+                );
             }
         }
     }

@@ -9,7 +9,10 @@
 //! [`bake_previewing`] also publishes progressive previews ([`preview`]); [`bake_split`] is one
 //! process of a bake split across processes ([`shard`]).
 
-pub mod handle;
+mod finite;
+#[cfg(feature = "internals")]
+pub use finite::inject_nan;
+mod handle;
 mod passes;
 pub mod preview;
 pub mod shard;
@@ -440,7 +443,7 @@ fn light_scene(
         settings,
         plan,
     };
-    let light = passes::lighting(&ctx, &emitters, stages, warnings)?;
+    let mut light = passes::lighting(&ctx, &emitters, stages, warnings)?;
     stages.shard_stops()?;
     lit.radiosity = light.radiosity;
     lit.vpl = light.vpl;
@@ -464,18 +467,11 @@ fn light_scene(
         );
         Ok((r, 0, note))
     })?;
-    let irradiance = light.irradiance;
-    if let Some(bad) = irradiance.iter().position(|e| !e.is_finite()) {
-        // An internal error: report it rather than write garbage.
-        return Err(BakeError::BadSetting {
-            name: "scene",
-            value: format!("patch {bad}"),
-            message: format!(
-                "direct light produced a non-finite value {:?}",
-                irradiance[bad]
-            ),
-        });
+    let mut irradiance = light.irradiance;
+    if let Some((indirect, _)) = light.indirect.as_mut() {
+        finite::patches("indirect", scene, &patches, indirect)?;
     }
+    finite::patches("lighting", scene, &patches, &mut irradiance)?;
     let mut assembly = Assembly::new(layout, &patches, &irradiance);
     if plan.runs("denoise") {
         let covers = light.indirect.is_some() || !plan.runs("indirect");
@@ -530,6 +526,7 @@ fn light_scene(
             if let Some(e) = &lit.error {
                 lit.error = Some(denoised_error(&patches, &error, e, light.coarse_bias));
             }
+            finite::pages("denoise", scene, &patches, &mut assembly.pages)?;
             lit.denoise = Some(st);
         } else {
             lit.skipped.push((
@@ -554,6 +551,7 @@ fn light_scene(
             Ok((st, st.rays, note))
         })?;
         stages.annotate(RayKind::Shadow, None);
+        finite::pages("contact fit", scene, &patches, &mut assembly.pages)?;
         lit.contact = Some(st);
     }
     stages.run("dilate", 1, || {
@@ -565,6 +563,7 @@ fn light_scene(
         let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
         Ok(((), 0, note))
     })?;
+    finite::pages("dilate", scene, &patches, &mut assembly.pages)?;
     if plan.runs("stitch") {
         let st = stages.run("stitch", 1, || {
             let seams = find_seams(scene, layout);
@@ -584,6 +583,7 @@ fn light_scene(
             };
             Ok((st, 0, note))
         })?;
+        finite::pages("stitch", scene, &patches, &mut assembly.pages)?;
         lit.seams = Some(st);
     }
     lit.pages = assembly.pages;
@@ -637,6 +637,8 @@ fn volume_stage(
         let rays = st.rays;
         Ok(((volume, st), rays, note))
     })?;
+    let mut volume = volume;
+    finite::probes(&mut volume.0.voxels)?;
     Ok(volume)
 }
 

@@ -305,9 +305,17 @@ fn filter_one(
         noise += wj * sigma(j).powi(2);
         around += wj;
     }
+    // α = σ²/(σ² + signal), 0 where both vanish (σ² underflows to 0 for σ below 10⁻¹⁹;
+    // 0/0 there was a NaN).
+    let s2 = s_i * s_i;
     let alpha = if around > 0.0 {
         let signal = ((spread - noise) / around).max(0.0);
-        s_i * s_i / (s_i * s_i + signal)
+        let denominator = s2 + signal;
+        if denominator > 0.0 && denominator.is_finite() {
+            s2 / denominator
+        } else {
+            0.0
+        }
     } else {
         0.0
     };

@@ -88,6 +88,11 @@ pub fn write_outputs(
     stage_pages(&mut staged, dir, output, &pages)?;
     for (i, volume) in output.irradiance_volume.iter().enumerate() {
         let (size, texels) = volume.texture();
+        if texels.iter().any(|t| !t.is_finite()) {
+            return Err(encode_err(&dir.join(volume_file(i)))(
+                "a probe holds a non-finite value; nothing was written".into(),
+            ));
+        }
         let bytes = images::encode_ktx2_texels(size.to_array(), &texels);
         staged.stage(&dir.join(volume_file(i)), &bytes)?;
     }
@@ -171,6 +176,17 @@ fn stage_pages(
     pages: &[PageFiles],
 ) -> Result<()> {
     for (page, files) in output.pages.iter().zip(pages) {
+        // A lightmap never holds a NaN or an infinity (every stage checks its output; this is
+        // the last line).
+        if let Some(k) = page.texels.iter().position(|t| !t.is_finite()) {
+            let path = dir.join(files.primary().unwrap_or_default());
+            return Err(encode_err(&path)(format!(
+                "texel ({}, {}) holds the non-finite value {:?}; nothing was written",
+                k as u32 % page.width,
+                k as u32 / page.width,
+                page.texels[k]
+            )));
+        }
         if let Some(f) = &files.exr {
             let path = dir.join(f);
             let bytes = images::encode_exr(page).map_err(encode_err(&path))?;
