@@ -211,9 +211,10 @@ fn create_new(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     f.sync_all()
 }
 
-/// Finishes or discards the staging folders left by bakes into `root` that were killed: a
-/// committed one (its journal in place) has its remaining renames done, an uncommitted one is
-/// removed once its process is gone. Staging folders of live bakes are left alone.
+/// Finishes or discards the staging folders left by killed bakes where bakes into `root`
+/// stage (the system temporary folder, and beside `root`): a committed one (its journal in
+/// place) has its remaining renames done, an uncommitted one is removed, once its process is
+/// gone. Staging folders of live bakes are left alone.
 ///
 /// # Errors
 /// [`BakeError::Write`] when a committed rename cannot be finished.
@@ -242,22 +243,17 @@ pub fn recover(root: &Path) -> Result<()> {
             let journal: Option<Journal> = std::fs::read(dir.join(JOURNAL))
                 .ok()
                 .and_then(|t| serde_json::from_slice(&t).ok());
-            match journal {
-                Some(j) if j.root == root => {
-                    for (name, dest) in &j.renames {
-                        let file = dir.join(name);
-                        if file.exists() && dest.starts_with(&root) {
-                            rename_or_copy(&file, dest).map_err(write_err(dest))?;
-                        }
+            // A committed journal is finished whichever folder it is for (its files are
+            // complete, and its renames stay inside its own root).
+            if let Some(j) = journal {
+                for (name, dest) in &j.renames {
+                    let file = dir.join(name);
+                    if file.exists() && dest.starts_with(&j.root) {
+                        rename_or_copy(&file, dest).map_err(write_err(dest))?;
                     }
-                    let _ = std::fs::remove_dir_all(&dir);
-                }
-                // Another folder's commit: its own next bake finishes it.
-                Some(_) => {}
-                None => {
-                    let _ = std::fs::remove_dir_all(&dir);
                 }
             }
+            let _ = std::fs::remove_dir_all(&dir);
         }
     }
     Ok(())

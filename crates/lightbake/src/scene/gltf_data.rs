@@ -110,7 +110,7 @@ pub fn read_buffers(
             .map_err(fail)?;
         let data = match source {
             Some(u) => {
-                let (source, bytes) = policy.read(u, declared.saturating_add(3)).map_err(fail)?;
+                let (source, bytes) = policy.read_prefix(u, declared).map_err(fail)?;
                 if let UriSource::File(f) = source {
                     files.push(f);
                 }

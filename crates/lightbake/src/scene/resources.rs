@@ -123,20 +123,52 @@ impl ReadPolicy {
         Ok(UriSource::File(canonical))
     }
 
-    /// The bytes `uri` names, at most `limit` of them.
+    /// The bytes `uri` names, at most `limit` of them (a longer file is refused).
     ///
     /// # Errors
     /// Why the URI is refused or cannot be read, as a phrase.
     pub fn read(&self, uri: &str, limit: u64) -> std::result::Result<(UriSource, Vec<u8>), String> {
+        self.read_with(uri, limit, false)
+    }
+
+    /// The first `count` bytes `uri` names (a buffer's declared length: a longer file's tail
+    /// is never read).
+    ///
+    /// # Errors
+    /// Why the URI is refused or cannot be read, as a phrase.
+    pub fn read_prefix(
+        &self,
+        uri: &str,
+        count: u64,
+    ) -> std::result::Result<(UriSource, Vec<u8>), String> {
+        self.read_with(uri, count, true)
+    }
+
+    fn read_with(
+        &self,
+        uri: &str,
+        limit: u64,
+        prefix: bool,
+    ) -> std::result::Result<(UriSource, Vec<u8>), String> {
         match self.locate(uri)? {
-            UriSource::Data(bytes) => {
+            UriSource::Data(mut bytes) => {
                 if bytes.len() as u64 > limit {
-                    return Err(too_large(bytes.len() as u64, limit));
+                    if !prefix {
+                        return Err(too_large(bytes.len() as u64, limit));
+                    }
+                    bytes.truncate(limit as usize);
                 }
                 Ok((UriSource::Data(Vec::new()), bytes))
             }
             UriSource::File(path) => {
-                let bytes = read_regular_file(&path, limit)?;
+                let (file, meta) = open_regular_file(&path)?;
+                if meta.len() > limit && !prefix {
+                    return Err(too_large(meta.len(), limit));
+                }
+                let mut bytes = Vec::with_capacity(meta.len().min(limit) as usize);
+                file.take(limit)
+                    .read_to_end(&mut bytes)
+                    .map_err(|e| format!("cannot be read ({e})"))?;
                 Ok((UriSource::File(path), bytes))
             }
         }
