@@ -120,3 +120,35 @@ fn memory_budget_also_bounds_the_transport() {
     settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
+
+/// `bake convergence` on a scene with no density hint, where the reference's full transport
+/// matrix does not fit the memory budget at the density the texel budget gives: the study
+/// lowers the density until it fits (and says so), and leaves out, with the reason, the runs
+/// that still do not fit; it completes.
+#[test]
+fn the_convergence_study_fits_its_density_to_the_memory_budget() {
+    use lightbake::analysis::study::{StudySize, run_study};
+    let scene = cornell_box(CornellLight::Area);
+    let mut base = BakeSettings::medium();
+    base.texel_density_from_scene = false;
+    base.memory_budget_mib = 160;
+    let mut rows = 0;
+    let study = run_study(&scene, &base, StudySize::Quick, |_| rows += 1).unwrap();
+    assert!(
+        study.density_reason.contains("lowered"),
+        "{}",
+        study.density_reason
+    );
+    assert!(study.texel_density > 0.0 && study.texel_density < 256.0);
+    assert_eq!(rows, study.rows.len());
+    assert!(rows > 0);
+    assert!(study.rows.iter().all(|r| r.measured.is_finite()));
+    for k in &study.skipped {
+        assert!(
+            k.reason.contains("MiB") || k.reason.contains("solver"),
+            "{k:?}"
+        );
+    }
+    assert!(study.markdown().contains("lowered from"));
+    println!("{}", study.markdown());
+}

@@ -30,8 +30,9 @@ use crate::bake::bake;
 use crate::color::luminance;
 use crate::context::Prepared;
 use crate::direct::direct_irradiance;
-use crate::error::Result;
+use crate::error::{BakeError, Result};
 use crate::lightmap::{LightmapPage, assemble};
+use crate::plan::{density_text, texel_density};
 use crate::progress::Progress;
 use crate::radiosity::hemicube::build_hemicube;
 use crate::radiosity::{self, Nodes};
@@ -87,11 +88,27 @@ impl StudyRow {
     }
 }
 
+/// A run the study could not make, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SkippedRun {
+    /// The curve it belongs to.
+    pub curve: String,
+    /// The budget parameter's name and value.
+    pub budget: String,
+    /// Why (the bake's refusal: its memory, its solver's limits).
+    pub reason: String,
+}
+
 /// What the study ran against.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Study {
     /// Scene name.
     pub scene: String,
+    /// The texel density every run used, texels per metre.
+    pub texel_density: f32,
+    /// Where it came from: the settings, or lowered until the reference's full transport
+    /// matrix fits the memory budget.
+    pub density_reason: String,
     /// Covered texels compared.
     pub texels: usize,
     /// Wall time of the full reference bake, s.
@@ -100,6 +117,8 @@ pub struct Study {
     pub direct_reference_seconds: f64,
     /// The runs, curve by curve.
     pub rows: Vec<StudyRow>,
+    /// The runs that did not fit, with why.
+    pub skipped: Vec<SkippedRun>,
 }
 
 /// How big the sweeps are.
@@ -148,8 +167,7 @@ pub fn run_study(
     mut on_row: impl FnMut(&StudyRow),
 ) -> Result<Study> {
     let progress = Progress::new();
-    let reference = reference_settings(base, size);
-    let full_ref = bake(scene, &reference, &progress)?;
+    let (base, full_ref, reference, density_reason) = fitted_reference(scene, base, size)?;
     let direct_reference = BakeSettings {
         method: Method::Direct,
         ..reference.clone()
@@ -161,35 +179,96 @@ pub fn run_study(
         .map(|p| p.covered.iter().filter(|&&c| c).count())
         .sum();
     let mut rows = Vec::new();
-    for case in cases(base, size) {
+    let mut skipped = Vec::new();
+    for case in cases(&base, size) {
         let against = match case.against {
             Against::Direct => &direct_ref.pages,
             Against::Full => &full_ref.pages,
         };
-        let row = match case.hemicube {
-            Some(resolution) => hemicube_run(scene, &case.settings, resolution, against)?,
-            None => {
-                let out = bake(scene, &case.settings, &progress)?;
-                StudyRow {
-                    curve: case.curve,
-                    parameter: case.parameter.to_string(),
-                    budget: case.budget,
-                    seconds: out.report.total_seconds,
-                    rays: out.report.total_rays(),
-                    measured: relative_rms_error(&out.pages, against),
-                    estimated: out.report.error.as_ref().map(|e| e.relative_rms),
-                }
-            }
+        let run = match case.hemicube {
+            Some(resolution) => hemicube_run(scene, &case.settings, resolution, against),
+            None => bake(scene, &case.settings, &progress).map(|out| StudyRow {
+                curve: case.curve.clone(),
+                parameter: case.parameter.to_string(),
+                budget: case.budget,
+                seconds: out.report.total_seconds,
+                rays: out.report.total_rays(),
+                measured: relative_rms_error(&out.pages, against),
+                estimated: out.report.error.as_ref().map(|e| e.relative_rms),
+            }),
         };
-        on_row(&row);
-        rows.push(row);
+        match run {
+            Ok(row) => {
+                on_row(&row);
+                rows.push(row);
+            }
+            // A run whose method does not fit this scene is left out, with the refusal.
+            Err(e @ (BakeError::OverMemoryBudget { .. } | BakeError::BadSetting { .. })) => {
+                skipped.push(SkippedRun {
+                    curve: case.curve,
+                    budget: format!("{} = {}", case.parameter, case.budget),
+                    reason: e.to_string(),
+                });
+            }
+            Err(e) => return Err(e),
+        }
     }
     Ok(Study {
         scene: scene.name.clone(),
+        texel_density: base.texel_density.unwrap_or_default(),
+        density_reason,
         texels,
         reference_seconds: full_ref.report.total_seconds,
         direct_reference_seconds: direct_ref.report.total_seconds,
         rows,
+        skipped,
+    })
+}
+
+/// The study's density and its reference bake: the settings' density (or the one the plan
+/// chooses), lowered — by the square root of what the memory budget holds over what the
+/// reference's full transport matrix needs, which grows with the texels — until that matrix
+/// fits. Returns the settings every run starts from (with the density fixed), the reference
+/// bake, its settings, and where the density came from.
+fn fitted_reference(
+    scene: &Scene,
+    base: &BakeSettings,
+    size: StudySize,
+) -> Result<(BakeSettings, crate::bake::BakeOutput, BakeSettings, String)> {
+    let (density, source) = texel_density(scene, base);
+    let mut base = BakeSettings {
+        texel_density: Some(density),
+        texel_density_from_scene: false,
+        ..base.clone()
+    };
+    let mut reason = format!("{} texels/m, {source}", density_text(density));
+    for _attempt in 0..6 {
+        let reference = reference_settings(&base, size);
+        match bake(scene, &reference, &Progress::new()) {
+            Ok(out) => return Ok((base, out, reference, reason)),
+            Err(BakeError::OverMemoryBudget {
+                needed_mib,
+                budget_mib,
+                ..
+            }) => {
+                let d = base.texel_density.unwrap_or(density);
+                let lower = d * (0.9 * budget_mib / needed_mib.max(1.0)).sqrt() as f32;
+                base.texel_density = Some(lower);
+                reason = format!(
+                    "{} texels/m: lowered from {} texels/m ({source}) so the reference's full transport matrix ({:.0} MiB at {} texels/m) fits the memory budget of {budget_mib:.0} MiB",
+                    density_text(lower),
+                    density_text(density),
+                    needed_mib,
+                    density_text(d)
+                );
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(BakeError::OverMemoryBudget {
+        needed_mib: 0.0,
+        budget_mib: base.memory_budget_mib as f64,
+        breakdown: "no density tried let the study's reference fit".into(),
     })
 }
 
@@ -389,6 +468,18 @@ fn hemicube_run(
     let ctx = prepared.ctx();
     let mut irradiance = direct_irradiance(&prepared.ctx());
     let nodes = Nodes::new(&ctx, Basis::Constant);
+    // Its rows hold at most one entry (8 bytes) per hemicube pixel (3·res² of them) or per
+    // node, whichever is fewer: refused over the memory budget, as a bake's matrix is.
+    let n = nodes.len() as f64;
+    let bytes = n * n.min(3.0 * (resolution as f64).powi(2)) * 8.0;
+    let budget = settings.memory_budget_mib as f64 * 1048576.0;
+    if bytes > budget {
+        return Err(BakeError::OverMemoryBudget {
+            needed_mib: bytes / 1048576.0,
+            budget_mib: budget / 1048576.0,
+            breakdown: format!("a hemicube matrix of {n} nodes at {resolution}² pixels"),
+        });
+    }
     let progress = Progress::new();
     let transport = build_hemicube(&ctx, &nodes, resolution, &progress);
     let source = radiosity::source(&nodes, &irradiance);
@@ -472,8 +563,12 @@ impl Study {
     /// their ratio; with the curve's log-log slope and mean estimate ratio.
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "Scene `{}`, {} covered texels; reference bake {:.2} s (direct-only reference {:.2} s).\n\n",
-            self.scene, self.texels, self.reference_seconds, self.direct_reference_seconds
+            "Scene `{}`, {} covered texels at {}; reference bake {:.2} s (direct-only reference {:.2} s).\n\n",
+            self.scene,
+            self.texels,
+            self.density_reason,
+            self.reference_seconds,
+            self.direct_reference_seconds
         );
         s.push_str(
             "| curve | budget | time (s) | rays | measured error | estimated | est./meas. |\n",
@@ -507,6 +602,12 @@ impl Study {
                 mean(rows.iter().filter_map(|r| r.estimate_ratio()))
                     .map_or("-".into(), |x| format!("{x:.2}"))
             ));
+        }
+        if !self.skipped.is_empty() {
+            s.push_str("\nRuns left out (they do not fit this scene):\n\n");
+            for k in &self.skipped {
+                s.push_str(&format!("- {} ({}): {}\n", k.curve, k.budget, k.reason));
+            }
         }
         s
     }
