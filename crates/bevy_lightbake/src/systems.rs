@@ -118,7 +118,11 @@ pub(crate) fn start_bake(world: &mut World) {
         .write_files
         .then(|| config.assets_folder.join(&config.output_dir));
     let output_dir = config.output_dir.clone();
-    let then = move |output, scene: &Scene, settings: &BakeSettings| {
+    // The check against the path tracer, when the settings ask for it
+    // (`BakeSettings::verify_points`), runs on the bake thread before the files are written,
+    // so `report.json` and the report the app sees hold it.
+    let then = move |mut output, scene: &Scene, settings: &BakeSettings| {
+        lightbake::analysis::verify::verify(scene, &mut output);
         write_files(output, scene, settings, out_dir.as_deref(), &output_dir)
     };
     let spawned = if config.previews {

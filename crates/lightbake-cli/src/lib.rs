@@ -201,6 +201,16 @@ struct Args {
     /// stage raises them until its own error estimate reaches its share of the target.
     #[arg(long)]
     target_error: Option<f32>,
+    /// After the bake, check it against the in-tree path tracer at N points spread over the
+    /// surfaces a viewer can see: the measured error, its bias, the share of points beyond
+    /// ±10% and ±25%, lit points left black, the bake's estimate against the measurement and
+    /// the worst points (printed, and in report.json as `verification`).
+    #[arg(long, value_name = "N")]
+    verify: Option<u32>,
+    /// Paths per point of `--verify` (default 4096): the reference's noise falls as
+    /// 1/√paths and is printed beside the error.
+    #[arg(long)]
+    verify_paths: Option<u32>,
     /// How glTF punctual lights are read.
     #[arg(long, value_enum, default_value = "gltf")]
     light_convention: LightConvention,
@@ -390,6 +400,10 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.max_rays = v;
     }
     s.target_error = args.target_error;
+    if let Some(v) = args.verify {
+        s.verify_points = v;
+    }
+    set(&mut s.verify_paths, args.verify_paths);
     s.light_convention = args.light_convention;
     s
 }
@@ -476,17 +490,26 @@ fn run(args: Args) -> Result<(), String> {
     let handle =
         BakeHandle::spawn(imported.scene.clone(), settings.clone()).map_err(|e| e.to_string())?;
     watch(&handle, args.quiet);
-    let output = handle.join().map_err(|e| e.to_string())?;
-    write_and_print(&args.output, &output, &imported, &settings)
+    let mut output = handle.join().map_err(|e| e.to_string())?;
+    write_and_print(&args.output, &mut output, &imported, &settings)
 }
 
-/// Writes a bake's outputs into `dir` and prints its table, counts and files.
+/// Checks a bake against the path tracer when the settings ask for it
+/// ([`BakeSettings::verify_points`]), writes its outputs into `dir` and prints its table,
+/// counts, check and files.
 fn write_and_print(
     dir: &std::path::Path,
-    output: &lightbake::BakeOutput,
+    output: &mut lightbake::BakeOutput,
     imported: &lightbake::ImportedScene,
     settings: &BakeSettings,
 ) -> Result<(), String> {
+    if settings.verify_points > 0 {
+        println!(
+            "verifying at {} points with the path tracer ({} paths each)",
+            settings.verify_points, settings.verify_paths
+        );
+        lightbake::analysis::verify::verify(&imported.scene, output);
+    }
     let written = lightbake::output::write_outputs(
         dir,
         output,
@@ -520,6 +543,9 @@ fn write_and_print(
             ind.solution.iterations,
             ind.solution.stop_reason
         );
+    }
+    if let Some(v) = &output.report.verification {
+        print!("{}", v.summary());
     }
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
@@ -672,6 +698,8 @@ mod tests {
             "--memory-budget=41",
             "--max-rays=1000000000",
             "--target-error=0.05",
+            "--verify=64",
+            "--verify-paths=256",
             "--light-convention=bevy",
         ])
         .unwrap();

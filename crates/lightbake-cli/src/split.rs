@@ -338,7 +338,7 @@ fn shard(args: ShardArgs) -> Result<(), String> {
 
 fn merge(args: MergeArgs) -> Result<(), String> {
     let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
-    let Some(output) = run_role(&imported, &settings, &args.work, Role::Merge)? else {
+    let Some(mut output) = run_role(&imported, &settings, &args.work, Role::Merge)? else {
         return Err("internal error: the merge stopped early".into());
     };
     for stage in &output.report.split {
@@ -356,5 +356,5 @@ fn merge(args: MergeArgs) -> Result<(), String> {
             rays
         );
     }
-    write_and_print(&args.output, &output, &imported, &settings)
+    write_and_print(&args.output, &mut output, &imported, &settings)
 }

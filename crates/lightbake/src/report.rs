@@ -93,6 +93,103 @@ pub struct TexelStats {
     pub dilated: usize,
 }
 
+/// One point of a [`Verification`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VerifiedPoint {
+    /// The instance (scene node) it lies on.
+    pub instance: String,
+    /// World position, m.
+    pub position: [f32; 3],
+    /// Luminance of the lightmap's E/π there, as the GPU reads it (bilinear), nits.
+    pub baked: f32,
+    /// Luminance of the path tracer's E/π there, nits.
+    pub reference: f32,
+}
+
+/// A bake checked against the in-tree path tracer (`lightbake::analysis::reference`) at
+/// points spread over the baked surfaces a viewer can see (`lightbake::analysis::verify`).
+/// Errors are of the luminance of E/π, relative to the RMS reference value.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Verification {
+    /// Points compared.
+    pub points: usize,
+    /// Paths the path tracer traced per point.
+    pub paths: u32,
+    /// Relative RMS error, the reference's own noise taken out.
+    pub relative_rms: f64,
+    /// Relative mean error (bake − reference): negative when the bake is too dark.
+    pub relative_bias: f64,
+    /// The reference's own noise, relative RMS per point (taken out of `relative_rms`).
+    pub reference_noise: f64,
+    /// One standard deviation of `relative_rms` from the reference's noise: with
+    /// D = Σ(b − r)², var D ≈ Σ(4(b − r)²·var r + 2 var² r); the error lies in
+    /// √(m² ± √var D / Σ r²), half that interval's width.
+    pub uncertainty: f64,
+    /// Share of the points more than 10% off the reference (points where both are black,
+    /// below 1% of the RMS reference, left out).
+    pub beyond_10: f64,
+    /// Share of the points more than 25% off the reference.
+    pub beyond_25: f64,
+    /// Points the path tracer finds lit (at least 5% of the RMS reference) where the
+    /// lightmap holds less than a tenth of it: the independent count of visible texels left
+    /// black.
+    pub lit_but_black: usize,
+    /// The bake's own estimate, relative RMS (none when it made none).
+    pub estimated: Option<f64>,
+    /// Estimate / measured (none without an estimate or a measurable error).
+    pub estimate_ratio: Option<f64>,
+    /// Wall time of the check, s.
+    pub seconds: f64,
+    /// The points with the largest error, worst first (at most 10).
+    pub worst: Vec<VerifiedPoint>,
+}
+
+impl Verification {
+    /// Lines for the CLI: the error, its spread, the estimate against it, the worst points.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "verify: {} points at {} paths each in {:.1} s: error {:.2}% ± {:.2}% RMS (reference noise {:.2}%), bias {:+.2}%, {:.1}% of points beyond ±10%, {:.1}% beyond ±25%, {} lit but black\n",
+            self.points,
+            self.paths,
+            self.seconds,
+            100.0 * self.relative_rms,
+            100.0 * self.uncertainty,
+            100.0 * self.reference_noise,
+            100.0 * self.relative_bias,
+            100.0 * self.beyond_10,
+            100.0 * self.beyond_25,
+            self.lit_but_black
+        );
+        match (self.estimated, self.estimate_ratio) {
+            (Some(e), Some(r)) => {
+                let judged = if (0.7..=1.5).contains(&r) {
+                    "within 0.7–1.5× of the measured error"
+                } else if r < 0.7 {
+                    "below the measured error: the estimate covers sampling noise and the coarse level's bias, not the texel grid's own error (light leaking at contacts, shadow edges finer than a texel, black texels)"
+                } else {
+                    "above the measured error: it is cautious"
+                };
+                s.push_str(&format!(
+                    "verify: the bake's estimate {:.2}% is {r:.2}× the measured error, {judged}\n",
+                    100.0 * e
+                ));
+            }
+            (Some(e), None) => s.push_str(&format!(
+                "verify: the bake's estimate {:.2}%; the measured error is within the reference's noise\n",
+                100.0 * e
+            )),
+            _ => {}
+        }
+        for p in self.worst.iter().take(3) {
+            s.push_str(&format!(
+                "verify: worst: {} at ({:.3}, {:.3}, {:.3}) m: baked {:.4}, path tracer {:.4}\n",
+                p.instance, p.position[0], p.position[1], p.position[2], p.baked, p.reference
+            ));
+        }
+        s
+    }
+}
+
 /// Everything a bake records about itself.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BakeReport {
@@ -143,6 +240,10 @@ pub struct BakeReport {
     /// The ray-tracing floor (none when no rays were traced).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub floor: Option<Floor>,
+    /// The bake checked against the path tracer at surface points
+    /// ([`BakeSettings::verify_points`]; filled in by `lightbake::analysis::verify`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verification: Option<Verification>,
     /// Repairs, compromises and clamps.
     pub warnings: Vec<String>,
     /// Wall time of the whole bake (writing excluded), seconds.

@@ -330,6 +330,13 @@ pub struct BakeSettings {
     /// the radiosity solver's tolerance is tightened to a quarter of the target. Range
     /// (0, 1). Default none.
     pub target_error: Option<f32>,
+    /// Points at which the finished bake is checked against the in-tree path tracer
+    /// (`lightbake::analysis::verify`; the CLI's `--verify N`), spread over the baked
+    /// surfaces a viewer can see; 0 leaves the check out. Range 0..=100 000. Default 0.
+    pub verify_points: u32,
+    /// Paths per point of that check: its reference's noise falls as 1/√paths. Range
+    /// 2..=1 048 576. Default 4096.
+    pub verify_paths: u32,
     /// Which files to write.
     pub formats: OutputFormats,
     /// How glTF punctual lights are read. Default [`LightConvention::GltfSpec`].
@@ -403,6 +410,8 @@ impl BakeSettings {
             memory_budget_mib: 8192,
             max_rays: 100_000_000_000,
             target_error: None,
+            verify_points: 0,
+            verify_paths: 4096,
             formats: OutputFormats::default(),
             light_convention: LightConvention::GltfSpec,
         }
@@ -571,6 +580,20 @@ impl BakeSettings {
         }
         if !(1_000_000..=1_000_000_000_000_000).contains(&self.max_rays) {
             return Err(bad("max_rays", self.max_rays, "must be 10⁶..=10¹⁵ rays"));
+        }
+        if self.verify_points > 100_000 {
+            return Err(bad(
+                "verify_points",
+                self.verify_points,
+                "must be 0..=100000 points",
+            ));
+        }
+        if !(2..=1_048_576).contains(&self.verify_paths) {
+            return Err(bad(
+                "verify_paths",
+                self.verify_paths,
+                "must be 2..=1048576 paths per point",
+            ));
         }
         if self.memory_budget_mib == 0 {
             return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));

@@ -338,6 +338,7 @@ fn bake_in_pool(
         warnings,
         error: lit.error,
         floor,
+        verification: None,
         total_seconds,
         peak_resident_mib: memory::peak_resident_bytes().map(|b| b as f64 / 1048576.0),
         outputs: Vec::new(),
