@@ -121,10 +121,19 @@ pub struct Verification {
     pub relative_bias: f64,
     /// The reference's own noise, relative RMS per point (taken out of `relative_rms`).
     pub reference_noise: f64,
-    /// One standard deviation of `relative_rms` from the reference's noise: with
-    /// D = Σ(b − r)², var D ≈ Σ(4(b − r)²·var r + 2 var² r); the error lies in
-    /// √(m² ± √var D / Σ r²), half that interval's width.
+    /// One standard deviation of `relative_rms` from the choice of points and the
+    /// reference's noise: m² = Σ(d² − var r) / Σ r² (d = b − r) is a ratio estimator, with
+    /// var m² ≈ Σ(d² − var r − m² r²)² / (Σ r²)² (the delta method, over the points) plus
+    /// the reference's part below; half the width of √(m² ± √var m²).
     pub uncertainty: f64,
+    /// The part of that from the reference's noise alone (what more paths would shrink, and
+    /// what two checks at the same points differ by): var Σd² ≈ Σ(4d²·var r + 2 var² r).
+    pub reference_uncertainty: f64,
+    /// The worst point's share of the squared error Σ(b − r)². Errors on real levels are
+    /// heavy-tailed (a few points at a leak or a shadow edge carry most of it): when one
+    /// point carries much, a check at more points measures the error more surely than
+    /// `uncertainty` says.
+    pub worst_share: f64,
     /// Share of the points more than 10% off the reference (points where both are black,
     /// below 1% of the RMS reference, left out).
     pub beyond_10: f64,
@@ -148,18 +157,25 @@ impl Verification {
     /// Lines for the CLI: the error, its spread, the estimate against it, the worst points.
     pub fn summary(&self) -> String {
         let mut s = format!(
-            "verify: {} points at {} paths each in {:.1} s: error {:.2}% ± {:.2}% RMS (reference noise {:.2}%), bias {:+.2}%, {:.1}% of points beyond ±10%, {:.1}% beyond ±25%, {} lit but black\n",
+            "verify: {} points at {} paths each in {:.1} s: error {:.2}% ± {:.2}% RMS (± {:.2}% from the reference's noise of {:.2}%), bias {:+.2}%, {:.1}% of points beyond ±10%, {:.1}% beyond ±25%, {} lit but black\n",
             self.points,
             self.paths,
             self.seconds,
             100.0 * self.relative_rms,
             100.0 * self.uncertainty,
+            100.0 * self.reference_uncertainty,
             100.0 * self.reference_noise,
             100.0 * self.relative_bias,
             100.0 * self.beyond_10,
             100.0 * self.beyond_25,
             self.lit_but_black
         );
+        if self.worst_share > 0.1 {
+            s.push_str(&format!(
+                "verify: the worst point carries {:.0}% of the squared error: the error is heavy-tailed, and a check at more points measures it more surely\n",
+                100.0 * self.worst_share
+            ));
+        }
         match (self.estimated, self.estimate_ratio) {
             (Some(e), Some(r)) => {
                 let judged = if (0.7..=1.5).contains(&r) {

@@ -130,13 +130,30 @@ pub fn measure(scene: &Scene, out: &BakeOutput, points: &[ScorePoint]) -> Verifi
     }
     if norm2 > 0.0 {
         let m2 = (diff2 - noise) / norm2;
-        let sd = var_diff2.sqrt() / norm2;
+        let half_width = |var: f64| {
+            let sd = var.sqrt();
+            0.5 * ((m2 + sd).max(0.0).sqrt() - (m2 - sd).max(0.0).sqrt())
+        };
+        let reference_var = var_diff2 / (norm2 * norm2);
+        let sampling_var: f64 = pairs
+            .iter()
+            .map(|&(p, b, r)| ((b - r) * (b - r) - p.variance - m2 * r * r).powi(2))
+            .sum::<f64>()
+            / (norm2 * norm2);
         v.relative_rms = m2.max(0.0).sqrt();
-        v.uncertainty = 0.5 * ((m2 + sd).max(0.0).sqrt() - (m2 - sd).max(0.0).sqrt());
+        v.uncertainty = half_width(sampling_var + reference_var);
+        v.reference_uncertainty = half_width(reference_var);
         v.reference_noise = (noise / norm2).sqrt();
     }
     if sum > 0.0 {
         v.relative_bias = diff / sum;
+    }
+    if diff2 > 0.0 {
+        v.worst_share = pairs
+            .iter()
+            .map(|&(_, b, r)| (b - r) * (b - r))
+            .fold(0.0, f64::max)
+            / diff2;
     }
     v.estimate_ratio = v
         .estimated
