@@ -1,17 +1,21 @@
-//! The corpus at every preset: the house (`assets/corpus/house.gltf`) and the generated
-//! office floor, each baked at preview, medium and high with the defaults (automatic texel
-//! density, `auto` solver), scored against the in-tree path tracer at 256 surface points
-//! (4096 paths each; `analysis::points`), with the bake's own estimate, its time and its peak
-//! memory. Each case runs in a child process of this binary, so its peak resident memory
-//! (`VmHWM`) is its own. Prints a Markdown table for `docs/benchmarks.md`.
+//! The corpus at every preset: the house (`assets/corpus/house.gltf`), Kenney's FPS level
+//! (`assets/corpus/kenney_fps`) and the generated office floor, each baked at preview, medium
+//! and high with the defaults (automatic texel density, `auto` solver), scored against the
+//! in-tree path tracer at 256 open surface points (4096 paths each; `analysis::points`) and by
+//! the bake's own check at 1 024 points a viewer can see (`--verify 1024`;
+//! `analysis::verify`), with the bake's own estimate, its time and its peak memory. Each case
+//! runs in a child process of this binary, so its peak resident memory (`VmHWM`, the check
+//! included) is its own. Prints a Markdown table for `docs/benchmarks.md`.
 //!
-//! `cargo bench -p lightbake --bench corpus` (add `-- --quick` for the house alone)
+//! `cargo bench -p lightbake --bench corpus` (add `-- --quick` for the house and Kenney's
+//! level alone)
 
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
 use lightbake::analysis::points::{score, score_points};
+use lightbake::analysis::verify::verify;
 use lightbake::progress::Progress;
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::office_level;
@@ -26,9 +30,15 @@ fn scene(name: &str) -> Scene {
     match name {
         "office" => office_level(8, 6),
         _ => {
-            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/house.gltf");
+            let file = match name {
+                "kenney_fps" => "kenney_fps/kenney_fps.gltf",
+                _ => "house.gltf",
+            };
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../assets/corpus")
+                .join(file);
             lightbake::import_gltf(&path, LightConvention::GltfSpec)
-                .expect("the house")
+                .expect("a corpus scene")
                 .scene
         }
     }
@@ -45,9 +55,14 @@ fn run_case(name: &str, quality: Quality) {
     let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
     let seconds = start.elapsed().as_secs_f64();
     let measured = score(&points, &out);
+    // The bake's own check (`--verify 1024`): points a viewer can see, with its uncertainty.
+    let mut out = out;
+    out.report.settings.verify_points = 1024;
+    verify(&scene, &mut out);
+    let v = out.report.verification.as_ref().expect("a verification");
     let radiosity = out.report.radiosity.as_ref();
     println!(
-        "| {name} | {quality:?} | {} | {:.1} | {:.2}% | {:.2}% | {:.2}% | {} | {:.2} | {:.0} | {:.1} |",
+        "| {name} | {quality:?} | {} | {:.1} | {:.2}% | {:.2}% | {:.2}% | {:.2}% ± {:.2}% | {:.1}% | {} | {} | {:.2} | {:.0} | {:.1} |",
         out.report.texels.patches,
         seconds,
         100.0
@@ -58,6 +73,10 @@ fn run_case(name: &str, quality: Quality) {
                 .map_or(f64::NAN, |e| e.relative_rms),
         100.0 * measured.relative_rms,
         100.0 * measured.reference_noise,
+        100.0 * v.relative_rms,
+        100.0 * v.uncertainty,
+        100.0 * v.beyond_25,
+        v.lit_but_black,
         radiosity.map_or("-", |r| r.solver),
         out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),
         peak_rss_mib(),
@@ -77,14 +96,14 @@ fn main() {
         return;
     }
     let scenes: &[&str] = if args.iter().any(|a| a == "--quick") {
-        &["house"]
+        &["house", "kenney_fps"]
     } else {
-        &["house", "office"]
+        &["house", "kenney_fps", "office"]
     };
     println!(
-        "| scene | preset | patches | bake (s) | estimated error | measured error | reference noise | solver | bake / floor | peak RSS (MiB) | reference (s) |"
+        "| scene | preset | patches | bake (s) | estimated error | measured error | reference noise | --verify 1024 | beyond ±25% | lit but black | solver | bake / floor | peak RSS (MiB) | reference (s) |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|");
     let exe = std::env::current_exe().expect("own path");
     for name in scenes {
         for quality in ["preview", "medium", "high"] {

@@ -100,6 +100,8 @@ pub struct VerifiedPoint {
     pub instance: String,
     /// World position, m.
     pub position: [f32; 3],
+    /// The surface's unit normal there (world): which face of the instance it is.
+    pub normal: [f32; 3],
     /// Luminance of the lightmap's E/π there, as the GPU reads it (bilinear), nits.
     pub baked: f32,
     /// Luminance of the path tracer's E/π there, nits.
@@ -198,8 +200,16 @@ impl Verification {
         }
         for p in self.worst.iter().take(3) {
             s.push_str(&format!(
-                "verify: worst: {} at ({:.3}, {:.3}, {:.3}) m: baked {:.4}, path tracer {:.4}\n",
-                p.instance, p.position[0], p.position[1], p.position[2], p.baked, p.reference
+                "verify: worst: {} at ({:.3}, {:.3}, {:.3}) m facing ({:.2}, {:.2}, {:.2}): baked {:.4}, path tracer {:.4}\n",
+                p.instance,
+                p.position[0],
+                p.position[1],
+                p.position[2],
+                p.normal[0],
+                p.normal[1],
+                p.normal[2],
+                p.baked,
+                p.reference
             ));
         }
         s

@@ -173,6 +173,7 @@ pub fn measure(scene: &Scene, out: &BakeOutput, points: &[ScorePoint]) -> Verifi
                 .get(p.instance as usize)
                 .map_or_else(String::new, |i| i.name.clone()),
             position: p.position.to_array(),
+            normal: p.normal.to_array(),
             baked: b as f32,
             reference: r as f32,
         })
