@@ -359,6 +359,11 @@ impl BakeReport {
                 100.0 * e.relative_rms,
                 100.0 * e.p95
             ));
+            if self.verification.is_none() {
+                s.push_str(
+                    "  (the estimate covers sampling noise and the coarse level's bias, not the texel grid's own error — shadow edges and geometry finer than a texel, light at contacts; `--verify N` measures the whole error against the path tracer)\n",
+                );
+            }
         }
         if let Some(st) = &self.seams {
             s.push_str(&format!(
