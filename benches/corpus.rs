@@ -1,5 +1,5 @@
-//! The corpus at every preset: the house (`assets/corpus/house.gltf`), Kenney's FPS level
-//! (`assets/corpus/kenney_fps`) and the generated office floor, each baked at preview, medium
+//! The corpus at every preset: the house (`assets/corpus/house.gltf`), Kenney's FPS and
+//! platformer levels (`assets/corpus/kenney_*`) and the generated office floor, each baked at preview, medium
 //! and high with the defaults (automatic texel density, `auto` solver), scored against the
 //! in-tree path tracer at 256 open surface points (4096 paths each; `analysis::points`) and by
 //! the bake's own check at 1 024 points a viewer can see (`--verify 1024`;
@@ -7,8 +7,7 @@
 //! runs in a child process of this binary, so its peak resident memory (`VmHWM`, the check
 //! included) is its own. Prints a Markdown table for `docs/benchmarks.md`.
 //!
-//! `cargo bench -p lightbake --bench corpus` (add `-- --quick` for the house and Kenney's
-//! level alone)
+//! `cargo bench -p lightbake --bench corpus` (add `-- --quick` to leave the office floor out)
 
 use std::path::Path;
 use std::process::Command;
@@ -32,6 +31,7 @@ fn scene(name: &str) -> Scene {
         _ => {
             let file = match name {
                 "kenney_fps" => "kenney_fps/kenney_fps.gltf",
+                "kenney_platformer" => "kenney_platformer/kenney_platformer.gltf",
                 _ => "house.gltf",
             };
             let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -96,9 +96,9 @@ fn main() {
         return;
     }
     let scenes: &[&str] = if args.iter().any(|a| a == "--quick") {
-        &["house", "kenney_fps"]
+        &["house", "kenney_fps", "kenney_platformer"]
     } else {
-        &["house", "kenney_fps", "office"]
+        &["house", "kenney_fps", "kenney_platformer", "office"]
     };
     println!(
         "| scene | preset | patches | bake (s) | estimated error | measured error | reference noise | --verify 1024 | beyond ±25% | lit but black | solver | bake / floor | peak RSS (MiB) | reference (s) |"

@@ -102,7 +102,8 @@ fn verify_sees_a_black_wall() {
 
 /// Bakes a scene of the corpus at preview, checked at 256 points: no lit point left black —
 /// the independent test of the bake's own `visible but unlit` count — every texel finite,
-/// and the error below `bound`.
+/// no padding texel brighter than twice the brightest covered one, and the error below
+/// `bound`.
 fn corpus_scene_checks(file: &str, bound: f64) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../assets/corpus")
@@ -129,12 +130,33 @@ fn corpus_scene_checks(file: &str, bound: f64) {
             .iter()
             .all(|p| p.texels.iter().all(|t| t.is_finite()))
     );
+    // No texel outside the charts (padding the contact fit chose, dilation) is brighter than
+    // twice the brightest texel inside them.
+    let brightest = |covered: bool| {
+        out.pages
+            .iter()
+            .flat_map(|p| p.texels.iter().zip(&p.covered))
+            .filter(|(_, c)| **c == covered)
+            .map(|(t, _)| t.max_element())
+            .fold(0.0f32, f32::max)
+    };
+    let (inside, outside) = (brightest(true), brightest(false));
+    assert!(
+        outside <= 2.0 * inside,
+        "a padding texel holds {outside}, the brightest covered texel {inside}"
+    );
 }
 
 /// The house (a real architectural model, not built for these tests).
 #[test]
 fn the_house_has_no_lit_point_left_black() {
     corpus_scene_checks("house.gltf", 0.1);
+}
+
+/// Kenney's 3D platformer level (a game level, not built for these tests).
+#[test]
+fn the_kenney_platformer_has_no_lit_point_left_black() {
+    corpus_scene_checks("kenney_platformer/kenney_platformer.gltf", 0.12);
 }
 
 /// Kenney's FPS starter level (a game level, not built for these tests).

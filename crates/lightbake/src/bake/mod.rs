@@ -545,8 +545,8 @@ fn light_scene(
                 "no texel next to geometry shows light of the wrong side".to_string()
             } else {
                 format!(
-                    "{} texels next to geometry ({} samples cut), {} values fitted, {} CG iterations",
-                    st.texels, st.cut_samples, st.unknowns, st.iterations
+                    "{} texels next to geometry ({} samples cut), {} values fitted ({} capped at twice their brightest target), {} CG iterations",
+                    st.texels, st.cut_samples, st.unknowns, st.capped, st.iterations
                 )
             };
             Ok((st, st.rays, note))

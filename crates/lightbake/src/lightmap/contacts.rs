@@ -24,7 +24,10 @@
 //! texel read with a small bilinear weight); held, it stays as quiet as they are. A texel's
 //! samples are `SAMPLES` stratified points of its footprint; only texels near geometry take
 //! part. The normal equations are solved by conjugate gradients, one per channel; values
-//! are kept at zero or above.
+//! are kept at zero or above, and at most twice the brightest target of the samples that read
+//! them (a texel read with a small weight would otherwise take the light its samples need
+//! divided by that weight: up to 45× the sun's light was seen at a chart corner of a game
+//! level, shown wherever else the texel is read and beyond the half-float range).
 //!
 //! A valid texel shared by two sides of a wall thinner than a texel keeps its value (lit from
 //! its representative point's side): no value serves both sides, and giving it the dark
@@ -49,6 +52,9 @@ const SAMPLES: u32 = 16;
 const CHUNK: usize = 4096;
 /// Weight of a free texel's hold at its samples' mean target, relative to theirs.
 const FREE: f64 = 1.0;
+/// A fitted value is at most this many times the brightest target of the samples that
+/// read it.
+const CEILING: f32 = 2.0;
 /// Stream of the fit's sample points (mixed into a patch's key with [`FIT_SEED`]).
 const STREAM: u32 = 0xc0a7;
 /// The fit's samples are geometry, like validity's probes: a fixed seed.
@@ -70,6 +76,8 @@ pub struct ContactStats {
     pub rays: u64,
     /// Conjugate-gradient iterations (the largest of the three channels).
     pub iterations: u32,
+    /// Fitted values lowered to twice the brightest light their samples ask for.
+    pub capped: usize,
 }
 
 /// One sample: its four texels (page texel index, weight, whether it belongs to the sample's
@@ -189,6 +197,8 @@ pub fn contact_fit(
     let mut system = LeastSquares::new(unknowns.len());
     let share = 1.0 / SAMPLES as f64;
     let mut taps = Vec::with_capacity(4);
+    // The brightest target each unknown's samples ask for (per channel).
+    let mut ceiling = vec![Vec3::ZERO; unknowns.len()];
     for r in &rows {
         let value = |t: &Tap| assembly.pages[r.page as usize].texels[t.texel as usize];
         let (mut g, mut wv, mut held) = (Vec3::ZERO, 0.0f32, Vec3::ZERO);
@@ -209,14 +219,24 @@ pub fn contact_fit(
         system.add_row(&taps, a, (g - held).as_dvec3());
         for &(i, wi) in &taps {
             system.add_target(i, a * wi * wi, g.as_dvec3());
+            ceiling[i as usize] = ceiling[i as usize].max(g);
         }
     }
     for i in 0..unknowns.len() {
         system.free(i, FREE, x0[i].as_dvec3());
     }
     // 5. Solve and write back.
-    let (x, iterations) = system.solve(&x0);
+    let (mut x, iterations) = system.solve(&x0);
     stats.iterations = iterations;
+    // A free texel read with a small bilinear weight can take a value far above any light
+    // its samples see (the exact fit divides by that weight); the GPU shows such a texel
+    // wherever else it is read, and half floats overflow. Each is kept at most
+    // `CEILING` × the brightest target of its samples.
+    for (v, c) in x.iter_mut().zip(&ceiling) {
+        let capped = v.min(CEILING * *c);
+        stats.capped += usize::from(capped != *v);
+        *v = capped;
+    }
     unknowns.write(assembly, &x);
     stats
 }

@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
-"""Assembles Kenney's "Starter Kit FPS" level (github.com/KenneyNL/Starter-Kit-FPS, MIT) into
-one glTF for the corpus: the pieces of `scenes/main.tscn`'s `Level` and `Decoration` nodes
-placed as Godot places them (each object scene's own child pieces and node transforms
-included), their meshes and materials as Kenney's .glb files hold them, and the scene's sun.
+"""Assembles the level of one of Kenney's Godot starter kits (MIT) into one glTF for the
+corpus: the static pieces `scenes/main.tscn` places under the level's nodes, placed as Godot
+places them (each object scene's own child pieces and node transforms included), their meshes
+and materials as Kenney's .glb files hold them, and the scene's sun.
 
-    python3 assemble.py PATH/TO/Starter-Kit-FPS [OUT_DIR]
+    python3 kenney_assemble.py fps PATH/TO/Starter-Kit-FPS              # writes kenney_fps/
+    python3 kenney_assemble.py platformer PATH/TO/Starter-Kit-3D-Platformer
 
 Changes to the source: the `KHR_texture_transform` entries (texCoord 0 only, the identity)
-are dropped; the sun gets an illuminance in lux and the scene a sky luminance in nits, as the
-corpus README says (Godot's light energy has no physical unit). Nothing else is changed.
+are dropped; pieces that move or vanish in play (the platformer's coins) are left out; the
+sun gets an illuminance in lux and the scene a sky luminance in nits, as the corpus README
+says (Godot's light energy has no physical unit). Nothing else is changed.
 """
 import json
 import re
@@ -18,8 +20,12 @@ import sys
 from pathlib import Path
 
 SUN_LUX = 60000.0
-# Godot's ambient light colour (0.663, 0.694, 0.773) at 5 000 nits.
-SKY_NITS = [3314.0, 3471.0, 3863.0]
+# Per level: its name, the nodes of main.tscn whose children are the level's pieces, the
+# object scenes left out, and the sky: Godot's ambient light colour at 5 000 nits.
+LEVELS = {
+    "fps": ("kenney_fps", ("Level", "Decoration"), (), [3314.0, 3471.0, 3863.0]),
+    "platformer": ("kenney_platformer", ("World",), ("objects/coin.tscn",), [4050.0, 4219.0, 5000.0]),
+}
 
 
 def tscn(path):
@@ -124,8 +130,9 @@ class Doc:
 
 
 def main():
-    root = Path(sys.argv[1])
-    out = Path(sys.argv[2] if len(sys.argv) > 2 else Path(__file__).parent)
+    name, parents, skip, sky = LEVELS[sys.argv[1]]
+    root = Path(sys.argv[2])
+    out = Path(sys.argv[3]) if len(sys.argv) > 3 else Path(__file__).parent / name
     (out / "Textures").mkdir(parents=True, exist_ok=True)
     shutil.copyfile(root / "models/Textures/colormap.png", out / "Textures/colormap.png")
     doc = Doc()
@@ -133,27 +140,29 @@ def main():
     scene_nodes = []
 
     def object_scene(rel, name, t):
-        """A placement of object scene `rel` (a glb, its node overrides and child pieces)."""
+        """A placement of `rel`: a glb, or an object scene (its glb, node overrides and pieces)."""
+        if rel.endswith(".glb"):
+            return doc.node(name=name, matrix=matrix(t), children=doc.place(root, rel, out, {}))
         ores, onodes = tscn(root / rel)
-        glb = ores[onodes[0][2]]
+        top = onodes[0][2]
         overrides = {n: tr for (n, parent, inst, tr) in onodes[1:] if parent == "." and inst is None and tr}
-        kids = doc.place(root, glb, out, overrides)
+        kids = doc.place(root, ores[top], out, overrides) if top and ores[top].endswith(".glb") else []
         for (n, parent, inst, tr) in onodes[1:]:
-            if parent == "." and inst is not None:
+            if parent == "." and inst is not None and ores[inst].endswith(".glb"):
                 kids.append(doc.node(name=n, matrix=matrix(tr), children=doc.place(root, ores[inst], out, {})))
         return doc.node(name=name, matrix=matrix(t), children=kids)
 
-    for (name, parent, inst, t) in nodes:
-        if parent in ("Level", "Decoration") and inst is not None:
-            scene_nodes.append(object_scene(res[inst], name, t))
-        if name == "Sun":
+    for (node, parent, inst, t) in nodes:
+        if parent in parents and inst is not None and res[inst] not in skip:
+            scene_nodes.append(object_scene(res[inst], node, t))
+        if node == "Sun":
             doc.d["extensionsUsed"] = ["KHR_lights_punctual"]
             doc.d["extensions"] = {"KHR_lights_punctual": {"lights": [
                 {"name": "sun", "type": "directional", "color": [1.0, 0.96, 0.9], "intensity": SUN_LUX}]}}
             scene_nodes.append(doc.node(name="sun", matrix=matrix(t), extensions={"KHR_lights_punctual": {"light": 0}}))
-    doc.d["scenes"] = [{"name": "kenney_fps", "nodes": scene_nodes, "extras": {"lightbake": {"sky": SKY_NITS}}}]
+    doc.d["scenes"] = [{"name": name, "nodes": scene_nodes, "extras": {"lightbake": {"sky": sky}}}]
     doc.d["scene"] = 0
-    (out / "kenney_fps.gltf").write_text(json.dumps(doc.d, indent=1) + "\n")
+    (out / (name + ".gltf")).write_text(json.dumps(doc.d, indent=1) + "\n")
 
 
 if __name__ == "__main__":
