@@ -1,23 +1,24 @@
 //! A bake checked against the path tracer: `bake --verify N`
 //! ([`BakeSettings::verify_points`](crate::BakeSettings::verify_points)).
 //!
-//! * **Points**: `N` points of the baked surfaces ([`super::points::sample_surface`]: spread by
-//!   area × the instance's texel-density scale², open surface, not inside solids), kept only
-//!   where a viewer can see them ([`super::edges::is_seen`]: a quarter of a cosine fan travels eight
-//!   texels before hitting anything). Numbers from the bake's seed, so the same bake gives
-//!   the same points on any thread count.
+//! * **Points**: `N` points of the baked surfaces ([`super::points::sample_surface`]: spread
+//!   by area × the instance's texel-density scale², open surface, not inside solids), kept
+//!   only where a viewer can see them ([`super::edges::is_seen`]: a quarter of a cosine fan
+//!   travels eight texels before hitting anything). Numbers from the bake's seed, so the same
+//!   bake gives the same points on any thread count.
 //! * **Reference**: [`super::reference::irradiance`] at
-//!   [`BakeSettings::verify_paths`](crate::BakeSettings::verify_paths) paths per
-//!   point in two independent halves ([`super::points::references`]); its noise is stated.
-//! * **Bake**: the lightmap where the GPU reads it ([`super::points::sample_bake`]: bilinear, on the
-//!   point's lightmap UV in the baked scene).
+//!   [`BakeSettings::verify_paths`](crate::BakeSettings::verify_paths) paths per point in two
+//!   independent halves ([`super::points::references`]); its noise is stated.
+//! * **Bake**: the lightmap where the GPU reads it ([`super::points::sample_bake`]: bilinear,
+//!   on the point's lightmap UV in the baked scene).
 //! * **Measures** ([`Verification`]): the relative RMS error of the luminance of E/π with the
-//!   reference's noise taken out, √((Σ(b − r)² − Σ var r) / Σ r²) as in [`super::points::score`], with
-//!   its uncertainty from that noise ([`Verification::uncertainty`]); the
-//!   relative bias Σ(b − r) / Σ r; the shares of points beyond ±10% and ±25% (points where both
-//!   are black, below 1% of the RMS reference, left out); the points the path tracer finds lit
-//!   where the lightmap is black; the bake's own estimate against the measurement; the ten
-//!   worst points.
+//!   reference's noise taken out, √((Σ(b − r)² − Σ var r) / Σ r²) as in
+//!   [`super::points::score`], with its uncertainty from the choice of points and from the
+//!   reference's noise ([`Verification::uncertainty`]); the relative bias Σ(b − r) / Σ r; the
+//!   shares of points beyond ±10% and ±25% (points where both are black, below 1% of the RMS
+//!   reference, left out); the points the path tracer finds lit where the lightmap is black;
+//!   the worst point's share of the squared error; the bake's own estimate against the
+//!   measurement; the ten worst points.
 
 use std::time::Instant;
 
