@@ -25,9 +25,9 @@
 //! samples are `SAMPLES` stratified points of its footprint; only texels near geometry take
 //! part. The normal equations are solved by conjugate gradients, one per channel; values
 //! are kept at zero or above, and at most twice the brightest target of the samples that read
-//! them (a texel read with a small weight would otherwise take the light its samples need
-//! divided by that weight: up to 45× the sun's light was seen at a chart corner of a game
-//! level, shown wherever else the texel is read and beyond the half-float range).
+//! them: a texel read with a small weight would otherwise take the light its samples need
+//! divided by that weight, far above any light in the scene and beyond the half-float range,
+//! and the GPU shows it wherever else it reads that texel.
 //!
 //! A valid texel shared by two sides of a wall thinner than a texel keeps its value (lit from
 //! its representative point's side): no value serves both sides, and giving it the dark
