@@ -7,6 +7,8 @@
 //! Bounded for CI: 500 cases per property from a fixed seed (a few seconds); set
 //! `PROPTEST_CASES` and `PROPTEST_RNG_SEED=random` for a longer search.
 
+mod common;
+
 use std::path::Path;
 
 use lightbake::context::Prepared;
@@ -130,29 +132,8 @@ fn written(dir: &Path) -> (Value, Vec<u8>) {
     )
 }
 
-/// 500 cases from a fixed seed, so CI runs the same cases every time; `PROPTEST_CASES` and
-/// `PROPTEST_RNG_SEED` (a number, or `random`) explore further.
-fn config() -> ProptestConfig {
-    let env = |name: &str| std::env::var(name).ok();
-    ProptestConfig {
-        cases: env("PROPTEST_CASES")
-            .and_then(|c| c.parse().ok())
-            .unwrap_or(500),
-        rng_seed: match env("PROPTEST_RNG_SEED").as_deref() {
-            Some("random") => proptest::test_runner::RngSeed::Random,
-            Some(s) => s.parse().map_or(
-                proptest::test_runner::RngSeed::Random,
-                proptest::test_runner::RngSeed::Fixed,
-            ),
-            None => proptest::test_runner::RngSeed::Fixed(0x0011_bace),
-        },
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(common::proptest_config(0x0011_bace))]
 
     #[test]
     fn edited_json_imports_or_errors(edits in prop::collection::vec(edit(), 1..4)) {

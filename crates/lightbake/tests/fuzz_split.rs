@@ -7,6 +7,8 @@
 //! Bounded for CI: 500 cases per property from a fixed seed; `PROPTEST_CASES` and
 //! `PROPTEST_RNG_SEED=random` search further (as in `fuzz_import.rs`).
 
+mod common;
+
 use std::sync::OnceLock;
 
 use lightbake::bake::shard::Units;
@@ -49,25 +51,6 @@ fn read_and_use(bytes: &[u8]) {
     }
 }
 
-fn config() -> ProptestConfig {
-    let env = |name: &str| std::env::var(name).ok();
-    ProptestConfig {
-        cases: env("PROPTEST_CASES")
-            .and_then(|c| c.parse().ok())
-            .unwrap_or(500),
-        rng_seed: match env("PROPTEST_RNG_SEED").as_deref() {
-            Some("random") => proptest::test_runner::RngSeed::Random,
-            Some(s) => s.parse().map_or(
-                proptest::test_runner::RngSeed::Random,
-                proptest::test_runner::RngSeed::Fixed,
-            ),
-            None => proptest::test_runner::RngSeed::Fixed(0x5b1d_bace),
-        },
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
 #[test]
 fn the_prepared_patches_pass_their_own_checks() {
     let (p, bytes) = prepared();
@@ -86,7 +69,7 @@ fn the_prepared_patches_pass_their_own_checks() {
 }
 
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(common::proptest_config(0x5b1d_bace))]
 
     #[test]
     fn written_patches_are_read_or_refused(

@@ -368,3 +368,23 @@ pub fn hard_furnace(rho: f32, e: f32, parts: &[&str]) -> Scene {
     );
     scene
 }
+
+/// Property-test settings of the fuzz tests: 500 cases from `seed`, so CI runs the same cases
+/// every time; `PROPTEST_CASES` and `PROPTEST_RNG_SEED` (a number, or `random`) explore
+/// further.
+pub fn proptest_config(seed: u64) -> proptest::prelude::ProptestConfig {
+    use proptest::test_runner::RngSeed;
+    let env = |name: &str| std::env::var(name).ok();
+    proptest::prelude::ProptestConfig {
+        cases: env("PROPTEST_CASES")
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(500),
+        rng_seed: match env("PROPTEST_RNG_SEED").as_deref() {
+            Some("random") => RngSeed::Random,
+            Some(s) => s.parse().map_or(RngSeed::Random, RngSeed::Fixed),
+            None => RngSeed::Fixed(seed),
+        },
+        failure_persistence: None,
+        ..proptest::prelude::ProptestConfig::default()
+    }
+}
