@@ -1,5 +1,6 @@
 //! The corpus at every preset: the house (`assets/corpus/house.gltf`), Kenney's FPS and
-//! platformer levels (`assets/corpus/kenney_*`) and the generated office floor, each baked at preview, medium
+//! platformer levels (`assets/corpus/kenney_*`), four OpenArena levels
+//! (`assets/corpus/openarena/`) and the generated office floor, each baked at preview, medium
 //! and high with the defaults (automatic texel density, `auto` solver), scored against the
 //! in-tree path tracer at 256 open surface points (4096 paths each; `analysis::points`) and by
 //! the bake's own check at 1 024 points a viewer can see (`--verify 1024`;
@@ -32,6 +33,10 @@ fn scene(name: &str) -> Scene {
             let file = match name {
                 "kenney_fps" => "kenney_fps/kenney_fps.gltf",
                 "kenney_platformer" => "kenney_platformer/kenney_platformer.gltf",
+                "aggressor" => "openarena/aggressor.gltf",
+                "q3dm6ish" => "openarena/q3dm6ish.gltf",
+                "oa_bases3" => "openarena/oa_bases3.gltf",
+                "kaos" => "openarena/kaos.gltf",
                 _ => "house.gltf",
             };
             let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -96,9 +101,26 @@ fn main() {
         return;
     }
     let scenes: &[&str] = if args.iter().any(|a| a == "--quick") {
-        &["house", "kenney_fps", "kenney_platformer"]
+        &[
+            "house",
+            "kenney_fps",
+            "kenney_platformer",
+            "aggressor",
+            "q3dm6ish",
+            "oa_bases3",
+            "kaos",
+        ]
     } else {
-        &["house", "kenney_fps", "kenney_platformer", "office"]
+        &[
+            "house",
+            "kenney_fps",
+            "kenney_platformer",
+            "aggressor",
+            "q3dm6ish",
+            "oa_bases3",
+            "kaos",
+            "office",
+        ]
     };
     println!(
         "| scene | preset | patches | bake (s) | estimated error | measured error | reference noise | --verify 1024 | beyond ±25% | lit but black | solver | bake / floor | peak RSS (MiB) | reference (s) |"

@@ -164,3 +164,16 @@ fn the_kenney_platformer_has_no_lit_point_left_black() {
 fn the_kenney_level_has_no_lit_point_left_black() {
     corpus_scene_checks("kenney_fps/kenney_fps.gltf", 0.12);
 }
+
+/// OpenArena's `aggressor` (a game level, Z-up in inches under its root node, 84 point
+/// lights, most of them in other rooms than any one texel).
+#[test]
+fn the_openarena_aggressor_level_has_no_lit_point_left_black() {
+    corpus_scene_checks("openarena/aggressor.gltf", 0.2);
+}
+
+/// OpenArena's `q3dm6ish` (a game level, Z-up in inches, 30 point lights).
+#[test]
+fn the_openarena_q3dm6ish_level_has_no_lit_point_left_black() {
+    corpus_scene_checks("openarena/q3dm6ish.gltf", 0.25);
+}
