@@ -15,7 +15,7 @@ use serde::Serialize;
 use glam::Vec3;
 
 use crate::lights::LightSource;
-use crate::lights::tree::MANY_LIGHTS;
+use crate::lights::tree::{MANY_LIGHTS, PER_TEXEL_LIGHTS};
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
 
@@ -388,8 +388,15 @@ impl Facts<'_> {
         if !self.work {
             return 16.0;
         }
+        let weighed = if self.lights > MANY_LIGHTS && self.lights <= PER_TEXEL_LIGHTS {
+            // Each texel's shadow rays to every light from two points, once
+            // (`direct::light_choice`).
+            2.0 * self.lights as f64
+        } else {
+            0.0
+        };
         let lights = if self.lights > MANY_LIGHTS {
-            // One from the light tree, and the suns one by one.
+            // One picked per sample, and the suns one by one.
             1.0 + self
                 .scene
                 .lights
@@ -399,7 +406,7 @@ impl Facts<'_> {
         } else {
             self.lights as f64
         } + if self.area_lights { 1.0 } else { 0.0 };
-        let direct = s.samples_per_texel as f64 * lights;
+        let direct = s.samples_per_texel as f64 * lights + weighed;
         let sky = if self.sky { s.sky_samples as f64 } else { 0.0 };
         let cluster = (s.cluster_texels as f64).powi(2);
         let indirect = match s.method {
@@ -512,7 +519,7 @@ impl Facts<'_> {
                     as_vpls.to_string()
                 } else if self.lights > MANY_LIGHTS {
                     format!(
-                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes one light from a light tree (by power over distance²) instead of all",
+                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes one light instead of all: picked by the texel's own weights (each light's unoccluded light and its visibility from the texel) up to {PER_TEXEL_LIGHTS} lights, from a light tree (by power over distance²) beyond",
                         self.lights,
                         scene.lights.len()
                     )

@@ -10,6 +10,7 @@
 //! ([`emitters`]). Each texel also estimates its own error ([`variance`]).
 
 pub mod emitters;
+pub mod light_choice;
 pub mod variance;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -21,7 +22,7 @@ use crate::bvh::RayScene;
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::error_estimate::standard_error;
-use crate::lights::tree::{LightTree, MANY_LIGHTS};
+use crate::lights::tree::{LightTree, MANY_LIGHTS, PER_TEXEL_LIGHTS};
 use crate::lights::{Emitters, LightSource, SceneDisc, sky};
 use crate::plan::BakePlan;
 use crate::progress::Progress;
@@ -31,6 +32,7 @@ use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::unwrap::Layout;
 use emitters::RatioEstimate;
+use light_choice::TexelLights;
 pub use variance::error_method;
 use variance::{BLOCKS, Block, block_variance, uses_blocks};
 
@@ -214,6 +216,7 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3
         p,
         ctx.settings.seed,
     );
+    let mut choice = None;
     for s in 0..spp {
         let e_before = e;
         let (unoccluded_before, wv_before, wt_before) =
@@ -221,7 +224,10 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3
         let sp = footprint.point(s, rays);
         samples.push(sp);
         let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-        add_lights(ctx, p, s, &sp, origin, &mut e, realtime, rays);
+        if s == 0 {
+            choice = texel_choice(ctx, p, &sp, rays);
+        }
+        add_lights(ctx, p, s, &sp, origin, choice.as_ref(), &mut e, realtime, rays);
         if ctx.plan.area_lights && !ctx.emitters.is_empty() {
             if ctx.closed_form {
                 ratio.add(ctx, p, s, &sp, origin, rays);
@@ -270,9 +276,37 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3
     (irradiance, variance.sqrt() as f32)
 }
 
+/// The texel's own weights for picking one light per footprint sample (from its
+/// representative point and its first footprint point `first`), when more than
+/// [`MANY_LIGHTS`] and at most [`PER_TEXEL_LIGHTS`] lights reach its instance; `None`
+/// otherwise (every light is evaluated, or the light tree picks).
+fn texel_choice(
+    ctx: &Ctx<'_>,
+    p: &Patch,
+    first: &SurfacePoint,
+    rays: &mut u64,
+) -> Option<TexelLights> {
+    let lights = ctx.plan.lights_for(p.instance as usize);
+    if lights.len() <= MANY_LIGHTS || lights.len() > PER_TEXEL_LIGHTS || ctx.tree.is_empty() {
+        return None;
+    }
+    let picked: Vec<u32> = lights
+        .iter()
+        .copied()
+        .filter(|&li| ctx.tree.holds(li))
+        .collect();
+    Some(TexelLights::weigh(
+        ctx,
+        &[p.representative(), *first],
+        &picked,
+        rays,
+    ))
+}
+
 /// Adds the light of every punctual and directional light the plan evaluates for `p` at
 /// footprint sample `s` (point `sp`, shadow rays from `origin`) to `e`, one light at a time,
-/// and the light of those baked indirect only to `realtime` as well.
+/// and the light of those baked indirect only to `realtime` as well. With many lights, one
+/// is picked: by the texel's `choice` when it has one, else from the light tree.
 #[allow(clippy::too_many_arguments)]
 fn add_lights(
     ctx: &Ctx<'_>,
@@ -280,6 +314,7 @@ fn add_lights(
     s: u32,
     sp: &SurfacePoint,
     origin: Vec3,
+    choice: Option<&TexelLights>,
     e: &mut Vec3,
     realtime: &mut Vec3,
     rays: &mut u64,
@@ -313,7 +348,11 @@ fn add_lights(
     let u = unit_float(hash(
         p.rng(ctx.settings.seed, stream::LIGHT_PICK) ^ s.wrapping_mul(0x9e37_79b9),
     ));
-    if let Some((li, pdf)) = ctx.tree.pick(sp.position, sp.normal, u)
+    let picked = match choice {
+        Some(c) => c.pick(u),
+        None => ctx.tree.pick(sp.position, sp.normal, u),
+    };
+    if let Some((li, pdf)) = picked
         && lights.binary_search(&li).is_ok()
         && pdf > 0.0
     {

@@ -1,4 +1,4 @@
-//! Many lights sampled by importance: a binary tree over the lights that sit somewhere (point,
+//! Many lights sampled by importance, beyond [`PER_TEXEL_LIGHTS`]: a binary tree over the lights that sit somewhere (point,
 //! spot, rect), each node holding its lights' bounds and total power, walked from the root
 //! to one light with probability in proportion to each child's importance at the shading
 //! point — its power over the squared distance to its bounds' centre (clamped below at half
@@ -20,6 +20,11 @@ use crate::scene::{LightKind, Scene};
 /// Above this many lights reaching an instance, the direct pass samples one light per
 /// footprint sample from a [`LightTree`] for its texels instead of evaluating every light.
 pub const MANY_LIGHTS: usize = 64;
+
+/// Up to this many lights reaching an instance, each texel picks its one light per footprint
+/// sample by weights of its own (each light's unoccluded light and its visibility from the
+/// texel: `direct::light_choice`); beyond, a [`LightTree`] picks.
+pub const PER_TEXEL_LIGHTS: usize = 512;
 
 /// One node: a leaf names a light, an inner node its two children (the left one follows it).
 #[derive(Clone, Copy, Debug)]
