@@ -373,12 +373,17 @@ pub fn hard_furnace(rho: f32, e: f32, parts: &[&str]) -> Scene {
 /// every time; `PROPTEST_CASES` and `PROPTEST_RNG_SEED` (a number, or `random`) explore
 /// further.
 pub fn proptest_config(seed: u64) -> proptest::prelude::ProptestConfig {
+    proptest_config_cases(seed, 500)
+}
+
+/// [`proptest_config`] with `cases` cases unless `PROPTEST_CASES` says otherwise.
+pub fn proptest_config_cases(seed: u64, cases: u32) -> proptest::prelude::ProptestConfig {
     use proptest::test_runner::RngSeed;
     let env = |name: &str| std::env::var(name).ok();
     proptest::prelude::ProptestConfig {
         cases: env("PROPTEST_CASES")
             .and_then(|c| c.parse().ok())
-            .unwrap_or(500),
+            .unwrap_or(cases),
         rng_seed: match env("PROPTEST_RNG_SEED").as_deref() {
             Some("random") => RngSeed::Random,
             Some(s) => s.parse().map_or(RngSeed::Random, RngSeed::Fixed),
