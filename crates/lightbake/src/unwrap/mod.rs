@@ -15,6 +15,7 @@ mod atlas;
 mod existing;
 mod pack;
 mod pieces;
+mod squashed;
 pub mod xatlas;
 
 use atlas::xatlas_unwrap;
@@ -315,7 +316,10 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
     Ok(layout)
 }
 
-/// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]).
+/// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]). When the
+/// unwrap squashes triangles ([`squashed`]), the mesh is charted again with every flat
+/// region projected onto its own plane, and the better of the two is kept (a warning says
+/// which and why).
 fn unwrap_mesh(
     mesh: &Mesh,
     request: Density,
@@ -323,10 +327,39 @@ fn unwrap_mesh(
     warnings: &mut Vec<String>,
     raised: &mut bool,
 ) -> Result<MeshUnwrap> {
-    if mesh.triangle_count() > pieces::BIG_MESH_TRIANGLES {
-        pieces::unwrap_in_pieces(mesh, request, settings, warnings, raised)
+    let first = if mesh.triangle_count() > pieces::BIG_MESH_TRIANGLES {
+        pieces::unwrap_in_pieces(mesh, request, settings, pieces::MIN_PLANAR, warnings, raised)?
     } else {
-        xatlas_unwrap(mesh, request, settings, warnings, raised)
+        xatlas_unwrap(mesh, request, settings, warnings, raised)?
+    };
+    // The density the unwrap reached (lowered to fit a page, or raised for a tiny mesh).
+    let achieved = |u: &MeshUnwrap| {
+        request.texels_per_unit * u.texels_per_metre / request.texels_per_metre.max(f32::MIN_POSITIVE)
+    };
+    let (count, least) = squashed::squashed(mesh, &first, achieved(&first));
+    if count == 0 {
+        return Ok(first);
+    }
+    let mut notes = Vec::new();
+    let mut tiny = false;
+    let second = pieces::unwrap_in_pieces(mesh, request, settings, 1, &mut notes, &mut tiny)?;
+    let (again, least_again) = squashed::squashed(mesh, &second, achieved(&second));
+    let name = &mesh.name;
+    if again < count {
+        warnings.push(format!(
+            "mesh '{name}': xatlas gave {count} triangle(s) less than half the texel density (down to {:.1}%); charted again with each flat region projected onto its plane ({again} left below half)",
+            100.0 * least
+        ));
+        warnings.extend(notes);
+        *raised |= tiny;
+        Ok(second)
+    } else {
+        warnings.push(format!(
+            "mesh '{name}': {count} triangle(s) get less than half the texel density (down to {:.1}%), and charting its flat regions directly does no better ({again}, down to {:.1}%)",
+            100.0 * least,
+            100.0 * least_again
+        ));
+        Ok(first)
     }
 }
 

@@ -35,7 +35,7 @@ const PIECE_TRIANGLES: usize = 256;
 
 /// Fewest triangles a planar region needs to be charted directly (smaller ones go to xatlas
 /// with their neighbours).
-const MIN_PLANAR: usize = 64;
+pub(super) const MIN_PLANAR: usize = 64;
 
 /// cos 0.5°: normals of one planar region agree this closely.
 const PLANAR_COS: f64 = 0.999_961_923;
@@ -98,9 +98,14 @@ fn neighbours(mesh: &Mesh) -> Vec<Vec<u32>> {
     out
 }
 
-/// Planar regions of at least [`MIN_PLANAR`] triangles, or that are whole connected parts of
-/// the mesh (a loose triangle, a flat card), and the triangles in none.
-fn planar_regions(mesh: &Mesh, normals: &[DVec3], extent: f64) -> (Vec<Vec<u32>>, Vec<u32>) {
+/// Planar regions of at least `min_planar` triangles, or that are whole connected parts of the
+/// mesh (a loose triangle, a flat card), and the triangles in none.
+fn planar_regions(
+    mesh: &Mesh,
+    normals: &[DVec3],
+    extent: f64,
+    min_planar: usize,
+) -> (Vec<Vec<u32>>, Vec<u32>) {
     let adjacent = neighbours(mesh);
     let tolerance = 1e-6 * extent.max(f64::MIN_POSITIVE);
     let mut region = vec![u32::MAX; mesh.triangle_count()];
@@ -143,7 +148,7 @@ fn planar_regions(mesh: &Mesh, normals: &[DVec3], extent: f64) -> (Vec<Vec<u32>>
                 }
             }
         }
-        if members.len() >= MIN_PLANAR || whole {
+        if members.len() >= min_planar || whole {
             regions.push(members);
         } else {
             // Back to the pool: marked so they are not seeded again.
@@ -362,8 +367,9 @@ fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>, u32, u32) 
     (corners, width.max(1), (y + shelf_h).max(1))
 }
 
-/// Charts a big mesh in pieces (see the module docs) at the density `request` asks for,
-/// lowered until the mesh fits a page.
+/// Charts a mesh in pieces (see the module docs) at the density `request` asks for, lowered
+/// until the mesh fits a page; planar regions of at least `min_planar` triangles (or whole
+/// loose parts) are charted directly.
 ///
 /// # Errors
 /// [`BakeError::Unwrap`] when xatlas refuses a piece or no density fits.
@@ -371,6 +377,7 @@ pub(super) fn unwrap_in_pieces(
     mesh: &Mesh,
     request: Density,
     settings: &BakeSettings,
+    min_planar: usize,
     warnings: &mut Vec<String>,
     raised: &mut bool,
 ) -> Result<MeshUnwrap> {
@@ -387,7 +394,7 @@ pub(super) fn unwrap_in_pieces(
     } else {
         request
     };
-    let (regions, rest) = planar_regions(mesh, &normals, extent);
+    let (regions, rest) = planar_regions(mesh, &normals, extent, min_planar);
     let pieces = kd_pieces(mesh, rest);
     let max_page = settings.max_page_size;
     let max_chart = max_page.saturating_sub(2 * settings.padding + 2).max(1);
@@ -530,7 +537,7 @@ mod tests {
             texels_per_metre: 20.0,
         };
         let flat = grid(60, 0.0);
-        let u = unwrap_in_pieces(&flat, request, &settings, &mut Vec::new(), &mut false).unwrap();
+        let u = unwrap_in_pieces(&flat, request, &settings, MIN_PLANAR, &mut Vec::new(), &mut false).unwrap();
         assert_eq!(u.chart_count, 1);
         // 10 m at 20 texels/m, plus the half-texel border.
         assert!((200..=203).contains(&u.width), "{}", u.width);
@@ -543,7 +550,7 @@ mod tests {
             assert!((texel_area / (0.5 * (10.0f32 / 60.0).powi(2) * 400.0) - 1.0).abs() < 1e-3);
         }
         let bumpy = grid(60, 0.5);
-        let u = unwrap_in_pieces(&bumpy, request, &settings, &mut Vec::new(), &mut false).unwrap();
+        let u = unwrap_in_pieces(&bumpy, request, &settings, MIN_PLANAR, &mut Vec::new(), &mut false).unwrap();
         assert!(u.chart_count >= 7, "{} charts", u.chart_count);
         assert!(u.triangle_charts.iter().all(|&c| c < u.chart_count));
         assert!(u.uv1.iter().all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0));
@@ -566,7 +573,7 @@ mod tests {
             texels_per_metre: 30.0,
         };
         let mut warnings = Vec::new();
-        let u = unwrap_in_pieces(&grid(60, 0.0), request, &settings, &mut warnings, &mut false).unwrap();
+        let u = unwrap_in_pieces(&grid(60, 0.0), request, &settings, MIN_PLANAR, &mut warnings, &mut false).unwrap();
         assert!(u.width <= 128 && u.height <= 128);
         assert!(u.chart_count > 1);
         assert!(u.scaled_to_fit && !warnings.is_empty());
