@@ -317,7 +317,7 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
 }
 
 /// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]). When the
-/// unwrap squashes triangles ([`squashed`]), the mesh is charted again with every flat
+/// unwrap squashes or stretches triangles ([`squashed`]), the mesh is charted again with every flat
 /// region projected onto its own plane, and the better of the two is kept (a warning says
 /// which and why).
 fn unwrap_mesh(
@@ -336,28 +336,29 @@ fn unwrap_mesh(
     let achieved = |u: &MeshUnwrap| {
         request.texels_per_unit * u.texels_per_metre / request.texels_per_metre.max(f32::MIN_POSITIVE)
     };
-    let (count, least) = squashed::squashed(mesh, &first, achieved(&first));
-    if count == 0 {
+    let first_found = squashed::squashed(mesh, &first, achieved(&first));
+    if first_found.count() == 0 {
         return Ok(first);
     }
     let mut notes = Vec::new();
     let mut tiny = false;
     let second = pieces::unwrap_in_pieces(mesh, request, settings, 1, &mut notes, &mut tiny)?;
-    let (again, least_again) = squashed::squashed(mesh, &second, achieved(&second));
+    let second_found = squashed::squashed(mesh, &second, achieved(&second));
     let name = &mesh.name;
-    if again < count {
+    if second_found.count() < first_found.count() {
         warnings.push(format!(
-            "mesh '{name}': xatlas gave {count} triangle(s) less than half the texel density (down to {:.1}%); charted again with each flat region projected onto its plane ({again} left below half)",
-            100.0 * least
+            "mesh '{name}': xatlas gave {}; charted again with each flat region projected onto its plane ({} left)",
+            first_found.describe(),
+            second_found.count()
         ));
         warnings.extend(notes);
         *raised |= tiny;
         Ok(second)
     } else {
         warnings.push(format!(
-            "mesh '{name}': {count} triangle(s) get less than half the texel density (down to {:.1}%), and charting its flat regions directly does no better ({again}, down to {:.1}%)",
-            100.0 * least,
-            100.0 * least_again
+            "mesh '{name}': xatlas gave {}, and charting its flat regions directly does no better ({})",
+            first_found.describe(),
+            second_found.describe()
         ));
         Ok(first)
     }
