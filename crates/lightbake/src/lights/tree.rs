@@ -1,10 +1,13 @@
-//! Many lights sampled by importance, beyond [`PER_TEXEL_LIGHTS`]: a binary tree over the lights that sit somewhere (point,
-//! spot, rect), each node holding its lights' bounds and total power, walked from the root
-//! to one light with probability in proportion to each child's importance at the shading
-//! point — its power over the squared distance to its bounds' centre (clamped below at half
-//! their diagonal squared), zero when the bounds lie wholly behind the surface. The estimate
-//! f·V/p of the picked light is unbiased whenever every light that can reach the point has a
-//! non-zero probability, which the clamp and the half-space test keep.
+//! Many lights sampled by importance (beyond [`PER_TEXEL_LIGHTS`] per instance; below, each
+//! texel weighs the lights itself: `direct::light_choice`): a binary tree over the lights that
+//! sit somewhere (point, spot, rect), each node holding its lights' bounds and total power,
+//! walked from the root to one light with probability in proportion to each child's
+//! importance at the shading point — its power over the squared distance to its bounds'
+//! centre (clamped below at half their diagonal squared), zero when the bounds lie wholly
+//! behind the surface. The estimate f·V/p of the picked light is unbiased whenever every light
+//! that can reach the point has a non-zero probability, which the clamp and the half-space
+//! test keep. It cannot see walls: where most lights are in other rooms, it spends most
+//! samples on them.
 //!
 //! Light trees for direct light: Conty Estevez & Kulla, *Importance Sampling of Many Lights
 //! with Adaptive Tree Splitting* (HPG 2018); pbrt-v4's `BVHLightSampler`. This is their

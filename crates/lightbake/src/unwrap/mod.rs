@@ -317,9 +317,9 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
 }
 
 /// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]). When the
-/// unwrap squashes or stretches triangles ([`squashed`]), the mesh is charted again with every flat
-/// region projected onto its own plane, and the better of the two is kept (a warning says
-/// which and why).
+/// unwrap squashes or stretches triangles ([`squashed`]), the mesh is charted again with
+/// every flat region projected onto its own plane, and the better of the two is kept (a
+/// warning says which and why).
 fn unwrap_mesh(
     mesh: &Mesh,
     request: Density,
@@ -333,9 +333,8 @@ fn unwrap_mesh(
         xatlas_unwrap(mesh, request, settings, warnings, raised)?
     };
     // The density the unwrap reached (lowered to fit a page, or raised for a tiny mesh).
-    let achieved = |u: &MeshUnwrap| {
-        request.texels_per_unit * u.texels_per_metre / request.texels_per_metre.max(f32::MIN_POSITIVE)
-    };
+    let asked = request.texels_per_metre.max(f32::MIN_POSITIVE);
+    let achieved = |u: &MeshUnwrap| request.texels_per_unit * u.texels_per_metre / asked;
     let first_found = squashed::squashed(mesh, &first, achieved(&first));
     if first_found.count() == 0 {
         return Ok(first);
