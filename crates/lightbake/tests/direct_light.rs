@@ -29,14 +29,7 @@ fn point_light(position: Vec3, intensity: f32) -> Light {
 
 #[test]
 fn point_light_over_plane_matches_inverse_square_law() {
-    let mut s = Scene::default();
-    let plane = add(
-        &mut s,
-        uv_plane("floor", 4.0),
-        Vec3::ONE,
-        Affine3A::IDENTITY,
-        true,
-    );
+    let (mut s, plane) = white_floor(4.0);
     let light = point_light(Vec3::new(0.3, 1.5, -0.2), 100.0);
     s.lights.push(light.clone());
     let out = bake(&s, &settings(16.0, 16));
@@ -53,6 +46,19 @@ fn point_light_over_plane_matches_inverse_square_law() {
         }
     }
     assert!(worst < 0.01, "worst relative error {worst}");
+}
+
+/// A scene of one white `size × size` m floor facing up (planar TEXCOORD_1), and its instance.
+fn white_floor(size: f32) -> (Scene, usize) {
+    let mut s = Scene::default();
+    let plane = add(
+        &mut s,
+        uv_plane("floor", size),
+        Vec3::ONE,
+        Affine3A::IDENTITY,
+        true,
+    );
+    (s, plane)
 }
 
 /// The exact direct light of `lights` at a texel (E/π as the lightmap stores it, luminance),
@@ -73,14 +79,7 @@ fn inverse_square_sum(lights: &[Light], t: &common::TexelSample) -> f32 {
 /// are unbiased (their mean matches Σ I·cosθ/r² within 2%), every texel is lit, and the
 /// bake's own estimate sees the sampling noise.
 fn many_point_lights_match_the_inverse_square_sum(n: usize) {
-    let mut s = Scene::default();
-    let plane = add(
-        &mut s,
-        uv_plane("floor", 4.0),
-        Vec3::ONE,
-        Affine3A::IDENTITY,
-        true,
-    );
+    let (mut s, plane) = white_floor(4.0);
     let columns = (n as f32).sqrt().ceil() as usize;
     let lights: Vec<Light> = (0..n)
         .map(|k| {
@@ -136,14 +135,7 @@ fn many_point_lights_picked_from_the_light_tree_match_the_inverse_square_sum() {
 /// gave this floor black texels next to ones several times too bright.)
 #[test]
 fn many_lights_behind_an_occluder_do_not_take_the_samples_of_the_one_that_is_seen() {
-    let mut s = Scene::default();
-    let plane = add(
-        &mut s,
-        uv_plane("floor", 2.0),
-        Vec3::ONE,
-        Affine3A::IDENTITY,
-        true,
-    );
+    let (mut s, plane) = white_floor(2.0);
     let slab = quad(
         "slab",
         [
@@ -183,14 +175,7 @@ fn many_lights_behind_an_occluder_do_not_take_the_samples_of_the_one_that_is_see
 
 #[test]
 fn spot_light_respects_its_cone() {
-    let mut s = Scene::default();
-    let plane = add(
-        &mut s,
-        uv_plane("floor", 6.0),
-        Vec3::ONE,
-        Affine3A::IDENTITY,
-        true,
-    );
+    let (mut s, plane) = white_floor(6.0);
     let (inner, outer) = (0.3f32, 0.5f32);
     let position = Vec3::new(0.0, 2.0, 0.0);
     s.lights.push(Light {
@@ -429,14 +414,7 @@ fn small_area_light_matches_closed_form_rectangle_form_factor() {
 
 #[test]
 fn sky_irradiance_on_an_open_plane_is_pi_l() {
-    let mut s = Scene::default();
-    let plane = add(
-        &mut s,
-        uv_plane("floor", 1.0),
-        Vec3::ONE,
-        Affine3A::IDENTITY,
-        true,
-    );
+    let (mut s, plane) = white_floor(1.0);
     s.sky = Vec3::new(100.0, 200.0, 300.0);
     let out = bake(&s, &settings(16.0, 4));
     for t in texels(&out, plane) {
