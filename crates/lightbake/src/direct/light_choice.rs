@@ -61,14 +61,14 @@ impl TexelLights {
     pub(super) fn weigh(
         ctx: &Ctx<'_>,
         at: &[SurfacePoint],
-        lights: &[u32],
+        lights: Vec<u32>,
         rays: &mut u64,
     ) -> Self {
         // Per light: the unoccluded light at the points that see it, and at those that do not.
         let mut weights: Vec<(f32, f32)> = vec![(0.0, 0.0); lights.len()];
         for sp in at {
             let origin = ctx.rays.offset(sp.position, sp.geometric_normal);
-            for (w, &li) in weights.iter_mut().zip(lights) {
+            for (w, &li) in weights.iter_mut().zip(&lights) {
                 // The light's centre (for a rect light, u = ½ is its middle).
                 let light = &ctx.scene.lights[li as usize];
                 let Some(inc) = light.incident(sp, Vec2::splat(0.5), ctx.rays) else {
@@ -118,10 +118,7 @@ impl TexelLights {
                 sum
             })
             .collect();
-        Self {
-            lights: lights.to_vec(),
-            cdf,
-        }
+        Self { lights, cdf }
     }
 
     /// The light for the number `u` ∈ [0, 1) and the probability it was picked with.

@@ -298,7 +298,7 @@ fn texel_choice(
     Some(TexelLights::weigh(
         ctx,
         &[p.representative(), *first],
-        &picked,
+        picked,
         rays,
     ))
 }

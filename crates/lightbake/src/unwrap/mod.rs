@@ -327,21 +327,24 @@ fn unwrap_mesh(
     warnings: &mut Vec<String>,
     raised: &mut bool,
 ) -> Result<MeshUnwrap> {
+    // Each attempt's own warnings: only the kept one's are passed on.
+    let mut first_notes = Vec::new();
     let first = if mesh.triangle_count() > pieces::BIG_MESH_TRIANGLES {
-        pieces::unwrap_in_pieces(mesh, request, settings, pieces::MIN_PLANAR, warnings, raised)?
+        let min = pieces::MIN_PLANAR;
+        pieces::unwrap_in_pieces(mesh, request, settings, min, &mut first_notes, raised)?
     } else {
-        xatlas_unwrap(mesh, request, settings, warnings, raised)?
+        xatlas_unwrap(mesh, request, settings, &mut first_notes, raised)?
     };
     // The density the unwrap reached (lowered to fit a page, or raised for a tiny mesh).
     let asked = request.texels_per_metre.max(f32::MIN_POSITIVE);
     let achieved = |u: &MeshUnwrap| request.texels_per_unit * u.texels_per_metre / asked;
     let first_found = squashed::squashed(mesh, &first, achieved(&first));
     if first_found.count() == 0 {
+        warnings.extend(first_notes);
         return Ok(first);
     }
     let mut notes = Vec::new();
-    let mut tiny = false;
-    let second = pieces::unwrap_in_pieces(mesh, request, settings, 1, &mut notes, &mut tiny)?;
+    let second = pieces::unwrap_in_pieces(mesh, request, settings, 1, &mut notes, raised)?;
     let second_found = squashed::squashed(mesh, &second, achieved(&second));
     let name = &mesh.name;
     if second_found.count() < first_found.count() {
@@ -351,7 +354,6 @@ fn unwrap_mesh(
             second_found.count()
         ));
         warnings.extend(notes);
-        *raised |= tiny;
         Ok(second)
     } else {
         warnings.push(format!(
@@ -359,6 +361,7 @@ fn unwrap_mesh(
             first_found.describe(),
             second_found.describe()
         ));
+        warnings.extend(first_notes);
         Ok(first)
     }
 }
