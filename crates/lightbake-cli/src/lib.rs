@@ -119,6 +119,11 @@ struct Args {
     /// preview, 262144 medium, 1048576 high).
     #[arg(long)]
     texel_budget: Option<u64>,
+    /// Keep every chart at the one density, instead of sharing the texel budget out by a
+    /// pilot of the direct light (up to 2× where the light varies within a texel, down to ½×
+    /// where it is flat).
+    #[arg(long)]
+    uniform_density: bool,
     /// Samples per texel for direct light (footprint points × one sample per light).
     #[arg(long)]
     samples: Option<u32>,
@@ -369,6 +374,7 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.texel_density = args.texel_density;
     // An explicit density wins over the scene's hint anyway; the report says so too.
     s.texel_density_from_scene = args.texel_density.is_none() && !args.ignore_scene_density;
+    s.adaptive_density = !args.uniform_density;
     if let Some(v) = args.texel_budget {
         s.texel_budget = v;
     }
@@ -679,6 +685,7 @@ mod tests {
             "--ignore-scene-density",
             "--texel-budget=5000",
             "--samples=23",
+            "--uniform-density",
             "--sky-samples=29",
             "--max-closed-form-emitters=31",
             "--padding=3",

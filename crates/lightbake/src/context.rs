@@ -29,8 +29,8 @@ pub struct BakeContext<'a> {
     pub plan: &'a BakePlan,
 }
 
-/// A scene made ready for lighting passes, without running them: plan, unwrap, BVH, texel
-/// patches (validated). For tests, benchmarks and studies that drive the passes themselves.
+/// A scene made ready for lighting passes, without running them: plan, unwrap (with the
+/// density that follows the light), BVH, texel patches (validated). For tests, benchmarks and studies that drive the passes themselves.
 pub struct Prepared {
     /// The unwrapped scene.
     pub scene: Scene,
@@ -54,10 +54,17 @@ impl Prepared {
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<Self> {
         settings.validate()?;
         scene.validate()?;
-        let plan = BakePlan::new(scene, settings);
-        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        let mut plan = BakePlan::new(scene, settings);
+        let mut layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        // The same triangles as the unwrapped scene's.
+        let rays = RayScene::build(scene);
+        if plan.runs("density") {
+            match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
+                Ok((adapted, _)) => layout = adapted,
+                Err(reason) => plan.skip("density", reason),
+            }
+        }
         let baked = layout.apply(scene);
-        let rays = RayScene::build(&baked);
         let mut patches = Patches::build(&baked, &layout, &rays);
         patches.fix_validity(&baked, &layout, &rays);
         Ok(Self {

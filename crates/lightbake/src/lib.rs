@@ -41,6 +41,7 @@
 //! | 6 | `lights` | the light interface, one file per kind (and emissive triangles) |
 //! | 7 | `plan` | which stages the scene needs and why |
 //! | 7 | `memory` | memory planning before allocating |
+//! | 7 | `density` | texel density that follows the light: the direct-light pilot and each chart's scale |
 //! | 7 | `context` | what every lighting pass reads |
 //! | 8 | `direct` | direct light at every texel |
 //! | 9 | `solve` | the matrix F and the linear solvers (pure linear algebra) |
@@ -79,7 +80,7 @@ pub mod progress;
 pub mod settings;
 // 2–7. The scene and what the lighting passes stand on.
 pub mod scene;
-internal!(unwrap, bvh, raster, lights, plan, memory, context);
+internal!(unwrap, bvh, raster, lights, plan, memory, density, context);
 // 8–11. The lighting passes.
 internal!(direct, solve, radiosity, vpl);
 // 12–17. Results, the driver, writing, analysis.
@@ -91,6 +92,7 @@ pub mod probes;
 pub mod report;
 
 pub use bake::{BakeHandle, BakeOutput, bake};
+pub use density::{DensityReport, MeshDensity};
 pub use error::{BakeError, Result};
 /// The `glam` the scene types use (re-exported so engine layers name the same version).
 pub use glam;

@@ -114,6 +114,10 @@ impl BakePlan {
             work: !nothing_to_bake,
         };
         let mut stages = facts.geometry_stages();
+        let pilot_lights = lights.iter().any(|l| {
+            l.instances > 0 && l.bake == crate::scene::LightBake::Full
+        });
+        stages.insert(1, facts.density_stage(pilot_lights));
         stages.extend(facts.light_stages());
         stages.push(facts.indirect_stage());
         stages.extend(facts.output_stages());
@@ -225,10 +229,7 @@ pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
     if let Some(d) = settings.texel_density {
         return (d, "settings (texel_density)".to_string());
     }
-    if let Some(d) = scene
-        .texel_density_hint
-        .filter(|d| settings.texel_density_from_scene && d.is_finite() && *d > 0.0)
-    {
+    if let Some(d) = scene_hint(scene, settings) {
         return (
             d,
             "the scene's hint (extras.lightbake.texel_density)".to_string(),
@@ -258,6 +259,19 @@ pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
             format_area(area)
         ),
     )
+}
+
+/// The scene's density hint, when it has a usable one and the settings take it.
+fn scene_hint(scene: &Scene, settings: &BakeSettings) -> Option<f32> {
+    scene
+        .texel_density_hint
+        .filter(|d| settings.texel_density_from_scene && d.is_finite() && *d > 0.0)
+}
+
+/// Whether the density comes from the texel budget (neither the settings nor the scene set
+/// it).
+pub fn density_from_budget(scene: &Scene, settings: &BakeSettings) -> bool {
+    settings.texel_density.is_none() && scene_hint(scene, settings).is_none()
 }
 
 /// The baked surfaces' area, each instance's weighted by its density scale squared, m².
@@ -461,6 +475,32 @@ impl Facts<'_> {
     /// `reason` when the lighting stages run, else why they do not.
     fn when_lit(&self, reason: String) -> String {
         if self.work { reason } else { self.why_not() }
+    }
+
+    /// Whether the texel density follows the light (see `crate::density`), and why.
+    fn density_stage(&self, pilot_lights: bool) -> PlannedStage {
+        let s = self.settings;
+        let why_not = if !self.work {
+            Some(self.why_not())
+        } else if !s.adaptive_density {
+            Some("turned off (adaptive_density, --uniform-density): every chart at one density".to_string())
+        } else if s.texel_density.is_some() {
+            Some("the settings set the density (texel_density): every chart keeps it".to_string())
+        } else if !density_from_budget(self.scene, s) {
+            Some("the scene sets its density (extras.lightbake.texel_density): every chart keeps it".to_string())
+        } else if !pilot_lights {
+            Some("no point, spot, directional or rect light has its direct light baked: the pilot sees only those".to_string())
+        } else {
+            None
+        };
+        match why_not {
+            Some(reason) => stage("density", false, reason),
+            None => stage(
+                "density",
+                true,
+                "a pilot of the direct light shares the texel budget out by each chart's error (½ to 2× the density)".to_string(),
+            ),
+        }
     }
 
     /// Unwrap, raster, BVH and validity.

@@ -227,6 +227,9 @@ pub struct BakeReport {
     pub settings: BakeSettings,
     /// The plan, with the reason for every skipped stage.
     pub plan: BakePlan,
+    /// How the texel density follows the light (each chart's scale and error), when it does.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub density: Option<crate::density::DensityReport>,
     /// Stages in order.
     pub stages: Vec<StageStats>,
     /// Texel counts.

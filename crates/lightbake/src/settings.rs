@@ -257,6 +257,11 @@ pub struct BakeSettings {
     /// `texel_density` and no scene hint): density = √(budget / Σ baked area × scale²).
     /// Range 1 000..=100 000 000. Default 65 536 (preview), 262 144 (medium), 1 048 576 (high).
     pub texel_budget: u64,
+    /// When the density comes from [`Self::texel_budget`], share the budget out by a pilot of
+    /// the direct light: charts whose light varies most within a texel get up to twice the
+    /// density, flat ones down to half, the total kept (`crate::density`; the plan and the
+    /// report's `density` say each chart's scale). Default true.
+    pub adaptive_density: bool,
     /// Empty texels kept between charts and between atlas rectangles, filled by dilation so
     /// bilinear and bicubic sampling never read unset texels. Range 1..=16. Default 2.
     pub padding: u32,
@@ -388,6 +393,7 @@ impl BakeSettings {
             texel_density: None,
             texel_density_from_scene: true,
             texel_budget,
+            adaptive_density: true,
             padding: 2,
             max_page_size: 2048,
             samples_per_texel,

@@ -243,6 +243,33 @@ fn bake_in_pool(
         );
         Ok((layout, 0, note))
     })?;
+    // The density that follows the light: a pilot on the first layout, which is then
+    // repacked; the ray scene it traces is the lighting passes' (same triangles).
+    let (layout, early_rays, density) = if plan.runs("density") {
+        let (layout, rays, density) = stages.run("density", 1, || {
+            let rays = RayScene::build(scene);
+            match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
+                Ok((adapted, report)) => {
+                    let note = density_note(&report);
+                    let traced = report.rays;
+                    Ok(((adapted, rays, Ok(report)), traced, note))
+                }
+                Err(reason) => Ok(((layout, rays, Err(reason.clone())), 0, reason)),
+            }
+        })?;
+        match density {
+            Ok(report) => {
+                plan.set_reason("density", density_note(&report));
+                (layout, Some(rays), Some(report))
+            }
+            Err(reason) => {
+                plan.skip("density", reason);
+                (layout, Some(rays), None)
+            }
+        }
+    } else {
+        (layout, None, None)
+    };
     warnings.extend(layout.warnings.iter().cloned());
     let mut estimate = memory::estimate_from_layout(scene, &layout);
     // The volume's grid, planned here so that a spacing it cannot take is refused before
@@ -292,12 +319,23 @@ fn bake_in_pool(
             ..Lit::default()
         }
     } else {
+        let rays = stages.run("bvh", 1, || {
+            // The density pilot's ray scene has the same triangles as the unwrapped scene's.
+            let rays = early_rays.unwrap_or_else(|| RayScene::build(&baked_scene));
+            let (nodes, packets, bytes) = rays.bvh_size();
+            let note = format!(
+                "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB",
+                rays.bvh_triangle_count(),
+                bytes as f64 / 1048576.0
+            );
+            Ok((rays, 0, note))
+        })?;
         light_scene(
             &baked_scene,
             &layout,
             settings,
             &plan,
-            volume_grid,
+            (rays, volume_grid),
             &mut stages,
             &mut warnings,
         )?
@@ -323,6 +361,7 @@ fn bake_in_pool(
         scene: scene.name.clone(),
         settings: settings.clone(),
         plan,
+        density,
         stages: stages.list,
         radiosity: lit.radiosity,
         vpl: lit.vpl,
@@ -352,6 +391,22 @@ fn bake_in_pool(
     })
 }
 
+/// What the density pilot did, in one line (the plan's reason and the stage's note).
+fn density_note(r: &crate::density::DensityReport) -> String {
+    format!(
+        "a pilot of {} points ({} rays) scaled {} charts by their direct light's error over a texel: {} at {}×, {} at {}×; their texels {:.0} → {:.0}",
+        r.samples,
+        r.rays,
+        r.charts,
+        r.at_least,
+        crate::density::LEAST_SCALE,
+        r.at_greatest,
+        crate::density::GREATEST_SCALE,
+        r.texels_before,
+        r.texels_after
+    )
+}
+
 /// The warning about texels beyond the half-float range, which every output format and
 /// Bevy's `Rgba16Float` images clamp to 65504.
 fn half_float_warning(pages: &[LightmapPage]) -> Option<String> {
@@ -367,28 +422,19 @@ fn half_float_warning(pages: &[LightmapPage]) -> Option<String> {
     })
 }
 
-/// Everything after the unwrap for a scene with something to bake: the ray-tracing
-/// structure, the texel patches, the lighting passes, the floor calibration and the pages.
+/// Everything after the unwrap and the BVH for a scene with something to bake, given its ray
+/// scene and the volume's grid: the texel patches, the lighting passes, the floor
+/// calibration and the pages.
 fn light_scene(
     scene: &Scene,
     layout: &Layout,
     settings: &BakeSettings,
     plan: &BakePlan,
-    volume_grid: Option<VolumeGrid>,
+    (rays, volume_grid): (RayScene, Option<VolumeGrid>),
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
     let mut lit = Lit::default();
-    let rays = stages.run("bvh", 1, || {
-        let rays = RayScene::build(scene);
-        let (nodes, packets, bytes) = rays.bvh_size();
-        let note = format!(
-            "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB",
-            rays.bvh_triangle_count(),
-            bytes as f64 / 1048576.0
-        );
-        Ok((rays, 0, note))
-    })?;
     let reader = stages.shards().filter(|run| run.reads_patches());
     let patches = match reader {
         // A shard or the merge of a split bake reads prepare's patches.

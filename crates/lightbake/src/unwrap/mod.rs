@@ -15,6 +15,7 @@ mod atlas;
 mod existing;
 mod pack;
 mod pieces;
+mod rescale;
 mod squashed;
 pub mod xatlas;
 
@@ -69,6 +70,19 @@ pub struct MeshUnwrap {
 }
 
 impl MeshUnwrap {
+    /// Texel area of each chart (texels², the triangles' areas in the rectangle).
+    pub fn chart_texels(&self) -> Vec<f64> {
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        let mut out = vec![0.0; self.chart_count as usize];
+        for (t, &c) in self.triangle_charts.iter().enumerate() {
+            let [a, b, d] = [0, 1, 2].map(|k| self.uv1[self.indices[3 * t + k] as usize] * size);
+            if let Some(x) = out.get_mut(c as usize) {
+                *x += 0.5 * (b - a).perp_dot(d - a).abs() as f64;
+            }
+        }
+        out
+    }
+
     /// The mesh with its vertices split as the unwrap requires and `uv1` set.
     pub fn apply(&self, mesh: &Mesh) -> Mesh {
         let Some(xref) = &self.xref else {
@@ -151,6 +165,39 @@ impl Layout {
                 out.meshes[m] = u.apply(&scene.meshes[m]);
             }
         }
+        out
+    }
+
+    /// The layout with the charts of each mesh that has `scales[m]` drawn at those scales
+    /// (one per chart, on its texels per metre per axis; see [`rescale`]) and every instance
+    /// packed again. Meshes that keep their own `TEXCOORD_1`, or whose scaled charts fit no
+    /// page, keep their unwrap (a warning names the latter).
+    pub fn with_chart_scales(
+        &self,
+        scene: &Scene,
+        settings: &BakeSettings,
+        scales: &[Option<Vec<f32>>],
+    ) -> Layout {
+        let mut out = Layout {
+            meshes: self.meshes.clone(),
+            instances: vec![None; self.instances.len()],
+            pages: Vec::new(),
+            warnings: self.warnings.clone(),
+        };
+        for (m, s) in scales.iter().enumerate() {
+            let (Some(s), Some(Some(u))) = (s, self.meshes.get(m)) else {
+                continue;
+            };
+            match rescale::rescale_charts(&scene.meshes[m], u, s, settings) {
+                Some(r) => out.meshes[m] = Some(r),
+                None if u.origin == UvOrigin::Xatlas => out.warnings.push(format!(
+                    "mesh '{}': its charts at their own densities fit no {}² page; kept at one density",
+                    scene.meshes[m].name, settings.max_page_size
+                )),
+                None => {}
+            }
+        }
+        pack_instances(scene, settings, &mut out);
         out
     }
 

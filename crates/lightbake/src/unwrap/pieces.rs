@@ -43,12 +43,12 @@ const PLANAR_COS: f64 = 0.999_961_923;
 /// One rectangle to pack: its local vertices (source vertex, position in texels from the
 /// rectangle's corner) and triangles (source triangle, local vertices, local chart).
 #[derive(Default)]
-struct Item {
-    width: u32,
-    height: u32,
-    vertices: Vec<(u32, Vec2)>,
-    triangles: Vec<(u32, [u32; 3], u32)>,
-    charts: u32,
+pub(super) struct Item {
+    pub(super) width: u32,
+    pub(super) height: u32,
+    pub(super) vertices: Vec<(u32, Vec2)>,
+    pub(super) triangles: Vec<(u32, [u32; 3], u32)>,
+    pub(super) charts: u32,
 }
 
 /// Unit face normals (zero for degenerate triangles) and each vertex's position class
@@ -341,7 +341,7 @@ fn xatlas_item(mesh: &Mesh, tris: &[u32], tpu: f64, settings: &BakeSettings, max
 
 /// Shelf-packs items (tallest first) with `gap` texels between them; returns each item's
 /// corner and the rectangle's size.
-fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>, u32, u32) {
+pub(super) fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>, u32, u32) {
     let mut order: Vec<usize> = (0..items.len()).collect();
     order.sort_by(|&a, &b| items[b].height.cmp(&items[a].height).then(a.cmp(&b)));
     let area: f64 = items
@@ -449,7 +449,7 @@ pub(super) fn unwrap_in_pieces(
 
 /// The mesh's unwrap from its packed items: output vertices item by item, source triangle
 /// order kept, charts numbered across items.
-fn assemble(
+pub(super) fn assemble(
     mesh: &Mesh,
     items: &[Item],
     corners: &[(u32, u32)],
