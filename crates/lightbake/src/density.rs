@@ -82,6 +82,22 @@ pub struct DensityReport {
     pub meshes: Vec<MeshDensity>,
 }
 
+impl DensityReport {
+    /// What the pilot did, in one line (the plan's reason and the stage's note).
+    pub fn summary(&self) -> String {
+        format!(
+            "a pilot of {} points ({} rays) scaled {} charts by their direct light's error over a texel: {} at {LEAST_SCALE}×, {} at {GREATEST_SCALE}×; their texels {:.0} → {:.0}",
+            self.samples,
+            self.rays,
+            self.charts,
+            self.at_least,
+            self.at_greatest,
+            self.texels_before,
+            self.texels_after
+        )
+    }
+}
+
 /// One mesh's chart scales and the errors they follow.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct MeshDensity {

@@ -250,7 +250,7 @@ fn bake_in_pool(
             let rays = RayScene::build(scene);
             match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
                 Ok((adapted, report)) => {
-                    let note = density_note(&report);
+                    let note = report.summary();
                     let traced = report.rays;
                     Ok(((adapted, rays, Ok(report)), traced, note))
                 }
@@ -259,7 +259,7 @@ fn bake_in_pool(
         })?;
         match density {
             Ok(report) => {
-                plan.set_reason("density", density_note(&report));
+                plan.set_reason("density", report.summary());
                 (layout, Some(rays), Some(report))
             }
             Err(reason) => {
@@ -389,22 +389,6 @@ fn bake_in_pool(
         irradiance_volume,
         report,
     })
-}
-
-/// What the density pilot did, in one line (the plan's reason and the stage's note).
-fn density_note(r: &crate::density::DensityReport) -> String {
-    format!(
-        "a pilot of {} points ({} rays) scaled {} charts by their direct light's error over a texel: {} at {}×, {} at {}×; their texels {:.0} → {:.0}",
-        r.samples,
-        r.rays,
-        r.charts,
-        r.at_least,
-        crate::density::LEAST_SCALE,
-        r.at_greatest,
-        crate::density::GREATEST_SCALE,
-        r.texels_before,
-        r.texels_after
-    )
 }
 
 /// The warning about texels beyond the half-float range, which every output format and
