@@ -136,13 +136,15 @@ fn the_plan_says_why_the_density_stays_put() {
     );
 }
 
-/// OpenArena's `oa_bases3` at preview (22 lamps over 4 000 m² of castle): with the density
-/// following the lamps the bake has no more texels and its error at the same 256 points is
-/// under half the one-density bake's (measured at 512 points: 23.12% → 4.17%).
+/// Kenney's FPS level at preview (not built for these tests): with the density following the
+/// sun's shadow edges and the lamps the bake has no more texels, and its error at the same
+/// 8 192 points is under nine tenths of the one-density bake's (`bake --verify 8192
+/// --verify-paths 512`: 6.46% ± 0.35% → 5.07% ± 0.33%). Errors on a level are heavy-tailed,
+/// so only many points compare two bakes surely.
 #[test]
 fn on_a_real_level_the_same_texels_give_a_smaller_error() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets/corpus/openarena/oa_bases3.gltf");
+        .join("../../assets/corpus/kenney_fps/kenney_fps.gltf");
     let scene = lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
         .unwrap()
         .scene;
@@ -156,7 +158,7 @@ fn on_a_real_level_the_same_texels_give_a_smaller_error() {
         .as_ref()
         .expect("the density followed the light");
     assert!(
-        density.charts > 100 && density.at_greatest > 0,
+        density.charts > 20 && density.at_greatest > 0,
         "{density:?}"
     );
     assert!(uniform.report.density.is_none());
@@ -164,20 +166,22 @@ fn on_a_real_level_the_same_texels_give_a_smaller_error() {
         adaptive.report.texels.patches,
         uniform.report.texels.patches,
     );
-    assert!(a as f64 <= 1.05 * u as f64, "{a} texels against {u}");
-    let points = verification_points(&scene, &uniform, 256, 1024, 0x5eed, 1);
+    assert!(a as f64 <= 1.02 * u as f64, "{a} texels against {u}");
+    let points = verification_points(&scene, &uniform, 8192, 512, 0x5eed, 1);
     let (ea, eu) = (
         measure(&scene, &adaptive, &points),
         measure(&scene, &uniform, &points),
     );
     println!(
-        "adaptive {:.2}% ({a} texels), uniform {:.2}% ({u} texels)",
+        "adaptive {:.2}% ± {:.2}% ({a} texels), uniform {:.2}% ± {:.2}% ({u} texels)",
         100.0 * ea.relative_rms,
-        100.0 * eu.relative_rms
+        100.0 * ea.uncertainty,
+        100.0 * eu.relative_rms,
+        100.0 * eu.uncertainty
     );
     assert_eq!(ea.lit_but_black, 0);
     assert!(
-        ea.relative_rms < 0.5 * eu.relative_rms,
+        ea.relative_rms < 0.9 * eu.relative_rms,
         "adaptive {:.2}%, uniform {:.2}%",
         100.0 * ea.relative_rms,
         100.0 * eu.relative_rms

@@ -1,7 +1,9 @@
 //! The presets only improve: on the shipped scenes and the house of the corpus, a higher
 //! preset never has a higher estimated error, nor a higher error measured against the path
-//! tracer at 256 surface points (beyond the reference's own noise: the measurement of two
-//! bakes that differ less than it cannot order them).
+//! tracer at 2 048 surface points (beyond the reference's own noise: the measurement of two
+//! bakes that differ less than it cannot order them). Errors on a real scene are
+//! heavy-tailed, so fewer points order two bakes by the one or two points they happen to hit:
+//! at 256 points the house at high measured 4.21% against 3.33% at medium.
 
 use std::path::Path;
 
@@ -13,7 +15,7 @@ use lightbake::settings::{BakeSettings, LightConvention, Quality};
 
 /// Bakes `scene` at every preset and checks that the errors do not grow.
 fn presets_only_improve(scene: &Scene) {
-    let points = score_points(scene, 256, 4096, 7);
+    let points = score_points(scene, 2048, 1024, 7);
     let mut previous: Option<(Quality, f64, f64)> = None;
     for quality in [Quality::Preview, Quality::Medium, Quality::High] {
         let out = lightbake::bake(scene, &BakeSettings::preset(quality), &Progress::new()).unwrap();

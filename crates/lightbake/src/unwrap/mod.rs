@@ -169,7 +169,7 @@ impl Layout {
     }
 
     /// The layout with the charts of each mesh that has `scales[m]` drawn at those scales
-    /// (one per chart, on its texels per metre per axis; see [`rescale`]) and every instance
+    /// (one per chart, on its texels per metre per axis; see `unwrap::rescale`) and every instance
     /// packed again. Meshes that keep their own `TEXCOORD_1`, or whose scaled charts fit no
     /// page, keep their unwrap (a warning names the latter).
     pub fn with_chart_scales(
