@@ -30,7 +30,8 @@ pub struct BakeContext<'a> {
 }
 
 /// A scene made ready for lighting passes, without running them: plan, unwrap (with the
-/// density that follows the light), BVH, texel patches (validated). For tests, benchmarks and studies that drive the passes themselves.
+/// density that follows the light), BVH, texel patches (validated). For tests, benchmarks
+/// and studies that drive the passes themselves.
 pub struct Prepared {
     /// The unwrapped scene.
     pub scene: Scene,

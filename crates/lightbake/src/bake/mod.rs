@@ -321,12 +321,18 @@ fn bake_in_pool(
     } else {
         let rays = stages.run("bvh", 1, || {
             // The density pilot's ray scene has the same triangles as the unwrapped scene's.
+            let reused = early_rays.is_some();
             let rays = early_rays.unwrap_or_else(|| RayScene::build(&baked_scene));
             let (nodes, packets, bytes) = rays.bvh_size();
             let note = format!(
-                "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB",
+                "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB{}",
                 rays.bvh_triangle_count(),
-                bytes as f64 / 1048576.0
+                bytes as f64 / 1048576.0,
+                if reused {
+                    " (built for the density pilot)"
+                } else {
+                    ""
+                }
             );
             Ok((rays, 0, note))
         })?;
