@@ -222,11 +222,9 @@ pub fn adapt(
         return Err("the pilot found no direct light on the charts".into());
     }
     report.mean_irradiance = mean;
-    // Each measured chart's weight √(r + floor·Ē).
-    let weight = |m: usize, c: usize| {
-        let r = (squared[m][c] / cost[m][c].max(f64::MIN_POSITIVE)).sqrt();
-        (r + FLOOR * mean).sqrt()
-    };
+    // Each measured chart's error r (lux) and weight √(r + floor·Ē).
+    let error = |m: usize, c: usize| (squared[m][c] / cost[m][c].max(f64::MIN_POSITIVE)).sqrt();
+    let weight = |m: usize, c: usize| (error(m, c) + FLOOR * mean).sqrt();
     let k = budget_factor(&cost, &measured, weight);
     let mut scales: Vec<Option<Vec<f32>>> = vec![None; scene.meshes.len()];
     for m in 0..scene.meshes.len() {
@@ -238,8 +236,7 @@ pub fn adapt(
         for c in 0..s.len() {
             if measured[m][c] && cost[m][c] > 0.0 {
                 s[c] = (k * weight(m, c)).clamp(LEAST_SCALE as f64, GREATEST_SCALE as f64) as f32;
-                let r = (squared[m][c] / cost[m][c]).sqrt();
-                errors[c] = Some((r / mean) as f32);
+                errors[c] = Some((error(m, c) / mean) as f32);
                 report.charts += 1;
                 report.at_least += usize::from(s[c] <= LEAST_SCALE);
                 report.at_greatest += usize::from(s[c] >= GREATEST_SCALE);

@@ -367,6 +367,15 @@ pub(super) fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>,
     (corners, width.max(1), (y + shelf_h).max(1))
 }
 
+/// The factor on the density that should bring a `width × height` shelf packing into a
+/// `max_page`² page. Shelves wrap at the page's width, so the area tells the scale better than
+/// the longer side (which only bounds it); 3% is taken off so the next attempt fits.
+pub(super) fn shrink_to_page(width: u32, height: u32, max_page: u32) -> f64 {
+    let (w, h, page) = (width as f64, height as f64, max_page as f64);
+    let by_area = (page * page / (w * h)).sqrt().min(1.0);
+    0.97 * by_area.max(page / w.max(h))
+}
+
 /// Charts a mesh in pieces (see the module docs) at the density `request` asks for, lowered
 /// until the mesh fits a page; planar regions of at least `min_planar` triangles (or whole
 /// loose parts) are charted directly.
@@ -425,11 +434,7 @@ pub(super) fn unwrap_in_pieces(
         }
         let (corners, width, height) = pack(&items, gap, max_page);
         if width.max(height) > max_page {
-            // Shelves wrap at the page's width, so the area tells the scale better than the
-            // longer side (which only bounds it).
-            let (w, h, page) = (width as f64, height as f64, max_page as f64);
-            let by_area = (page * page / (w * h)).sqrt().min(1.0);
-            tpu *= 0.97 * by_area.max(page / w.max(h));
+            tpu *= shrink_to_page(width, height, max_page);
             continue;
         }
         if tpu < requested {

@@ -11,7 +11,7 @@ use std::collections::HashMap;
 
 use glam::Vec2;
 
-use super::pieces::{Item, assemble, pack};
+use super::pieces::{Item, assemble, pack, shrink_to_page};
 use super::{Density, MeshUnwrap, UvOrigin};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
@@ -54,9 +54,7 @@ pub(crate) fn rescale_charts(
             .collect();
         let (corners, width, height) = pack(&items, gap, max_page);
         if width.max(height) > max_page {
-            let (w, h, page) = (width as f32, height as f32, max_page as f32);
-            let by_area = (page * page / (w * h)).sqrt().min(1.0);
-            fit *= 0.97 * by_area.max(page / w.max(h));
+            fit *= shrink_to_page(width, height, max_page) as f32;
             continue;
         }
         let request = Density {
