@@ -19,9 +19,9 @@
 //! 2. **Each chart's error** r_c is the RMS of the second differences (scaled to a whole texel)
 //!    over its points, over every instance of its mesh.
 //! 3. **Scales.** Chart c is drawn at s_c = k·√(r_c + [`FLOOR`]·Ē) times the density (Ē the
-//!    mean direct light of the points), clamped to [[`LEAST_SCALE`], [`GREATEST_SCALE`]],
-//!    with k chosen so that Σ texels·s² is what it was: the preset's texel budget. The square
-//!    root sits between the optimum for smooth light (error ∝ h², s ∝ r^⅓) and for shadow
+//!    mean direct light of the points), clamped to [[`LEAST_SCALE`], [`GREATEST_SCALE`]]
+//!    (charts under [`THIN_CHART_TEXELS`] across are not drawn smaller), with k chosen so
+//!    that Σ texels·s² is what it was: the preset's texel budget. The square root sits between the optimum for smooth light (error ∝ h², s ∝ r^⅓) and for shadow
 //!    edges (squared error ∝ h, s ∝ r^⅔).
 //!
 //! Charts are scaled and packed again by [`Layout::with_chart_scales`]. What is left alone,
@@ -53,6 +53,10 @@ pub const MOST_CHART_SAMPLES: usize = 256;
 pub const SHADOWED_LIGHTS: usize = 4;
 /// Least density scale of a chart.
 pub const LEAST_SCALE: f32 = 0.5;
+/// Texels across a chart's narrower side below which it is not drawn smaller: a strip a
+/// texel or two wide drawn at ¾ has texel centres on its border only, and its light is
+/// filled in from outside (a lit strip of OpenArena's `kaos` read 6% of its light).
+pub const THIN_CHART_TEXELS: f32 = 4.0;
 /// Greatest density scale of a chart.
 pub const GREATEST_SCALE: f32 = 2.0;
 /// Error every chart is taken to have, as a share of the mean direct light: indirect light,
@@ -197,6 +201,19 @@ pub fn adapt(
             _ => Vec::new(),
         })
         .collect();
+    // Per chart, its least scale: 1 for thin charts.
+    let least: Vec<Vec<f64>> = layout
+        .meshes
+        .iter()
+        .zip(&adaptable)
+        .map(|(u, &ok)| match u {
+            Some(u) if ok => narrow_sides(u)
+                .iter()
+                .map(|&side| (THIN_CHART_TEXELS / side.max(1e-3)).clamp(LEAST_SCALE, 1.0) as f64)
+                .collect(),
+            _ => Vec::new(),
+        })
+        .collect();
     let mut squared: Vec<Vec<f64>> = texels.iter().map(|t| vec![0.0; t.len()]).collect();
     let mut cost: Vec<Vec<f64>> = squared.clone();
     let mut measured: Vec<Vec<bool>> = texels.iter().map(|t| vec![false; t.len()]).collect();
@@ -222,10 +239,12 @@ pub fn adapt(
         return Err("the pilot found no direct light on the charts".into());
     }
     report.mean_irradiance = mean;
-    // Each measured chart's error r (lux) and weight √(r + floor·Ē).
+    // Each measured chart's error r (lux), weight √(r + floor·Ē) and scale.
     let error = |m: usize, c: usize| (squared[m][c] / cost[m][c].max(f64::MIN_POSITIVE)).sqrt();
     let weight = |m: usize, c: usize| (error(m, c) + FLOOR * mean).sqrt();
-    let k = budget_factor(&cost, &measured, weight);
+    let scale =
+        |m: usize, c: usize, k: f64| (k * weight(m, c)).clamp(least[m][c], GREATEST_SCALE as f64);
+    let k = budget_factor(&cost, &measured, scale);
     let mut scales: Vec<Option<Vec<f32>>> = vec![None; scene.meshes.len()];
     for m in 0..scene.meshes.len() {
         if texels[m].is_empty() {
@@ -235,7 +254,7 @@ pub fn adapt(
         let mut errors = vec![None; texels[m].len()];
         for c in 0..s.len() {
             if measured[m][c] && cost[m][c] > 0.0 {
-                s[c] = (k * weight(m, c)).clamp(LEAST_SCALE as f64, GREATEST_SCALE as f64) as f32;
+                s[c] = scale(m, c, k) as f32;
                 errors[c] = Some((error(m, c) / mean) as f32);
                 report.charts += 1;
                 report.at_least += usize::from(s[c] <= LEAST_SCALE);
@@ -254,26 +273,26 @@ pub fn adapt(
     Ok((layout.with_chart_scales(scene, settings, &scales), report))
 }
 
-/// k with Σ cost · clamp(k·w)² = Σ cost over the measured charts (bisection on log k).
-fn budget_factor(cost: &[Vec<f64>], measured: &[Vec<bool>], weight: impl Fn(usize, usize) -> f64) -> f64 {
-    let charts: Vec<(f64, f64)> = cost
+/// k with Σ cost · scale(k)² = Σ cost over the measured charts (bisection on log k; every
+/// chart's scale grows with k).
+fn budget_factor(
+    cost: &[Vec<f64>],
+    measured: &[Vec<bool>],
+    scale: impl Fn(usize, usize, f64) -> f64,
+) -> f64 {
+    let charts: Vec<(usize, usize, f64)> = cost
         .iter()
         .enumerate()
         .flat_map(|(m, cs)| {
             cs.iter()
                 .enumerate()
                 .filter(|&(c, &t)| measured[m][c] && t > 0.0)
-                .map(|(c, &t)| (t, weight(m, c)))
+                .map(|(c, &t)| (m, c, t))
                 .collect::<Vec<_>>()
         })
         .collect();
-    let total: f64 = charts.iter().map(|c| c.0).sum();
-    let texels = |k: f64| -> f64 {
-        charts
-            .iter()
-            .map(|&(t, w)| t * (k * w).clamp(LEAST_SCALE as f64, GREATEST_SCALE as f64).powi(2))
-            .sum()
-    };
+    let total: f64 = charts.iter().map(|c| c.2).sum();
+    let texels = |k: f64| -> f64 { charts.iter().map(|&(m, c, t)| t * scale(m, c, k).powi(2)).sum() };
     let (mut lo, mut hi) = (-60.0f64, 60.0f64);
     for _ in 0..100 {
         let mid = 0.5 * (lo + hi);
@@ -420,6 +439,22 @@ fn chart_pilot(
         }
     }
     out
+}
+
+/// Texels across each chart's narrower side (of its bounding box in the rectangle).
+fn narrow_sides(u: &crate::unwrap::MeshUnwrap) -> Vec<f32> {
+    let size = Vec2::new(u.width as f32, u.height as f32);
+    let mut bounds = vec![(Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)); u.chart_count as usize];
+    for (t, &c) in u.triangle_charts.iter().enumerate() {
+        let Some(b) = bounds.get_mut(c as usize) else {
+            continue;
+        };
+        for k in 0..3 {
+            let p = u.uv1[u.indices[3 * t + k] as usize] * size;
+            *b = (b.0.min(p), b.1.max(p));
+        }
+    }
+    bounds.iter().map(|(lo, hi)| (*hi - *lo).min_element().max(0.0)).collect()
 }
 
 /// Barycentric coordinates of `q` (in the triangle's plane) when it lies inside `w`.

@@ -581,7 +581,7 @@ fn light_scene(
                 "no texel next to geometry shows light of the wrong side".to_string()
             } else {
                 format!(
-                    "{} texels next to geometry ({} samples cut), {} values fitted ({} capped at twice their brightest target), {} CG iterations",
+                    "{} texels next to geometry ({} samples cut), {} values fitted ({} capped), {} CG iterations",
                     st.texels, st.cut_samples, st.unknowns, st.capped, st.iterations
                 )
             };
@@ -610,12 +610,13 @@ fn light_scene(
                     .to_string()
             } else {
                 format!(
-                    "{} seam edges, jump {:.2}% mean / {:.2}% max before, {:.2}% / {:.2}% after",
+                    "{} seam edges, jump {:.2}% mean / {:.2}% max before, {:.2}% / {:.2}% after ({} values capped)",
                     st.before.seams,
                     100.0 * st.before.mean,
                     100.0 * st.before.max,
                     100.0 * st.after.mean,
-                    100.0 * st.after.max
+                    100.0 * st.after.max,
+                    st.capped
                 )
             };
             Ok((st, 0, note))

@@ -25,7 +25,7 @@
 //! samples are `SAMPLES` stratified points of its footprint; only texels near geometry take
 //! part. The normal equations are solved by conjugate gradients, one per channel; values
 //! are kept at zero or above, and at most twice the brightest target of the samples that read
-//! them: a texel read with a small weight would otherwise take the light its samples need
+//! them (and the brightest covered texel of the page): a texel read with a small weight would otherwise take the light its samples need
 //! divided by that weight, far above any light in the scene and beyond the half-float range,
 //! and the GPU shows it wherever else it reads that texel.
 //!
@@ -53,7 +53,7 @@ const CHUNK: usize = 4096;
 /// Weight of a free texel's hold at its samples' mean target, relative to theirs.
 const FREE: f64 = 1.0;
 /// A fitted value is at most this many times the brightest target of the samples that
-/// read it.
+/// read it (and at most the brightest covered texel of its page).
 const CEILING: f32 = 2.0;
 /// Stream of the fit's sample points (mixed into a patch's key with [`FIT_SEED`]).
 const STREAM: u32 = 0xc0a7;
@@ -76,7 +76,8 @@ pub struct ContactStats {
     pub rays: u64,
     /// Conjugate-gradient iterations (the largest of the three channels).
     pub iterations: u32,
-    /// Fitted values lowered to twice the brightest light their samples ask for.
+    /// Fitted values lowered to twice the brightest light their samples ask for, or to the
+    /// brightest covered texel of their page.
     pub capped: usize,
 }
 
@@ -228,15 +229,9 @@ pub fn contact_fit(
     // 5. Solve and write back.
     let (mut x, iterations) = system.solve(&x0);
     stats.iterations = iterations;
-    // A free texel read with a small bilinear weight can take a value far above any light
-    // its samples see (the exact fit divides by that weight); the GPU shows such a texel
-    // wherever else it is read, and half floats overflow. Each is kept at most
-    // `CEILING` × the brightest target of its samples.
-    for (v, c) in x.iter_mut().zip(&ceiling) {
-        let capped = v.min(CEILING * *c);
-        stats.capped += usize::from(capped != *v);
-        *v = capped;
-    }
+    // At most `CEILING` × the brightest target of a value's samples (`Unknowns::cap`).
+    let ceiling: Vec<Vec3> = ceiling.iter().map(|c| CEILING * *c).collect();
+    stats.capped = unknowns.cap(assembly, &mut x, &ceiling);
     unknowns.write(assembly, &x);
     stats
 }

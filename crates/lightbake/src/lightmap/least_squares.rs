@@ -71,6 +71,32 @@ impl Unknowns {
             .collect()
     }
 
+    /// Lowers each value of `x` to at most `ceiling` (per unknown, per channel) and to the
+    /// brightest covered texel of its page: a texel a fit reads with a small bilinear weight
+    /// would otherwise take the light it needs divided by that weight, far above any light
+    /// in the scene and beyond the half-float range, and the GPU shows it wherever else it
+    /// reads that texel. Returns how many values were lowered.
+    pub fn cap(&self, a: &Assembly, x: &mut [Vec3], ceiling: &[Vec3]) -> usize {
+        let brightest: Vec<Vec3> = a
+            .pages
+            .iter()
+            .map(|p| {
+                p.texels
+                    .iter()
+                    .zip(&p.covered)
+                    .filter(|(_, c)| **c)
+                    .fold(Vec3::ZERO, |m, (t, _)| m.max(*t))
+            })
+            .collect();
+        let mut capped = 0;
+        for ((v, c), (page, _)) in x.iter_mut().zip(ceiling).zip(self.iter()) {
+            let low = v.min(c.min(brightest[page as usize]));
+            capped += usize::from(low != *v);
+            *v = low;
+        }
+        capped
+    }
+
     /// Writes `x` (held at zero or above) to the pages, marking the texels set.
     pub fn write(&self, a: &mut Assembly, x: &[Vec3]) {
         for ((p, t), v) in self.iter().zip(x) {
@@ -270,5 +296,46 @@ mod tests {
         ls.free(0, 1.0, DVec3::ZERO);
         let (x, _) = ls.solve(&[Vec3::ZERO]);
         assert!((x[0].x - 10.0).abs() < 1e-4, "{:?}", x[0]);
+    }
+
+    /// The cap: a padding texel a row reads with weight 0.02 and that must lift the row by
+    /// 3 takes 150 from the solve; it is lowered to the brightest covered texel of its page
+    /// (3), another to its own ceiling (0.5), and one under both keeps its value.
+    #[test]
+    fn values_are_capped_at_their_ceiling_and_the_pages_brightest_texel() {
+        let mut page = crate::lightmap::LightmapPage::black(4, 1);
+        page.texels[0] = Vec3::ONE;
+        page.texels[1] = Vec3::new(3.0, 2.0, 1.0);
+        page.covered[0] = true;
+        page.covered[1] = true;
+        page.texels[3] = Vec3::splat(40.0); // padding: not covered, not a bound
+        let a = Assembly {
+            pages: vec![page],
+            state: vec![vec![TexelState::Set; 4]],
+            stats: Default::default(),
+        };
+        let unknowns = Unknowns::new([(0, 2), (0, 3), (0, 0)].into_iter());
+        let order: Vec<u32> = unknowns.iter().map(|(_, t)| t).collect();
+        let value = |t: u32| match t {
+            2 => Vec3::splat(150.0),
+            3 => Vec3::splat(4.0),
+            _ => Vec3::splat(0.25),
+        };
+        let ceiling_of = |t: u32| match t {
+            2 => Vec3::splat(6.0),
+            3 => Vec3::splat(0.5),
+            _ => Vec3::splat(1.0),
+        };
+        let mut x: Vec<Vec3> = order.iter().map(|&t| value(t)).collect();
+        let ceiling: Vec<Vec3> = order.iter().map(|&t| ceiling_of(t)).collect();
+        assert_eq!(unknowns.cap(&a, &mut x, &ceiling), 2);
+        for (&t, v) in order.iter().zip(&x) {
+            let expected = match t {
+                2 => Vec3::new(3.0, 2.0, 1.0),
+                3 => Vec3::splat(0.5),
+                _ => Vec3::splat(0.25),
+            };
+            assert_eq!(*v, expected, "texel {t}");
+        }
     }
 }

@@ -12,7 +12,10 @@
 //! their own keep it with λ = 0.1 (the seam weighs as much as ten texels' worth of their own
 //! value): a shadow that crosses a seam reaches it on both sides and stays, a texel beside
 //! the seam moves only as much as the two sides disagree. Solved by
-//! [`super::least_squares`].
+//! [`super::least_squares`]; a value is kept at most twice the brightest texel its samples
+//! read and no brighter than the brightest covered texel of its page (a padding texel read
+//! with a small weight would otherwise take the jump divided by that weight: on Kenney's FPS
+//! level, 2.3× the brightest texel of the scene).
 
 use glam::{DVec3, Vec2};
 use serde::Serialize;
@@ -28,6 +31,9 @@ use crate::raster::{Patches, SurfacePoint};
 const HOLD: f64 = 0.1;
 /// Weight of a padding or hidden texel's value.
 const FREE: f64 = 1e-4;
+/// A stitched value is at most this many times the brightest texel its seam samples read
+/// (and at most the brightest covered texel of its page).
+const CEILING: f32 = 2.0;
 
 /// What the stitch did, for the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -42,6 +48,9 @@ pub struct StitchStats {
     pub closed: usize,
     /// Conjugate-gradient iterations (the largest of the three channels).
     pub iterations: u32,
+    /// Values lowered to twice the brightest texel their seam samples read, or to the
+    /// brightest covered texel of their page.
+    pub capped: usize,
 }
 
 /// A bilinear sample's four (page texel index, weight) taps.
@@ -127,6 +136,10 @@ pub fn stitch(
     let mut row = Vec::with_capacity(8);
     // Per unknown: Σ w·(the relative weight of its samples) and Σ w, for its hold weight.
     let mut scale = vec![(0.0f64, 0.0f64); unknowns.len()];
+    // Per unknown: its own value, or `CEILING` × the brightest texel its samples read if
+    // higher (a texel a sample reads with weight 0 is an unknown in no row: it keeps its
+    // value).
+    let mut ceiling = x0.clone();
     for (pa, ta, pb, tb) in &samples {
         row.clear();
         let mut mean = glam::Vec3::ZERO;
@@ -145,9 +158,13 @@ pub fn stitch(
             }
         }
         let a = relative(mean);
+        let brightest = row
+            .iter()
+            .fold(glam::Vec3::ZERO, |m, &(i, _)| m.max(x0[i as usize]));
         for &(i, w) in &row {
             scale[i as usize].0 += w.abs() * a;
             scale[i as usize].1 += w.abs();
+            ceiling[i as usize] = ceiling[i as usize].max(CEILING * brightest);
         }
         system.add_row(&row, a, DVec3::ZERO);
     }
@@ -168,8 +185,9 @@ pub fn stitch(
         };
         system.hold(i, kind * a, x0[i].as_dvec3());
     }
-    let (x, iterations) = system.solve(&x0);
+    let (mut x, iterations) = system.solve(&x0);
     stats.iterations = iterations;
+    stats.capped = unknowns.cap(assembly, &mut x, &ceiling);
     unknowns.write(assembly, &x);
     stats.after = seam_jumps(seams, &assembly.pages);
     stats
