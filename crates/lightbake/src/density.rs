@@ -361,8 +361,7 @@ fn chart_pilot(
         let at = |b: Vec2| w[0] * (1.0 - b.x - b.y) + w[1] * b.x + w[2] * b.y;
         let p = at(bary);
         // The side the lightmap shows: the geometric normal turned to the shading normal.
-        let [va, vb, vc] = mesh.triangle(t).map(|v| mesh.normals[v]);
-        let shading = normal_matrix * (va * (1.0 - bary.x - bary.y) + vb * bary.x + vc * bary.y);
+        let shading = normal_matrix * mesh.shading_normal(t, bary);
         let mut normal = rays.triangles[g as usize].normal;
         if normal.dot(shading) < 0.0 {
             normal = -normal;

@@ -153,16 +153,15 @@ pub fn is_open(rays: &RayScene, position: Vec3, normal: Vec3, key: u32) -> bool 
 }
 
 /// The surface point of global triangle `g` at barycentrics `b`, with the shading normal
-/// the bake's texels use (interpolated, turned to the front side).
+/// the bake's texels use (interpolated from [`crate::scene::Mesh::corner_normals`], turned to
+/// the front side).
 pub fn surface_point(scene: &Scene, rays: &RayScene, g: u32, b: Vec2) -> SurfacePoint {
     let info = rays.triangles[g as usize];
     let [v0, v1, v2] = rays.triangle_vertices(g);
     let position = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
     let inst = &scene.instances[info.instance as usize];
     let mesh = &scene.meshes[inst.mesh];
-    let [i0, i1, i2] = mesh.triangle(info.local as usize);
-    let local =
-        mesh.normals[i0] * (1.0 - b.x - b.y) + mesh.normals[i1] * b.x + mesh.normals[i2] * b.y;
+    let local = mesh.shading_normal(info.local as usize, b);
     let mut normal = (inst.normal_matrix() * local).normalize_or_zero();
     if normal.dot(info.normal) <= 0.0 {
         normal = info.normal;

@@ -40,7 +40,8 @@ pub struct Patch {
     pub y: u32,
     /// Representative world position (validated: outside solid geometry).
     pub position: Vec3,
-    /// Unit shading normal there (interpolated, turned to the front side).
+    /// Unit shading normal there (interpolated from the triangle's corner normals,
+    /// [`crate::scene::Mesh::corner_normals`], turned to the front side).
     pub normal: Vec3,
     /// Unit geometric normal of the owning triangle.
     pub geometric_normal: Vec3,

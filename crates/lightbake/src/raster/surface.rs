@@ -79,7 +79,7 @@ impl<'a> Surface<'a> {
         }
         let w = 1.0 - u - v;
         let local = mesh.positions[a] * w + mesh.positions[b] * u + mesh.positions[c] * v;
-        let n_local = mesh.normals[a] * w + mesh.normals[b] * u + mesh.normals[c] * v;
+        let n_local = mesh.shading_normal(info.local as usize, Vec2::new(u, v));
         let position = inst.transform.transform_point3(local);
         let g = info.normal;
         Some(SurfacePoint {
@@ -119,7 +119,7 @@ impl<'a> Surface<'a> {
             triangle,
             geometric_normal: info.normal,
             position: along([a, b, c].map(|k| inst.transform.transform_point3(mesh.positions[k]))),
-            normal: along([a, b, c].map(|k| nm * mesh.normals[k])),
+            normal: along(mesh.corner_normals(info.local as usize).map(|n| nm * n)),
             bary: [bary, Vec2::new(du.x, dv.x), Vec2::new(du.y, dv.y)],
         })
     }

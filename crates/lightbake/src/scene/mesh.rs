@@ -36,6 +36,12 @@ pub struct GltfPrimitiveRef {
     pub primitive: usize,
 }
 
+/// Largest angle, in degrees, between a vertex normal and a triangle's face normal that the
+/// triangle's shading normal follows ([`Mesh::corner_normals`]). Smooth meshes
+/// keep theirs (a six-sided cylinder's vertex normals are 30° off its faces); normals
+/// averaged across a right-angled edge (45° off, 54.7° at a box's corner) are creased.
+pub const CREASE_DEGREES: f32 = 40.0;
+
 impl Mesh {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
@@ -49,6 +55,49 @@ impl Mesh {
     pub fn triangle(&self, t: usize) -> [usize; 3] {
         let i = &self.indices[3 * t..3 * t + 3];
         [i[0] as usize, i[1] as usize, i[2] as usize]
+    }
+
+    /// The shading normals of triangle `t`'s three corners (mesh space, not normalised by
+    /// this function beyond the vertex normals'): a vertex normal more than
+    /// [`CREASE_DEGREES`] from the triangle's face normal is that face normal. Exporters that
+    /// average normals across hard edges (CAD and IFC conversions, meshes smoothed without a
+    /// crease angle) give a board's thin edge face vertex normals 45–55° off it, sweeping from
+    /// one neighbour's direction to the other's within a texel: its irradiance would swing
+    /// from sunlit to dark across a face that is flat. The face normal is taken on the side
+    /// the vertex normals point to (a triangle wound against its normals keeps their side).
+    ///
+    /// # Panics
+    /// If `t` is out of range.
+    pub fn corner_normals(&self, t: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.triangle(t);
+        let n = [self.normals[a], self.normals[b], self.normals[c]];
+        let (pa, pb, pc) = (self.positions[a], self.positions[b], self.positions[c]);
+        let mut face = (pb - pa).cross(pc - pa).normalize_or_zero();
+        if face == Vec3::ZERO {
+            return n;
+        }
+        if face.dot(n[0] + n[1] + n[2]) < 0.0 {
+            face = -face;
+        }
+        let cos = CREASE_DEGREES.to_radians().cos();
+        n.map(|v| {
+            if v.normalize_or_zero().dot(face) < cos {
+                face
+            } else {
+                v
+            }
+        })
+    }
+
+    /// The shading normal of triangle `t` at barycentric weights `bary` (of its second and
+    /// third vertices), interpolated from [`Self::corner_normals`] (mesh space, not
+    /// normalised).
+    ///
+    /// # Panics
+    /// If `t` is out of range.
+    pub fn shading_normal(&self, t: usize, bary: Vec2) -> Vec3 {
+        let [na, nb, nc] = self.corner_normals(t);
+        na * (1.0 - bary.x - bary.y) + nb * bary.x + nc * bary.y
     }
 
     /// The texture coordinates of both sets at barycentric weights `bary` (of the triangle's
@@ -159,5 +208,44 @@ impl Mesh {
                 0.5 * (pb - pa).cross(pc - pa).length()
             })
             .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One triangle in the plane z = 0 (face normal +Z) with the given vertex normals.
+    fn triangle(normals: [Vec3; 3], wound_up: bool) -> Mesh {
+        Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: normals.to_vec(),
+            indices: if wound_up {
+                vec![0, 1, 2]
+            } else {
+                vec![0, 2, 1]
+            },
+            ..Mesh::default()
+        }
+    }
+
+    /// A board's edge face whose vertex normals were averaged with its neighbours across
+    /// right angles (45° off) takes its face normal; a smooth cylinder's (30° off) keeps
+    /// them; a triangle wound against its normals is creased on their side.
+    #[test]
+    fn normals_averaged_across_hard_edges_are_creased() {
+        let averaged = Vec3::new(0.0, 1.0, 1.0).normalize();
+        let smooth = Vec3::new(0.5, 0.0, 0.75f32.sqrt());
+        let m = triangle([averaged, smooth, Vec3::Z], true);
+        assert_eq!(m.corner_normals(0), [Vec3::Z, smooth, Vec3::Z]);
+        let at = m.shading_normal(0, Vec2::new(0.5, 0.0));
+        assert!((at - (Vec3::Z + smooth) * 0.5).length() < 1e-6, "{at:?}");
+        let down = triangle([-averaged, -smooth, -Vec3::Z], false);
+        // Corners in index order: vertices 0, 2, 1.
+        assert_eq!(down.corner_normals(0), [-Vec3::Z, -Vec3::Z, -smooth]);
+        // A degenerate triangle keeps its vertex normals.
+        let mut flat = triangle([averaged; 3], true);
+        flat.positions[2] = Vec3::X * 2.0;
+        assert_eq!(flat.corner_normals(0), [averaged; 3]);
     }
 }
