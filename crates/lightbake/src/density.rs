@@ -21,8 +21,9 @@
 //! 3. **Scales.** Chart c is drawn at s_c = k·√(r_c + [`FLOOR`]·Ē) times the density (Ē the
 //!    mean direct light of the points), clamped to [[`LEAST_SCALE`], [`GREATEST_SCALE`]]
 //!    (charts under [`THIN_CHART_TEXELS`] across are not drawn smaller), with k chosen so
-//!    that Σ texels·s² is what it was: the preset's texel budget. The square root sits between the optimum for smooth light (error ∝ h², s ∝ r^⅓) and for shadow
-//!    edges (squared error ∝ h, s ∝ r^⅔).
+//!    that Σ texels·s² is what it was: the preset's texel budget. The square root sits
+//!    between the optimum for smooth light (error ∝ h², s ∝ r^⅓) and for shadow edges
+//!    (squared error ∝ h, s ∝ r^⅔).
 //!
 //! Charts are scaled and packed again by [`Layout::with_chart_scales`]. What is left alone,
 //! and why, is in the plan: a density set by the settings or the scene, a node's

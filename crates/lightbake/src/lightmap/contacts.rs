@@ -24,10 +24,11 @@
 //! texel read with a small bilinear weight); held, it stays as quiet as they are. A texel's
 //! samples are `SAMPLES` stratified points of its footprint; only texels near geometry take
 //! part. The normal equations are solved by conjugate gradients, one per channel; values
-//! are kept at zero or above, and at most twice the brightest target of the samples that read
-//! them (and the brightest covered texel of the page): a texel read with a small weight would otherwise take the light its samples need
-//! divided by that weight, far above any light in the scene and beyond the half-float range,
-//! and the GPU shows it wherever else it reads that texel.
+//! are kept at zero or above, at most twice the brightest target of the samples that read
+//! them and at most the brightest covered texel of the page: a texel read with a small
+//! weight would otherwise take the light its samples need divided by that weight, far above
+//! any light in the scene and beyond the half-float range, and the GPU shows it wherever
+//! else it reads that texel.
 //!
 //! A valid texel shared by two sides of a wall thinner than a texel keeps its value (lit from
 //! its representative point's side): no value serves both sides, and giving it the dark
