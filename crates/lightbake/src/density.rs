@@ -121,7 +121,10 @@ fn adaptable_meshes(scene: &Scene, layout: &Layout) -> Vec<bool> {
     let mut ok: Vec<bool> = layout
         .meshes
         .iter()
-        .map(|u| u.as_ref().is_some_and(|u| u.origin == UvOrigin::Xatlas && u.chart_count > 0))
+        .map(|u| {
+            u.as_ref()
+                .is_some_and(|u| u.origin == UvOrigin::Xatlas && u.chart_count > 0)
+        })
         .collect();
     for inst in scene.instances.iter().filter(|i| i.bake) {
         if inst.texel_density_scale != 1.0 {
@@ -175,7 +178,9 @@ pub fn adapt(
         .collect();
     let charts: usize = chart_triangles.iter().map(Vec::len).sum();
     if charts < 2 {
-        return Err("fewer than two charts of meshes lightbake unwraps at the scene's density".into());
+        return Err(
+            "fewer than two charts of meshes lightbake unwraps at the scene's density".into(),
+        );
     }
     let jobs: Vec<(usize, usize)> = scene
         .instances
@@ -235,7 +240,11 @@ pub fn adapt(
             measured[m][c] = true;
         }
     }
-    let mean = if light_texels > 0.0 { light / light_texels } else { 0.0 };
+    let mean = if light_texels > 0.0 {
+        light / light_texels
+    } else {
+        0.0
+    };
     if !(mean > 0.0 && mean.is_finite()) {
         return Err("the pilot found no direct light on the charts".into());
     }
@@ -293,7 +302,12 @@ fn budget_factor(
         })
         .collect();
     let total: f64 = charts.iter().map(|c| c.2).sum();
-    let texels = |k: f64| -> f64 { charts.iter().map(|&(m, c, t)| t * scale(m, c, k).powi(2)).sum() };
+    let texels = |k: f64| -> f64 {
+        charts
+            .iter()
+            .map(|&(m, c, t)| t * scale(m, c, k).powi(2))
+            .sum()
+    };
     let (mut lo, mut hi) = (-60.0f64, 60.0f64);
     for _ in 0..100 {
         let mid = 0.5 * (lo + hi);
@@ -327,7 +341,8 @@ fn chart_pilot(
     let mut cumulative = Vec::with_capacity(tris.len());
     let mut total = 0.0f64;
     for &t in tris {
-        let [a, b, d] = [0, 1, 2].map(|k| unwrap.uv1[unwrap.indices[3 * t as usize + k] as usize] * size);
+        let [a, b, d] =
+            [0, 1, 2].map(|k| unwrap.uv1[unwrap.indices[3 * t as usize + k] as usize] * size);
         total += 0.5 * (b - a).perp_dot(d - a).abs() as f64;
         cumulative.push(total);
     }
@@ -345,8 +360,12 @@ fn chart_pilot(
     let mut out = ChartPilot::default();
     for k in 0..n {
         let key = [i as u32, c as u32, k as u32];
-        let pick = (k as f64 + unit_float(hash_words(&[key[0], key[1], key[2], 0])) as f64) / n as f64 * total;
-        let j = cumulative.partition_point(|&x| x < pick).min(tris.len() - 1);
+        let pick = (k as f64 + unit_float(hash_words(&[key[0], key[1], key[2], 0])) as f64)
+            / n as f64
+            * total;
+        let j = cumulative
+            .partition_point(|&x| x < pick)
+            .min(tris.len() - 1);
         let t = tris[j] as usize;
         let g = first + t as u32;
         let w = rays.triangle_vertices(g);
@@ -423,7 +442,8 @@ fn chart_pilot(
         for d in [t1, t2] {
             for step in [1.0f32, 0.5] {
                 let delta = d * (h * step);
-                let (Some(_), Some(_)) = (barycentric(&w, p + delta), barycentric(&w, p - delta)) else {
+                let (Some(_), Some(_)) = (barycentric(&w, p + delta), barycentric(&w, p - delta))
+                else {
                     continue;
                 };
                 let second = e0 - 0.5 * (light_at(p + delta) + light_at(p - delta));
@@ -444,7 +464,8 @@ fn chart_pilot(
 /// Texels across each chart's narrower side (of its bounding box in the rectangle).
 fn narrow_sides(u: &crate::unwrap::MeshUnwrap) -> Vec<f32> {
     let size = Vec2::new(u.width as f32, u.height as f32);
-    let mut bounds = vec![(Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)); u.chart_count as usize];
+    let mut bounds =
+        vec![(Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)); u.chart_count as usize];
     for (t, &c) in u.triangle_charts.iter().enumerate() {
         let Some(b) = bounds.get_mut(c as usize) else {
             continue;
@@ -454,7 +475,10 @@ fn narrow_sides(u: &crate::unwrap::MeshUnwrap) -> Vec<f32> {
             *b = (b.0.min(p), b.1.max(p));
         }
     }
-    bounds.iter().map(|(lo, hi)| (*hi - *lo).min_element().max(0.0)).collect()
+    bounds
+        .iter()
+        .map(|(lo, hi)| (*hi - *lo).min_element().max(0.0))
+        .collect()
 }
 
 /// Barycentric coordinates of `q` (in the triangle's plane) when it lies inside `w`.

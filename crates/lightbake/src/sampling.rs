@@ -613,8 +613,7 @@ mod tests {
                 sum += (d.y.max(0.0) * omega) as f64;
             }
             let estimate = sum / n as f64 / std::f64::consts::PI;
-            let exact =
-                crate::form_factor::point_to_polygon_form_factor(o, Vec3::Y, &tri) as f64;
+            let exact = crate::form_factor::point_to_polygon_form_factor(o, Vec3::Y, &tri) as f64;
             assert!(
                 (estimate - exact).abs() < 2e-3 * exact.max(1e-3),
                 "form factor {estimate} against {exact}"

@@ -508,7 +508,11 @@ fn intersect4(tri: &Tri4, ray: &Ray4) -> Option<Hit4> {
     let rel = |k: usize| {
         let v = &tri.v[k];
         let z = v[kz] - ray.org[kz];
-        (v[kx] - ray.org[kx] - sx * z, v[ky] - ray.org[ky] - sy * z, z)
+        (
+            v[kx] - ray.org[kx] - sx * z,
+            v[ky] - ray.org[ky] - sy * z,
+            z,
+        )
     };
     let (ax, ay, az) = rel(0);
     let (bx, by, bz) = rel(1);
@@ -571,7 +575,11 @@ fn redo_in_f64(tri: &Tri4, ray: &Ray4, lanes: u32, uvw: (Vec4, Vec4, Vec4)) -> (
         let [a, b, c] = lane_vertices(tri, lane).map(|p| p - origin);
         [u[lane], v[lane], w[lane]] = edge_functions_f64(&ray.shear, a, b, c);
     }
-    (Vec4::from_array(u), Vec4::from_array(v), Vec4::from_array(w))
+    (
+        Vec4::from_array(u),
+        Vec4::from_array(v),
+        Vec4::from_array(w),
+    )
 }
 
 #[cfg(test)]

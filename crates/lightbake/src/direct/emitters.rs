@@ -111,7 +111,10 @@ pub(super) fn sampled(
     rays: &mut u64,
 ) -> Vec3 {
     let u = sobol_02(s, p.rng(ctx.settings.seed, stream::EMITTER));
-    match ctx.emitters.incident(sp, origin, pick(ctx, p, s), u, ctx.rays) {
+    match ctx
+        .emitters
+        .incident(sp, origin, pick(ctx, p, s), u, ctx.rays)
+    {
         Some(incident) => {
             *rays += 1;
             if incident.visible(ctx.rays, origin) {

@@ -155,7 +155,10 @@ mod tests {
             counts[slot] += 1;
         }
         assert_eq!(counts[1], 0);
-        assert!((counts[0] as f32 / m as f32 - 0.25).abs() < 1e-3, "{counts:?}");
+        assert!(
+            (counts[0] as f32 / m as f32 - 0.25).abs() < 1e-3,
+            "{counts:?}"
+        );
         assert!(TexelLights::default().pick(0.5).is_none());
     }
 }

@@ -227,7 +227,17 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3
         if s == 0 {
             choice = texel_choice(ctx, p, &sp, rays);
         }
-        add_lights(ctx, p, s, &sp, origin, choice.as_ref(), &mut e, realtime, rays);
+        add_lights(
+            ctx,
+            p,
+            s,
+            &sp,
+            origin,
+            choice.as_ref(),
+            &mut e,
+            realtime,
+            rays,
+        );
         if ctx.plan.area_lights && !ctx.emitters.is_empty() {
             if ctx.closed_form {
                 ratio.add(ctx, p, s, &sp, origin, rays);
@@ -263,9 +273,9 @@ fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3
         let u_mean = spread.unoccluded / spp as f64;
         let var_r = (spread.w2_visible * (1.0 - 2.0 * r) + r * r * spread.w2_all).max(0.0)
             / (ratio.w_total as f64).powi(2);
-        variance += r * r
-            * (standard_error(spread.unoccluded, spread.unoccluded_sq, spp) as f64).powi(2)
-            + u_mean * u_mean * var_r;
+        variance +=
+            r * r * (standard_error(spread.unoccluded, spread.unoccluded_sq, spp) as f64).powi(2)
+                + u_mean * u_mean * var_r;
     }
     if ctx.plan.sky {
         irradiance += add_sky(ctx, p, &samples, &mut spread, &mut variance, rays);
@@ -342,7 +352,11 @@ fn add_lights(
     }
     // Many lights: those outside the tree (the sun) one by one, then one from the tree,
     // weighted by 1/p (a light the plan culled for this instance adds nothing).
-    for &li in ctx.untreed.iter().filter(|li| lights.binary_search(li).is_ok()) {
+    for &li in ctx
+        .untreed
+        .iter()
+        .filter(|li| lights.binary_search(li).is_ok())
+    {
         add(li, 1.0);
     }
     let u = unit_float(hash(

@@ -315,7 +315,13 @@ impl Emitters {
     /// `u_position` of it, leaving in a cosine-distributed direction from `u_direction`
     /// (a two-sided triangle's side from the first half of `u_direction.x`); it starts just
     /// off the surface.
-    pub fn emit(&self, rays: &RayScene, u_pick: f32, u_position: Vec2, u_direction: Vec2) -> Emission {
+    pub fn emit(
+        &self,
+        rays: &RayScene,
+        u_pick: f32,
+        u_position: Vec2,
+        u_direction: Vec2,
+    ) -> Emission {
         let (e, _) = self.pick(u_pick);
         let em = &self.list[e];
         let y = em.point(u_position);
@@ -349,14 +355,14 @@ impl Emitter {
     /// one-sided.
     pub fn unoccluded_irradiance(&self, sp: &SurfacePoint) -> Vec3 {
         let em = self;
-    let facing = em.normal.dot(sp.position - em.vertices[0]);
-    if facing <= 0.0 && !em.two_sided {
-        return Vec3::ZERO;
+        let facing = em.normal.dot(sp.position - em.vertices[0]);
+        if facing <= 0.0 && !em.two_sided {
+            return Vec3::ZERO;
+        }
+        em.radiance
+            * (std::f32::consts::PI
+                * point_to_polygon_form_factor(sp.position, sp.normal, &em.vertices))
     }
-    em.radiance
-        * (std::f32::consts::PI
-            * point_to_polygon_form_factor(sp.position, sp.normal, &em.vertices))
-}
 
     /// The point of the triangle at uniform sample `u` ∈ [0, 1)².
     pub fn point(&self, u: Vec2) -> Vec3 {
@@ -381,9 +387,7 @@ pub fn emitter_direction(em: &Emitter, origin: Vec3, u: Vec2) -> Option<(Vec3, f
         let cos_e = -em.normal.dot(l);
         if em.two_sided { cos_e.abs() } else { cos_e }
     };
-    if let Some((l, omega)) =
-        spherical_triangle(origin, em.vertices, u, MIN_SOLID_ANGLE)
-    {
+    if let Some((l, omega)) = spherical_triangle(origin, em.vertices, u, MIN_SOLID_ANGLE) {
         let cos_e = facing(l);
         let d = em.normal.dot(em.vertices[0] - origin) / em.normal.dot(l);
         return (cos_e > 0.0 && d > 0.0 && d.is_finite()).then_some((l, d, omega));
@@ -400,4 +404,3 @@ pub fn emitter_direction(em: &Emitter, origin: Vec3, u: Vec2) -> Option<(Vec3, f
     let cos_e = facing(l);
     (cos_e > 0.0).then_some((l, d, em.area * cos_e / d2))
 }
-

@@ -98,7 +98,14 @@ pub fn power(light: &Light, width: f32, height: f32) -> Vec3 {
 
 /// A particle from a uniformly chosen point of the rectangle, leaving cosine-distributed
 /// around its facing.
-pub fn emit(light: &Light, right: Vec3, width: f32, height: f32, u_position: Vec2, u_direction: Vec2) -> Emission {
+pub fn emit(
+    light: &Light,
+    right: Vec3,
+    width: f32,
+    height: f32,
+    u_position: Vec2,
+    u_direction: Vec2,
+) -> Emission {
     let (r, up) = half_axes(light, right, width, height);
     Emission {
         origin: light.position + r * (2.0 * u_position.x - 1.0) + up * (2.0 * u_position.y - 1.0),
@@ -169,13 +176,22 @@ mod tests {
             triangle: 0,
             bary: Vec2::ZERO,
         };
-        let LightKind::Rect { right, width, height } = l.kind else {
+        let LightKind::Rect {
+            right,
+            width,
+            height,
+        } = l.kind
+        else {
             unreachable!()
         };
         let i = incident(&l, right, width, height, &at, Vec2::splat(0.3), &rays).unwrap();
         let f = 4.0 * corner_factor(0.5, 0.25, 2.0);
         let expected = std::f64::consts::PI * 1000.0 * f;
-        assert!(((i.irradiance.x as f64) / expected - 1.0).abs() < 1e-4, "{} vs {expected}", i.irradiance.x);
+        assert!(
+            ((i.irradiance.x as f64) / expected - 1.0).abs() < 1e-4,
+            "{} vs {expected}",
+            i.irradiance.x
+        );
         // Far from a small panel the closed form tends to L·A/d² on its axis.
         assert!((expected / (1000.0 * 0.5 / 4.0) - 1.0).abs() < 0.05);
         // The shadow ray aims at the rectangle, and behind it nothing arrives.

@@ -109,7 +109,9 @@ impl LightTree {
         });
         let axis = (hi - lo).max_position();
         let mid = items.len() / 2;
-        items.select_nth_unstable_by(mid, |a, b| a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0)));
+        items.select_nth_unstable_by(mid, |a, b| {
+            a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
+        });
         let (left, right) = items.split_at_mut(mid);
         self.split(left);
         let r = self.split(right);
@@ -245,9 +247,16 @@ mod tests {
         }
         for li in 0..37 {
             let expect = tree.probability(li as u32, p, n) * m as f32;
-            assert!((counts[li] as f32 - expect).abs() <= 3.0 + 0.02 * expect, "{li}: {} vs {expect}", counts[li]);
+            assert!(
+                (counts[li] as f32 - expect).abs() <= 3.0 + 0.02 * expect,
+                "{li}: {} vs {expect}",
+                counts[li]
+            );
         }
         // Below every light, facing down: nothing can be reached.
-        assert!(tree.pick(Vec3::new(0.0, -5.0, 0.0), Vec3::NEG_Y, 0.5).is_none());
+        assert!(
+            tree.pick(Vec3::new(0.0, -5.0, 0.0), Vec3::NEG_Y, 0.5)
+                .is_none()
+        );
     }
 }

@@ -20,8 +20,8 @@ use crate::scene::Scene;
 use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
 
 mod texel_density;
-pub use texel_density::{density_from_budget, density_text, texel_density};
 use texel_density::covered_area;
+pub use texel_density::{density_from_budget, density_text, texel_density};
 
 /// One stage of the pipeline and whether it runs.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -118,15 +118,16 @@ impl BakePlan {
             work: !nothing_to_bake,
         };
         let mut stages = facts.geometry_stages();
-        let pilot_lights = lights.iter().any(|l| {
-            l.instances > 0 && l.bake == crate::scene::LightBake::Full
-        });
+        let pilot_lights = lights
+            .iter()
+            .any(|l| l.instances > 0 && l.bake == crate::scene::LightBake::Full);
         stages.insert(1, facts.density_stage(pilot_lights));
         stages.extend(facts.light_stages());
         stages.push(facts.indirect_stage());
         stages.extend(facts.output_stages());
         let estimated_texels = covered_area(scene) * (texel_density as f64).powi(2);
-        let estimated_rays = estimated_texels * facts.rays_per_texel() + facts.volume_rays(estimated_texels);
+        let estimated_rays =
+            estimated_texels * facts.rays_per_texel() + facts.volume_rays(estimated_texels);
         Self {
             estimated_texels,
             estimated_rays,
@@ -338,7 +339,9 @@ impl Facts<'_> {
         let cluster = (s.cluster_texels as f64).powi(2);
         let indirect = match s.method {
             Method::Direct => 0.0,
-            Method::Radiosity => 1.5 * s.transport_rays as f64 + 4.0 * s.cluster_rays as f64 / cluster,
+            Method::Radiosity => {
+                1.5 * s.transport_rays as f64 + 4.0 * s.cluster_rays as f64 / cluster
+            }
             Method::Vpl | Method::Hybrid => {
                 2.0 * s.vpl_particles as f64
                     + if s.vpl_bias_compensation {
@@ -396,11 +399,17 @@ impl Facts<'_> {
         let why_not = if !self.work {
             Some(self.why_not())
         } else if !s.adaptive_density {
-            Some("turned off (adaptive_density, --uniform-density): every chart at one density".to_string())
+            Some(
+                "turned off (adaptive_density, --uniform-density): every chart at one density"
+                    .to_string(),
+            )
         } else if s.texel_density.is_some() {
             Some("the settings set the density (texel_density): every chart keeps it".to_string())
         } else if !density_from_budget(self.scene, s) {
-            Some("the scene sets its density (extras.lightbake.texel_density): every chart keeps it".to_string())
+            Some(
+                "the scene sets its density (extras.lightbake.texel_density): every chart keeps it"
+                    .to_string(),
+            )
         } else if !pilot_lights {
             Some("no point, spot, directional or rect light has its direct light baked: the pilot sees only those".to_string())
         } else {
@@ -425,9 +434,9 @@ impl Facts<'_> {
                 match (self.unwrapping, self.keeping) {
                     (0, 0) => "no instance is baked".to_string(),
                     (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
-                    (0, k) => format!(
-                        "all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)"
-                    ),
+                    (0, k) => {
+                        format!("all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)")
+                    }
                     (u, k) => {
                         format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1")
                     }

@@ -4,7 +4,6 @@
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 
-
 /// The texel density a bake of `scene` with `settings` uses (texels per metre), and where it
 /// came from: the settings, the scene's hint, or the texel budget spread over the baked
 /// surface (so a scene in millimetres, metres or kilometres gets the same layout).

@@ -46,9 +46,7 @@ pub(super) fn basis_areas(
         let chunks: Vec<AreaChunk> = block
             .par_chunks(CHUNK_PATCHES)
             .enumerate()
-            .map(|(c, chunk)| {
-                area_chunk(ctx, nodes, mapper, first + c * CHUNK_PATCHES, chunk)
-            })
+            .map(|(c, chunk)| area_chunk(ctx, nodes, mapper, first + c * CHUNK_PATCHES, chunk))
             .collect();
         for (chunk, slivers) in chunks {
             for (j, a) in chunk {
@@ -90,8 +88,7 @@ fn area_chunk(
         let footprint = ctx.patches.footprint_of(p);
         // Full-texel world area per sample; a valid texel's samples share its
         // (already visibility-reduced) area instead.
-        let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> =
-            Vec::with_capacity(AREA_SAMPLES as usize);
+        let mut points: Vec<(u32, Vec2, (Vec3, Vec3))> = Vec::with_capacity(AREA_SAMPLES as usize);
         let mut on_surface = 0;
         for s in 0..AREA_SAMPLES {
             let q = texel + sobol_02(s, p.rng(ctx.settings.seed, 0xa4ea));
@@ -104,8 +101,7 @@ fn area_chunk(
             on_surface += 1;
             let from = (sp.position, sp.geometric_normal);
             let n = mapper.weights_at(sp.triangle, q, from, &mut w);
-            let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1))
-            else {
+            let Some(&(anchor, _)) = w[..n].iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
                 continue;
             };
             let anchor_patch = &patches[nodes.patch[anchor as usize] as usize];
@@ -182,4 +178,3 @@ fn exact_split(
     out.extend(block);
     true
 }
-

@@ -146,7 +146,10 @@ pub fn build(
                         &mut rows,
                     ));
                     let r = per_node(rays, clusters.members_of(c).len(), 1);
-                    traced.fetch_add(r as u64 * clusters.members_of(c).len() as u64, Ordering::Relaxed);
+                    traced.fetch_add(
+                        r as u64 * clusters.members_of(c).len() as u64,
+                        Ordering::Relaxed,
+                    );
                 }
                 (rows, escaped, scratch)
             },
@@ -225,8 +228,7 @@ pub fn missed_detail(
                 .collect();
             let traced = k as u64 * r as u64;
             let mean = gathers.iter().map(|g| g.0).sum::<f64>() / k as f64;
-            let spread =
-                gathers.iter().map(|g| (g.0 - mean).powi(2)).sum::<f64>() / (k - 1) as f64;
+            let spread = gathers.iter().map(|g| (g.0 - mean).powi(2)).sum::<f64>() / (k - 1) as f64;
             let noise = gathers.iter().map(|g| g.1).sum::<f64>() / k as f64;
             let rho = luminance(clusters.albedo[c]) as f64;
             (

@@ -197,8 +197,8 @@ pub fn coarse_solve(
         };
         let target = (options.tolerance * value_rms).powi(2) * total_area;
         let bytes_per_cell = matrix.bytes() as f64 / clusters.len().max(1) as f64;
-        let max_cells = ((options.max_matrix_bytes as f64 / bytes_per_cell.max(1.0)) as usize)
-            .min(nodes.len());
+        let max_cells =
+            ((options.max_matrix_bytes as f64 / bytes_per_cell.max(1.0)) as usize).min(nodes.len());
         let stop = if remaining <= target {
             Some(format!(
                 "missed detail {:.2}% within the tolerance {:.2}%",
@@ -295,7 +295,12 @@ pub fn fine_exitance(
 }
 
 /// Area-weighted RMS luminance of H_d + C over the nodes, lux (`direct` per patch).
-fn irradiance_rms(nodes: &Nodes, direct: &[Vec3], clusters: &Clusters, cell_indirect: &[Vec3]) -> f64 {
+fn irradiance_rms(
+    nodes: &Nodes,
+    direct: &[Vec3],
+    clusters: &Clusters,
+    cell_indirect: &[Vec3],
+) -> f64 {
     let (mut sum, mut area) = (0.0f64, 0.0f64);
     for i in 0..nodes.len() {
         let d = direct[nodes.patch[i] as usize];

@@ -166,11 +166,9 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let estimate = if choice.needs_matrix() { estimate } else { 0 };
     let working = common
         + match choice {
-            SolverChoice::Hierarchical => hierarchical::planned_bytes(
-                n,
-                ctx.layout.page_texels(),
-                ctx.rays.triangles.len(),
-            ),
+            SolverChoice::Hierarchical => {
+                hierarchical::planned_bytes(n, ctx.layout.page_texels(), ctx.rays.triangles.len())
+            }
             c => c.working_bytes(n, estimate),
         };
     if choice == SolverChoice::Hierarchical && working > budget {

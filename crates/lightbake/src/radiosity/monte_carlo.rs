@@ -18,8 +18,8 @@ use super::exitance_grid::ExitanceGrid;
 use super::hit_mapper::HitMapper;
 use super::nodes::Nodes;
 use super::support::{SupportFrame, support_point};
-use crate::color::luminance;
 use crate::bvh::Hit;
+use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::progress::Progress;
 use crate::raster::SurfacePoint;
@@ -114,17 +114,25 @@ pub(super) fn for_each_sample(
 ) -> f32 {
     let mut escaped = 0.0f32;
     let mut out = [(0u32, 0f32); 4];
-    let _ = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, _| match end {
-        RayEnd::Below => f(weight, &[]),
-        RayEnd::Escaped => {
-            escaped += weight;
-            f(weight, &[]);
-        }
-        RayEnd::Hit(hit) => {
-            let n = mapper.weights(&hit, &mut out);
-            f(weight, &out[..n]);
-        }
-    });
+    let _ = for_each_ray(
+        ctx,
+        mapper,
+        nodes,
+        i,
+        rays,
+        stream,
+        |weight, end, _| match end {
+            RayEnd::Below => f(weight, &[]),
+            RayEnd::Escaped => {
+                escaped += weight;
+                f(weight, &[]);
+            }
+            RayEnd::Hit(hit) => {
+                let n = mapper.weights(&hit, &mut out);
+                f(weight, &out[..n]);
+            }
+        },
+    );
     escaped
 }
 
@@ -157,13 +165,21 @@ fn mc_row_into(
     // (weights are non-negative, so their bits order like their values).
     scratch.clear();
     let mut total = 0.0f32;
-    let escaped = for_each_sample(ctx, mapper, nodes, i, rays, STREAM_TRANSPORT, |weight, hit| {
-        total += weight;
-        scratch.extend(
-            hit.iter()
-                .map(|&(j, wj)| (j as u64) << 32 | (wj * weight).to_bits() as u64),
-        );
-    });
+    let escaped = for_each_sample(
+        ctx,
+        mapper,
+        nodes,
+        i,
+        rays,
+        STREAM_TRANSPORT,
+        |weight, hit| {
+            total += weight;
+            scratch.extend(
+                hit.iter()
+                    .map(|&(j, wj)| (j as u64) << 32 | (wj * weight).to_bits() as u64),
+            );
+        },
+    );
     let start = out.cols.len();
     if total > 0.0 {
         scratch.sort_unstable();
@@ -267,14 +283,22 @@ pub fn gather_luminance(
     b: &[Vec3],
 ) -> f64 {
     let (mut total, mut weighted) = (0.0f64, 0.0f64);
-    for_each_sample(ctx, mapper, nodes, i, rays, STREAM_TRANSPORT, |weight, hit| {
-        let v: f32 = hit
-            .iter()
-            .map(|&(j, wj)| wj * luminance(b[j as usize]))
-            .sum();
-        total += weight as f64;
-        weighted += weight as f64 * v as f64;
-    });
+    for_each_sample(
+        ctx,
+        mapper,
+        nodes,
+        i,
+        rays,
+        STREAM_TRANSPORT,
+        |weight, hit| {
+            let v: f32 = hit
+                .iter()
+                .map(|&(j, wj)| wj * luminance(b[j as usize]))
+                .sum();
+            total += weight as f64;
+            weighted += weight as f64 * v as f64;
+        },
+    );
     if total <= 0.0 { 0.0 } else { weighted / total }
 }
 
@@ -290,11 +314,7 @@ pub fn estimate_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, rays: u32, basis: Ba
     let pilot = n.min(512);
     let entries: usize = (0..pilot)
         .into_par_iter()
-        .map(|k| {
-            mc_row(ctx, &mapper, nodes, k * n / pilot, rays)
-                .0
-                .len()
-        })
+        .map(|k| mc_row(ctx, &mapper, nodes, k * n / pilot, rays).0.len())
         .sum();
     let per_row = entries as f64 / pilot as f64;
     (n as f64 * (per_row * 8.0 * 1.1 + 12.0)) as u64

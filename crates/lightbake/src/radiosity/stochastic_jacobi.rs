@@ -105,8 +105,8 @@ pub fn solve(
             break (true, "no unshot power left".into());
         }
         let phi0 = *first_power.get_or_insert(sources.total);
-        let rays = ((options.first_iteration_rays as f64 * sources.total / phi0).ceil() as u64)
-            .max(CHUNK);
+        let rays =
+            ((options.first_iteration_rays as f64 * sources.total / phi0).ceil() as u64).max(CHUNK);
         // 2–3. Shoot.
         let received = shooter.shoot(&sources, rays, progress);
         if progress.is_cancelled() {
@@ -268,8 +268,8 @@ impl<'a> Shooter<'a> {
             let xi = ((k as f64 + sources.u0 as f64) / rays as f64) * sources.total;
             let j = sources.cdf.partition_point(|&v| v <= xi).min(n - 1);
             let unshot = sources.unshot[j];
-            let pj = (luminance(unshot.abs()) * nodes.area[j] * self.sides[j]) as f64
-                / sources.total;
+            let pj =
+                (luminance(unshot.abs()) * nodes.area[j] * self.sides[j]) as f64 / sources.total;
             if pj <= 0.0 {
                 continue;
             }

@@ -170,4 +170,3 @@ impl SupportFrame {
         (density > 0.0).then(|| (self.frame.point(d), self.texel_area))
     }
 }
-

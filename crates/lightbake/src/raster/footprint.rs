@@ -133,4 +133,3 @@ impl<'a> Footprint<'a> {
         rep
     }
 }
-

@@ -304,4 +304,3 @@ fn world_per_texel_area(scene: &Scene, layout: &Layout, rays: &RayScene, triangl
         info.area / texel_area
     }
 }
-

@@ -15,139 +15,139 @@ impl Patches {
     /// lists, the page index and the validity counts.
     pub fn to_bytes(&self) -> Vec<u8> {
         let patches = self;
-    let mut out = Vec::with_capacity(64 + 84 * patches.patches.len());
-    let put = |w: u32, out: &mut Vec<u8>| out.extend_from_slice(&w.to_le_bytes());
-    out.extend_from_slice(MAGIC);
-    put(patches.patches.len() as u32, &mut out);
-    for p in &patches.patches {
-        for w in [p.instance, p.page, p.x, p.y] {
-            put(w, &mut out);
-        }
-        for v in [p.position, p.normal, p.geometric_normal] {
-            for c in v.to_array() {
-                put(c.to_bits(), &mut out);
+        let mut out = Vec::with_capacity(64 + 84 * patches.patches.len());
+        let put = |w: u32, out: &mut Vec<u8>| out.extend_from_slice(&w.to_le_bytes());
+        out.extend_from_slice(MAGIC);
+        put(patches.patches.len() as u32, &mut out);
+        for p in &patches.patches {
+            for w in [p.instance, p.page, p.x, p.y] {
+                put(w, &mut out);
+            }
+            for v in [p.position, p.normal, p.geometric_normal] {
+                for c in v.to_array() {
+                    put(c.to_bits(), &mut out);
+                }
+            }
+            for w in [
+                p.area.to_bits(),
+                p.texel_size.to_bits(),
+                p.triangle,
+                p.chart,
+                p.flags as u32,
+                p.footprint_start,
+                p.footprint_len,
+                p.key,
+            ] {
+                put(w, &mut out);
             }
         }
-        for w in [
-            p.area.to_bits(),
-            p.texel_size.to_bits(),
-            p.triangle,
-            p.chart,
-            p.flags as u32,
-            p.footprint_start,
-            p.footprint_len,
-            p.key,
+        put(patches.footprint.len() as u32, &mut out);
+        for &t in &patches.footprint {
+            put(t, &mut out);
+        }
+        put(patches.page_index.len() as u32, &mut out);
+        for page in &patches.page_index {
+            put(page.len() as u32, &mut out);
+            for &i in page {
+                put(i, &mut out);
+            }
+        }
+        for c in [
+            patches.moved as u64,
+            patches.rescued as u64,
+            patches.invalid as u64,
+            patches.visible_unlit as u64,
+            patches.rays,
         ] {
-            put(w, &mut out);
+            out.extend_from_slice(&c.to_le_bytes());
         }
+        out
     }
-    put(patches.footprint.len() as u32, &mut out);
-    for &t in &patches.footprint {
-        put(t, &mut out);
-    }
-    put(patches.page_index.len() as u32, &mut out);
-    for page in &patches.page_index {
-        put(page.len() as u32, &mut out);
-        for &i in page {
-            put(i, &mut out);
-        }
-    }
-    for c in [
-        patches.moved as u64,
-        patches.rescued as u64,
-        patches.invalid as u64,
-        patches.visible_unlit as u64,
-        patches.rays,
-    ] {
-        out.extend_from_slice(&c.to_le_bytes());
-    }
-    out
-}
 
     /// [`Self::to_bytes`] read back; `None` when the bytes are not such a file.
     pub fn from_bytes(bytes: &[u8]) -> Option<Patches> {
-    let mut at = 8;
-    if bytes.get(..8)? != MAGIC {
-        return None;
-    }
-    let mut word = || {
-        let w = u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
-        at += 4;
-        Some(w)
-    };
-    let n = word()? as usize;
-    // Counts are checked against the bytes that remain before anything is allocated: a
-    // patch is 21 words, a footprint entry one.
-    let remaining = |at: usize| bytes.len().saturating_sub(at) / 4;
-    if n.checked_mul(21)? > remaining(12) {
-        return None;
-    }
-    let mut list = Vec::with_capacity(n);
-    for _ in 0..n {
-        let mut w = [0u32; 20];
-        for x in &mut w {
-            *x = word()?;
-        }
-        let v = |k: usize| {
-            Vec3::new(
-                f32::from_bits(w[k]),
-                f32::from_bits(w[k + 1]),
-                f32::from_bits(w[k + 2]),
-            )
-        };
-        list.push(Patch {
-            instance: w[0],
-            page: w[1],
-            x: w[2],
-            y: w[3],
-            position: v(4),
-            normal: v(7),
-            geometric_normal: v(10),
-            area: f32::from_bits(w[13]),
-            texel_size: f32::from_bits(w[14]),
-            triangle: w[15],
-            chart: w[16],
-            flags: w[17] as u8,
-            footprint_start: w[18],
-            footprint_len: w[19],
-            key: word()?,
-        });
-    }
-    let footprint_len = word()? as usize;
-    if footprint_len > bytes.len() / 4 {
-        return None;
-    }
-    let footprint = (0..footprint_len)
-        .map(|_| word())
-        .collect::<Option<Vec<u32>>>()?;
-    let pages = word()? as usize;
-    if pages > bytes.len() / 4 {
-        return None;
-    }
-    let mut page_index = Vec::with_capacity(pages);
-    for _ in 0..pages {
-        let len = word()? as usize;
-        if len > bytes.len() / 4 {
+        let mut at = 8;
+        if bytes.get(..8)? != MAGIC {
             return None;
         }
-        page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
+        let mut word = || {
+            let w = u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
+            at += 4;
+            Some(w)
+        };
+        let n = word()? as usize;
+        // Counts are checked against the bytes that remain before anything is allocated: a
+        // patch is 21 words, a footprint entry one.
+        let remaining = |at: usize| bytes.len().saturating_sub(at) / 4;
+        if n.checked_mul(21)? > remaining(12) {
+            return None;
+        }
+        let mut list = Vec::with_capacity(n);
+        for _ in 0..n {
+            let mut w = [0u32; 20];
+            for x in &mut w {
+                *x = word()?;
+            }
+            let v = |k: usize| {
+                Vec3::new(
+                    f32::from_bits(w[k]),
+                    f32::from_bits(w[k + 1]),
+                    f32::from_bits(w[k + 2]),
+                )
+            };
+            list.push(Patch {
+                instance: w[0],
+                page: w[1],
+                x: w[2],
+                y: w[3],
+                position: v(4),
+                normal: v(7),
+                geometric_normal: v(10),
+                area: f32::from_bits(w[13]),
+                texel_size: f32::from_bits(w[14]),
+                triangle: w[15],
+                chart: w[16],
+                flags: w[17] as u8,
+                footprint_start: w[18],
+                footprint_len: w[19],
+                key: word()?,
+            });
+        }
+        let footprint_len = word()? as usize;
+        if footprint_len > bytes.len() / 4 {
+            return None;
+        }
+        let footprint = (0..footprint_len)
+            .map(|_| word())
+            .collect::<Option<Vec<u32>>>()?;
+        let pages = word()? as usize;
+        if pages > bytes.len() / 4 {
+            return None;
+        }
+        let mut page_index = Vec::with_capacity(pages);
+        for _ in 0..pages {
+            let len = word()? as usize;
+            if len > bytes.len() / 4 {
+                return None;
+            }
+            page_index.push((0..len).map(|_| word()).collect::<Option<Vec<u32>>>()?);
+        }
+        let mut counts = [0u64; 5];
+        for c in &mut counts {
+            *c = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
+            at += 8;
+        }
+        Some(Patches {
+            patches: list,
+            footprint,
+            page_index,
+            moved: counts[0] as usize,
+            rescued: counts[1] as usize,
+            invalid: counts[2] as usize,
+            visible_unlit: counts[3] as usize,
+            rays: counts[4],
+        })
     }
-    let mut counts = [0u64; 5];
-    for c in &mut counts {
-        *c = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
-        at += 8;
-    }
-    Some(Patches {
-        patches: list,
-        footprint,
-        page_index,
-        moved: counts[0] as usize,
-        rescued: counts[1] as usize,
-        invalid: counts[2] as usize,
-        visible_unlit: counts[3] as usize,
-        rays: counts[4],
-    })
-}
 }
 
 impl Patches {
@@ -195,7 +195,9 @@ impl Patches {
             }
         }
         if let Some(bad) = self.footprint.iter().find(|&&t| t as usize >= triangles) {
-            return Err(format!("a footprint names triangle {bad}, beyond the scene's {triangles}"));
+            return Err(format!(
+                "a footprint names triangle {bad}, beyond the scene's {triangles}"
+            ));
         }
         Ok(())
     }

@@ -96,7 +96,6 @@ pub(crate) fn barycentric_2d(t: [Vec2; 3], q: Vec2, tol: f32) -> Option<Vec2> {
 /// How far (texels) a texel's representative point is pulled into its triangle.
 const INSET: f32 = 0.05;
 
-
 /// Conservatively rasterises one mesh's triangles in its `width × height` texel rectangle.
 pub fn rasterize_mesh(uv1: &[Vec2], indices: &[u32], width: u32, height: u32) -> MeshRaster {
     let scale = Vec2::new(width as f32, height as f32);

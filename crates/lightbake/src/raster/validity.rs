@@ -391,7 +391,13 @@ impl Patches {
             }
             for (s, sp) in self.footprint_points(p, (layout, surface), key, range) {
                 let fan = hash_words(&[key, s]);
-                match is_open((sp.position, sp.geometric_normal), fan, rays, OPEN_BACK, used) {
+                match is_open(
+                    (sp.position, sp.geometric_normal),
+                    fan,
+                    rays,
+                    OPEN_BACK,
+                    used,
+                ) {
                     Openness::Open => return Some(sp),
                     Openness::Closed => near_open = true,
                     Openness::Inside => {}
@@ -416,7 +422,13 @@ impl Patches {
             .iter()
             .filter(|(s, sp)| {
                 let fan = hash_words(&[key, *s]);
-                is_open((sp.position, sp.geometric_normal), fan, rays, CLEARLY_OPEN_BACK, used) == Openness::Open
+                is_open(
+                    (sp.position, sp.geometric_normal),
+                    fan,
+                    rays,
+                    CLEARLY_OPEN_BACK,
+                    used,
+                ) == Openness::Open
             })
             .take(2)
             .count()
@@ -556,5 +568,4 @@ impl Patches {
         rays.closest_hit(b, sp.geometric_normal, 0.0, texel.texel_size)
             .is_none()
     }
-
 }

@@ -13,9 +13,9 @@
 
 use glam::DVec3;
 
+use super::transport::Transport;
 use super::{Recorder, Solution, SolveOptions, System, norm, to_f32, to_f64};
 use crate::color::luminance;
-use super::transport::Transport;
 
 /// A max-heap of node powers with one entry per node and O(log n) key updates (an indexed
 /// binary heap), so a shot's updates do not pile up stale entries.

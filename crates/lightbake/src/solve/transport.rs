@@ -86,7 +86,12 @@ impl Transport {
     }
 
     /// Builds F from rows produced in order (used by the builders).
-    pub(crate) fn from_rows(n: usize, rows: Vec<(Vec<(u32, f32)>, f32)>, rays: u64, basis: Basis) -> Self {
+    pub(crate) fn from_rows(
+        n: usize,
+        rows: Vec<(Vec<(u32, f32)>, f32)>,
+        rays: u64,
+        basis: Basis,
+    ) -> Self {
         let nnz: usize = rows.iter().map(|r| r.0.len()).sum();
         let mut t = Self::empty(n, basis);
         t.cols.reserve_exact(nnz);

@@ -24,7 +24,10 @@ pub(super) fn unit_scale(extent: f32) -> f32 {
 /// The longest side of a mesh's bounding box, mesh units.
 pub(super) fn mesh_extent(mesh: &Mesh) -> f32 {
     let (lo, hi) = mesh.positions.iter().fold(
-        (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+        (
+            glam::Vec3::splat(f32::INFINITY),
+            glam::Vec3::splat(f32::NEG_INFINITY),
+        ),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
     (hi - lo).max_element().max(0.0)
@@ -162,4 +165,3 @@ pub(super) fn xatlas_unwrap(
         message: format!("could not fit the mesh on a {max_page}² page"),
     })
 }
-

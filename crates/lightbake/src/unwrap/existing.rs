@@ -148,4 +148,3 @@ fn uv_charts(mesh: &Mesh) -> (Vec<u32>, u32) {
         .collect();
     (charts, count)
 }
-

@@ -342,7 +342,10 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
         if small {
             raised.push(mesh.name.as_str());
         }
-        if unwrap.origin == UvOrigin::Xatlas && mesh.uv1.is_some() && textures_use_set_1(scene, mesh) {
+        if unwrap.origin == UvOrigin::Xatlas
+            && mesh.uv1.is_some()
+            && textures_use_set_1(scene, mesh)
+        {
             layout.warnings.push(format!(
                 "mesh '{}': its material's textures are mapped by TEXCOORD_1, which the new lightmap UVs replace; the bake, the baked glTF and the plugin's meshes map them by the lightmap UVs",
                 mesh.name

@@ -98,4 +98,3 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
 fn round4(v: u32) -> u32 {
     v.div_ceil(4) * 4
 }
-

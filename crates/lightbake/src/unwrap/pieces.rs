@@ -244,7 +244,10 @@ fn kd_pieces(mesh: &Mesh, mut tris: Vec<u32>) -> Vec<Vec<u32>> {
             continue;
         }
         let (lo, hi) = set.iter().fold(
-            (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+            (
+                glam::Vec3::splat(f32::INFINITY),
+                glam::Vec3::splat(f32::NEG_INFINITY),
+            ),
             |(lo, hi), &t| (lo.min(centroid(t)), hi.max(centroid(t))),
         );
         let axis = (hi - lo).max_position();
@@ -262,7 +265,13 @@ fn kd_pieces(mesh: &Mesh, mut tris: Vec<u32>) -> Vec<Vec<u32>> {
 }
 
 /// One piece unwrapped by xatlas at `tpu` texels per unit.
-fn xatlas_item(mesh: &Mesh, tris: &[u32], tpu: f64, settings: &BakeSettings, max_chart: u32) -> Result<Item> {
+fn xatlas_item(
+    mesh: &Mesh,
+    tris: &[u32],
+    tpu: f64,
+    settings: &BakeSettings,
+    max_chart: u32,
+) -> Result<Item> {
     let mut local: HashMap<u32, u32> = HashMap::new();
     let mut source: Vec<u32> = Vec::new();
     let mut indices = Vec::with_capacity(3 * tris.len());
@@ -277,8 +286,16 @@ fn xatlas_item(mesh: &Mesh, tris: &[u32], tpu: f64, settings: &BakeSettings, max
     }
     // Positions scaled by a power of two to an extent in [1, 2), as for whole meshes.
     let (lo, hi) = source.iter().fold(
-        (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &i| (lo.min(mesh.positions[i as usize]), hi.max(mesh.positions[i as usize])),
+        (
+            glam::Vec3::splat(f32::INFINITY),
+            glam::Vec3::splat(f32::NEG_INFINITY),
+        ),
+        |(lo, hi), &i| {
+            (
+                lo.min(mesh.positions[i as usize]),
+                hi.max(mesh.positions[i as usize]),
+            )
+        },
     );
     let unit = super::atlas::unit_scale((hi - lo).max_element());
     let positions: Vec<[f32; 3]> = source
@@ -349,7 +366,9 @@ pub(super) fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>,
         .map(|i| (i.width + gap) as f64 * (i.height + gap) as f64)
         .sum();
     let widest = items.iter().map(|i| i.width).max().unwrap_or(1);
-    let shelf_width = (area.sqrt().ceil() as u32).max(widest).min(max_page.max(widest));
+    let shelf_width = (area.sqrt().ceil() as u32)
+        .max(widest)
+        .min(max_page.max(widest));
     let mut corners = vec![(0, 0); items.len()];
     let (mut x, mut y, mut shelf_h, mut width) = (0u32, 0u32, 0u32, 0u32);
     for i in order {
@@ -414,7 +433,13 @@ pub(super) fn unwrap_in_pieces(
         let mut items: Vec<Item> = Vec::new();
         for region in &regions {
             let n = normals[region[0] as usize];
-            items.extend(planar_items(mesh, region, n, tpu, (max_chart / 2).max(1) as f64));
+            items.extend(planar_items(
+                mesh,
+                region,
+                n,
+                tpu,
+                (max_chart / 2).max(1) as f64,
+            ));
         }
         for piece in &pieces {
             items.push(xatlas_item(mesh, piece, tpu, settings, max_chart)?);
@@ -444,7 +469,9 @@ pub(super) fn unwrap_in_pieces(
                 100.0 * tpu / requested
             ));
         }
-        return Ok(assemble(mesh, &items, &corners, width, height, request, tpu));
+        return Ok(assemble(
+            mesh, &items, &corners, width, height, request, tpu,
+        ));
     }
     Err(BakeError::Unwrap {
         mesh: mesh.name.clone(),
@@ -528,7 +555,8 @@ mod tests {
         for j in 0..n as u32 {
             for i in 0..n as u32 {
                 let a = j * row + i;
-                m.indices.extend_from_slice(&[a, a + row, a + row + 1, a, a + row + 1, a + 1]);
+                m.indices
+                    .extend_from_slice(&[a, a + row, a + row + 1, a, a + row + 1, a + 1]);
             }
         }
         m
@@ -542,7 +570,15 @@ mod tests {
             texels_per_metre: 20.0,
         };
         let flat = grid(60, 0.0);
-        let u = unwrap_in_pieces(&flat, request, &settings, MIN_PLANAR, &mut Vec::new(), &mut false).unwrap();
+        let u = unwrap_in_pieces(
+            &flat,
+            request,
+            &settings,
+            MIN_PLANAR,
+            &mut Vec::new(),
+            &mut false,
+        )
+        .unwrap();
         assert_eq!(u.chart_count, 1);
         // 10 m at 20 texels/m, plus the half-texel border.
         assert!((200..=203).contains(&u.width), "{}", u.width);
@@ -550,19 +586,36 @@ mod tests {
         assert!(u.triangle_charts.iter().all(|&c| c == 0));
         // Areas are kept exactly: texel area of each triangle over its world area.
         for t in 0..flat.triangle_count() {
-            let [a, b, c] = [0, 1, 2].map(|k| u.uv1[u.indices[3 * t + k] as usize] * Vec2::new(u.width as f32, u.height as f32));
+            let [a, b, c] = [0, 1, 2].map(|k| {
+                u.uv1[u.indices[3 * t + k] as usize] * Vec2::new(u.width as f32, u.height as f32)
+            });
             let texel_area = 0.5 * (b - a).perp_dot(c - a).abs();
             assert!((texel_area / (0.5 * (10.0f32 / 60.0).powi(2) * 400.0) - 1.0).abs() < 1e-3);
         }
         let bumpy = grid(60, 0.5);
-        let u = unwrap_in_pieces(&bumpy, request, &settings, MIN_PLANAR, &mut Vec::new(), &mut false).unwrap();
+        let u = unwrap_in_pieces(
+            &bumpy,
+            request,
+            &settings,
+            MIN_PLANAR,
+            &mut Vec::new(),
+            &mut false,
+        )
+        .unwrap();
         assert!(u.chart_count >= 7, "{} charts", u.chart_count);
         assert!(u.triangle_charts.iter().all(|&c| c < u.chart_count));
-        assert!(u.uv1.iter().all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0));
+        assert!(
+            u.uv1
+                .iter()
+                .all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0)
+        );
         let xref = u.xref.as_ref().unwrap();
         for t in 0..bumpy.triangle_count() {
             for k in 0..3 {
-                assert_eq!(xref[u.indices[3 * t + k] as usize], bumpy.indices[3 * t + k]);
+                assert_eq!(
+                    xref[u.indices[3 * t + k] as usize],
+                    bumpy.indices[3 * t + k]
+                );
             }
         }
     }
@@ -578,7 +631,15 @@ mod tests {
             texels_per_metre: 30.0,
         };
         let mut warnings = Vec::new();
-        let u = unwrap_in_pieces(&grid(60, 0.0), request, &settings, MIN_PLANAR, &mut warnings, &mut false).unwrap();
+        let u = unwrap_in_pieces(
+            &grid(60, 0.0),
+            request,
+            &settings,
+            MIN_PLANAR,
+            &mut warnings,
+            &mut false,
+        )
+        .unwrap();
         assert!(u.width <= 128 && u.height <= 128);
         assert!(u.chart_count > 1);
         assert!(u.scaled_to_fit && !warnings.is_empty());

@@ -49,7 +49,13 @@ pub(crate) fn rescale_charts(
             .filter(|(c, tris)| *c < charts || !tris.is_empty())
             .map(|(c, tris)| {
                 let scale = scales.get(c).map_or(0.0, |s| s * fit);
-                chart_item(tris, c < charts, scale, |v| unwrap.uv1[v as usize] * size, source)
+                chart_item(
+                    tris,
+                    c < charts,
+                    scale,
+                    |v| unwrap.uv1[v as usize] * size,
+                    source,
+                )
             })
             .collect();
         let (corners, width, height) = pack(&items, gap, max_page);
@@ -130,18 +136,31 @@ mod tests {
             .enumerate()
             .find_map(|(m, u)| u.as_ref().filter(|u| u.chart_count >= 2).map(|u| (m, u)))
             .expect("a mesh of several charts");
-        let scales: Vec<f32> = (0..u.chart_count).map(|c| if c % 2 == 0 { 2.0 } else { 0.5 }).collect();
+        let scales: Vec<f32> = (0..u.chart_count)
+            .map(|c| if c % 2 == 0 { 2.0 } else { 0.5 })
+            .collect();
         let r = rescale_charts(&scene.meshes[m], u, &scales, &settings).unwrap();
         assert_eq!(r.chart_count, u.chart_count);
         assert_eq!(r.triangle_charts, u.triangle_charts);
-        assert!(r.uv1.iter().all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0));
+        assert!(
+            r.uv1
+                .iter()
+                .all(|p| p.min_element() >= 0.0 && p.max_element() <= 1.0)
+        );
         for (c, (before, after)) in u.chart_texels().iter().zip(r.chart_texels()).enumerate() {
             let ratio = after / before;
             let want = (scales[c] * scales[c]) as f64;
-            assert!((ratio / want - 1.0).abs() < 1e-3, "chart {c}: {ratio} against {want}");
+            assert!(
+                (ratio / want - 1.0).abs() < 1e-3,
+                "chart {c}: {ratio} against {want}"
+            );
         }
         // Same source vertex at every corner.
-        let src = |u: &MeshUnwrap, i: usize| u.xref.as_ref().map_or(u.indices[i], |x| x[u.indices[i] as usize]);
+        let src = |u: &MeshUnwrap, i: usize| {
+            u.xref
+                .as_ref()
+                .map_or(u.indices[i], |x| x[u.indices[i] as usize])
+        };
         for i in 0..u.indices.len() {
             assert_eq!(src(u, i), src(&r, i));
         }
@@ -159,7 +178,10 @@ mod tests {
                     let inside = s.iter().all(|&v| v > 1e-4) || s.iter().all(|&v| v < -1e-4);
                     if inside {
                         let o = &mut owner[(y * r.width + x) as usize];
-                        assert!(*o == u32::MAX || *o == r.triangle_charts[t], "texel ({x}, {y}) in two charts");
+                        assert!(
+                            *o == u32::MAX || *o == r.triangle_charts[t],
+                            "texel ({x}, {y}) in two charts"
+                        );
                         *o = r.triangle_charts[t];
                     }
                 }
@@ -175,7 +197,12 @@ mod tests {
             ..BakeSettings::default()
         };
         let layout = unwrap_scene(&scene, &settings, 64.0).unwrap();
-        let (m, u) = layout.meshes.iter().enumerate().find_map(|(m, u)| u.as_ref().map(|u| (m, u))).unwrap();
+        let (m, u) = layout
+            .meshes
+            .iter()
+            .enumerate()
+            .find_map(|(m, u)| u.as_ref().map(|u| (m, u)))
+            .unwrap();
         let scales = vec![16.0; u.chart_count as usize];
         let r = rescale_charts(&scene.meshes[m], u, &scales, &settings).unwrap();
         assert!(r.width <= 256 && r.height <= 256);

@@ -12,8 +12,8 @@
 //! `extern "C"` does on the Rust side.
 #![allow(unsafe_code)]
 
-use std::ffi::c_void;
 use std::cell::Cell;
+use std::ffi::c_void;
 use std::sync::Once;
 
 // Keep the static library built by xatlas-rs on the link line.

@@ -98,7 +98,13 @@ enum Received {
 }
 
 /// What VPL `v` gives the texel point `sp` (shadow rays from `origin`), G clamped at `bound`.
-fn receive(ctx: &BakeContext<'_>, v: &Vpl, sp: &SurfacePoint, origin: Vec3, bound: f32) -> Received {
+fn receive(
+    ctx: &BakeContext<'_>,
+    v: &Vpl,
+    sp: &SurfacePoint,
+    origin: Vec3,
+    bound: f32,
+) -> Received {
     match v.kind {
         VplKind::Diffuse { normal } => {
             let d = v.position - sp.position;
@@ -141,7 +147,10 @@ fn receive(ctx: &BakeContext<'_>, v: &Vpl, sp: &SurfacePoint, origin: Vec3, boun
             if cos <= 0.0 || sp.geometric_normal.dot(l) <= 0.0 {
                 return Received::Culled;
             }
-            if ctx.rays.occluded(origin, l, 0.0, ctx.rays.escape_distance()) {
+            if ctx
+                .rays
+                .occluded(origin, l, 0.0, ctx.rays.escape_distance())
+            {
                 return Received::Hidden;
             }
             Received::Light(irradiance * cos, None)

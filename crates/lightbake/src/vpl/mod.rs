@@ -177,7 +177,8 @@ pub fn instant_radiosity(
     let mut compensation_iterations = 0u32;
     let mut compensation_note = None;
     if compensated {
-        let c = compensation::compensate(ctx, &irradiance, direct, first_generation, bound, progress);
+        let c =
+            compensation::compensate(ctx, &irradiance, direct, first_generation, bound, progress);
         rays += c.rays;
         compensation_iterations = c.iterations;
         compensation_note = c.note;
