@@ -39,7 +39,7 @@ mod texture;
 
 pub use light::{Light, LightBake, LightKind};
 pub use material::{Material, TexCoords, TextureRef};
-pub use mesh::{GltfPrimitiveRef, Mesh};
+pub use mesh::{CREASE_DEGREES, GltfPrimitiveRef, Mesh};
 pub use texture::{Texture, Wrap};
 
 /// A mesh placed in the world.
