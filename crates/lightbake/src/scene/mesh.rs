@@ -57,14 +57,15 @@ impl Mesh {
         [i[0] as usize, i[1] as usize, i[2] as usize]
     }
 
-    /// The shading normals of triangle `t`'s three corners (mesh space, not normalised by
-    /// this function beyond the vertex normals'): a vertex normal more than
-    /// [`CREASE_DEGREES`] from the triangle's face normal is that face normal. Exporters that
-    /// average normals across hard edges (CAD and IFC conversions, meshes smoothed without a
-    /// crease angle) give a board's thin edge face vertex normals 45–55° off it, sweeping from
-    /// one neighbour's direction to the other's within a texel: its irradiance would swing
-    /// from sunlit to dark across a face that is flat. The face normal is taken on the side
-    /// the vertex normals point to (a triangle wound against its normals keeps their side).
+    /// The shading normals of triangle `t`'s three corners (mesh space: the angle is decided
+    /// before an instance's scale, and a corner keeps its vertex normal's length): a vertex
+    /// normal more than [`CREASE_DEGREES`] from the triangle's face normal is that (unit) face
+    /// normal. Exporters that average normals across hard edges (CAD and IFC conversions,
+    /// meshes smoothed without a crease angle) give a board's thin edge face vertex normals
+    /// 45–55° off it, sweeping from one neighbour's direction to the other's within a texel:
+    /// its irradiance would swing from sunlit to dark across a face that is flat. The face
+    /// normal is taken on the side the vertex normals point to (a triangle wound against its
+    /// normals keeps their side).
     ///
     /// # Panics
     /// If `t` is out of range.
