@@ -213,9 +213,12 @@ pub fn adapt(
         .iter()
         .zip(&adaptable)
         .map(|(u, &ok)| match u {
-            Some(u) if ok => narrow_sides(u)
+            Some(u) if ok => u
+                .chart_extents()
                 .iter()
-                .map(|&side| (THIN_CHART_TEXELS / side.max(1e-3)).clamp(LEAST_SCALE, 1.0) as f64)
+                .map(|e| {
+                    (THIN_CHART_TEXELS / e.min_element().max(1e-3)).clamp(LEAST_SCALE, 1.0) as f64
+                })
                 .collect(),
             _ => Vec::new(),
         })
@@ -459,26 +462,6 @@ fn chart_pilot(
         }
     }
     out
-}
-
-/// Texels across each chart's narrower side (of its bounding box in the rectangle).
-fn narrow_sides(u: &crate::unwrap::MeshUnwrap) -> Vec<f32> {
-    let size = Vec2::new(u.width as f32, u.height as f32);
-    let mut bounds =
-        vec![(Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)); u.chart_count as usize];
-    for (t, &c) in u.triangle_charts.iter().enumerate() {
-        let Some(b) = bounds.get_mut(c as usize) else {
-            continue;
-        };
-        for k in 0..3 {
-            let p = u.uv1[u.indices[3 * t + k] as usize] * size;
-            *b = (b.0.min(p), b.1.max(p));
-        }
-    }
-    bounds
-        .iter()
-        .map(|(lo, hi)| (*hi - *lo).min_element().max(0.0))
-        .collect()
 }
 
 /// Barycentric coordinates of `q` (in the triangle's plane) when it lies inside `w`.

@@ -231,7 +231,9 @@ pub fn contact_fit(
     let (mut x, iterations) = system.solve(&x0);
     stats.iterations = iterations;
     // At most `CEILING` × the brightest target of a value's samples (`Unknowns::cap`).
-    let ceiling: Vec<Vec3> = ceiling.iter().map(|c| CEILING * *c).collect();
+    for c in &mut ceiling {
+        *c *= CEILING;
+    }
     stats.capped = unknowns.cap(assembly, &mut x, &ceiling);
     unknowns.write(assembly, &x);
     stats

@@ -83,6 +83,26 @@ impl MeshUnwrap {
         out
     }
 
+    /// Texels across and down each chart's bounding box in the rectangle (zero for a chart
+    /// with no triangle).
+    pub fn chart_extents(&self) -> Vec<Vec2> {
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        let empty = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        let mut bounds = vec![empty; self.chart_count as usize];
+        for (t, &c) in self.triangle_charts.iter().enumerate() {
+            if let Some(b) = bounds.get_mut(c as usize) {
+                for k in 0..3 {
+                    let p = self.uv1[self.indices[3 * t + k] as usize] * size;
+                    *b = (b.0.min(p), b.1.max(p));
+                }
+            }
+        }
+        bounds
+            .iter()
+            .map(|(lo, hi)| (*hi - *lo).max(Vec2::ZERO))
+            .collect()
+    }
+
     /// The mesh with its vertices split as the unwrap requires and `uv1` set.
     pub fn apply(&self, mesh: &Mesh) -> Mesh {
         let Some(xref) = &self.xref else {
