@@ -110,7 +110,7 @@ fn texel_case(scene: &str, budget: f64) {
         stage(&out, &["unwrap", "raster", "validity", "bvh", "nodes"]),
         stage(&out, &["direct"]),
         stage(&out, &["coarse solve", "transport", "solve"]),
-        stage(&out, &["final gather", "correction"]),
+        stage(&out, &["gather pilot", "final gather", "correction"]),
         stage(&out, &["error estimate", "calibrate", "dilate"]),
         floor.ratio,
         gather_ratio,
@@ -143,6 +143,7 @@ fn triangle_case(n: f64) {
                 "coarse solve",
                 "transport",
                 "solve",
+                "gather pilot",
                 "final gather",
                 "correction"
             ]

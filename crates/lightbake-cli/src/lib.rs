@@ -156,6 +156,10 @@ struct Args {
     /// Leave out the seam stitch (both sides of a seam made to agree).
     #[arg(long)]
     no_stitch: bool,
+    /// The same rays at every node in the hierarchical solve's final gather, instead of
+    /// shared out by each node's noise in a pilot.
+    #[arg(long)]
+    even_gather: bool,
     /// The edge-aware denoiser (default: off for preview, on for medium and high).
     #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
     denoise: Option<bool>,
@@ -390,6 +394,7 @@ fn settings_from(args: &Args) -> BakeSettings {
     s.reunwrap = args.reunwrap;
     s.contact_fit = !args.no_contact_fit;
     s.stitch_seams = !args.no_stitch;
+    s.adaptive_gather = !args.even_gather;
     if let Some(v) = args.denoise {
         s.denoise = v;
     }
@@ -695,6 +700,7 @@ mod tests {
             "--reunwrap",
             "--no-contact-fit",
             "--no-stitch",
+            "--even-gather",
             "--denoise=off",
             "--denoise-radius=5",
             "--irradiance-volume",

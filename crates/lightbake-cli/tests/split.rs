@@ -8,7 +8,8 @@ use std::process::Command;
 
 use common::{asset, bake, outputs, run_ok, stderr_line};
 
-/// A quick hierarchical bake: direct light, final gather and correction are split.
+/// A quick hierarchical bake: direct light, the final gather's pilot and rest, and the
+/// correction are split.
 const QUICK: [&str; 6] = [
     "--quality",
     "preview",
@@ -24,7 +25,8 @@ const QUICK: [&str; 6] = [
 fn a_split_bake_equals_the_one_process_bake_for_any_shard_count() {
     let dir = tempfile::tempdir().unwrap();
     let cases: [(&str, &[&str]); 3] = [
-        // The hierarchical solve: direct light, final gather and correction split.
+        // The hierarchical solve: direct light, the final gather (pilot and rest) and the
+        // correction split.
         (
             "cornell_box.gltf",
             &[
@@ -98,10 +100,10 @@ fn a_split_bake_equals_the_one_process_bake_for_any_shard_count() {
             };
             if waves {
                 // One stage per run, as engines that run the stages as separate waves do:
-                // three waves, each computing one stage (the matrix scene has one split
+                // four waves, each computing one stage (the matrix scene has one split
                 // stage: its later waves find nothing left).
-                let stages = ["direct", "final_gather", "correction"];
-                for wave in 0..3 {
+                let stages = ["direct", "gather_pilot", "final_gather", "correction"];
+                for wave in 0..stages.len() {
                     for i in 0..count {
                         let out = shard(i, &["--no-wait"]).output().unwrap();
                         assert!(
@@ -265,7 +267,7 @@ fn split_bakes_name_missing_shards_and_refuse_mixed_work() {
     cmd.extend_from_slice(&args);
     cmd.push(moved.to_str().unwrap());
     run_ok(&cmd);
-    assert!(mount.join("work/shards/1/final_gather.bin").exists());
+    assert!(mount.join("work/shards/1/gather_pilot.bin").exists());
 }
 
 /// A work folder prepared again (here with more direct-light samples, which leave the patches
@@ -305,7 +307,8 @@ fn a_work_folder_prepared_again_takes_no_part_of_the_previous_preparation() {
         "{}",
         stderr_line(&out)
     );
-    for _ in 0..3 {
+    // One wave per split stage: direct light, the gather's pilot and rest, the correction.
+    for _ in 0..4 {
         wave();
     }
     run_ok(&["merge", w, "-o", m]);

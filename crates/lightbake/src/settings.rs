@@ -197,6 +197,11 @@ pub struct BakeSettings {
     /// Default 128 (medium), 32 (preview), 256 (high: four times the texels, each with twice
     /// the rays).
     pub transport_rays: u32,
+    /// The hierarchical solve's final gather shares its rays out by each node's noise in a
+    /// pilot of a quarter of them (`radiosity::ray_allocation`): the same rays in all, more
+    /// where the gathered light is noisy. Off: `transport_rays` at every node (the rays of
+    /// the full matrix's rows). Needs `transport_rays` ≥ 16. Default on.
+    pub adaptive_gather: bool,
     /// Hierarchical solve: edge of the first cut's cells, texels (a power of two,
     /// 1..=256); refinement splits them where the coarse solution is too coarse.
     /// Default 16 (preview), 8 (medium, high).
@@ -376,6 +381,7 @@ impl BakeSettings {
             solver: SolverChoice::Auto,
             basis: Basis::Linear,
             transport_rays,
+            adaptive_gather: true,
             cluster_texels,
             cluster_rays,
             cluster_tolerance,

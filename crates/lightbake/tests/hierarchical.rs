@@ -1,7 +1,8 @@
 //! The hierarchical solve (a coarse solve over texel clusters, then a per-texel final gather)
 //! against the full transport matrix on the shipped scenes; its error estimate sees a coarse
 //! level that is too coarse; its refinement reaches the tolerance; `auto` takes it beyond the
-//! full matrix's node limit and says why. (The furnace at ρ = 0.3 … 0.999, the hard furnace
+//! full matrix's node limit and says why; the final gather's rays shared out by noise give
+//! less noise than the same rays spread evenly. (The furnace at ρ = 0.3 … 0.999, the hard furnace
 //! and the thread-count determinism cover it with the other solvers.)
 
 mod common;
@@ -21,6 +22,9 @@ fn settings(density: f32, solver: SolverChoice) -> BakeSettings {
     // The solves compared as they are: the denoiser would filter the hierarchical solve's
     // noise (it has a per-texel estimate) and not the full matrix's.
     s.denoise = false;
+    // The final gather with the rays of the full matrix's rows at every node
+    // (`adaptive_gather_has_less_noise_than_even_rays` checks the adaptive one).
+    s.adaptive_gather = false;
     s
 }
 
@@ -261,4 +265,45 @@ fn coarse_cells_do_not_carry_light_under_a_wall() {
         }
     }
     assert!(dark > 1000 && lit > 1000, "{dark} {lit}");
+}
+
+/// The gather stages' rays of a bake (closest and visibility).
+fn gather_rays(out: &BakeOutput) -> u64 {
+    out.report
+        .stages
+        .iter()
+        .filter(|s| s.name == "gather pilot" || s.name == "final gather")
+        .map(|s| s.rays)
+        .sum()
+}
+
+#[test]
+fn adaptive_gather_has_less_noise_than_even_rays() {
+    // The noise of a bake is half the RMS difference of two bakes under two seeds, √2 × the
+    // noise of each; the direct light's share is made small with many samples.
+    let scene = cornell_box(CornellLight::Area);
+    let bake = |adaptive: bool, seed: u32| {
+        let mut s = settings(64.0, SolverChoice::Hierarchical);
+        s.adaptive_gather = adaptive;
+        s.samples_per_texel = 256;
+        s.seed = seed;
+        common::bake(&scene, &s)
+    };
+    let noise = |adaptive: bool| {
+        let (a, b) = (bake(adaptive, 1), bake(adaptive, 2));
+        let rays = gather_rays(&a);
+        (relative_rms_error(&a.pages, &b.pages), rays)
+    };
+    let ((even, even_rays), (adaptive, adaptive_rays)) = (noise(false), noise(true));
+    println!(
+        "seed difference: even rays {even:.4} ({even_rays} rays), adaptive {adaptive:.4} ({adaptive_rays} rays)"
+    );
+    assert!(
+        adaptive_rays as f64 <= 1.02 * even_rays as f64,
+        "{adaptive_rays} rays against {even_rays}"
+    );
+    assert!(
+        adaptive < 0.95 * even,
+        "shared out by noise {adaptive:.4}, even {even:.4}"
+    );
 }

@@ -12,6 +12,7 @@
 mod finite;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
+mod gathers;
 mod handle;
 mod passes;
 pub mod preview;

@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::shard::ShardRun;
+use super::gathers::{FinalGather, correction_rays, final_gather, gather_note, gather_split};
 use super::stages::{Stages, scaled, split, until_target};
 use super::{direct_pass_runs, valid};
 use crate::context::BakeContext;
@@ -540,48 +540,6 @@ fn radiosity_round(
     })
 }
 
-/// A gather over every node (`compute(only)` of the nodes `only` marks), split across the
-/// shards of a split bake by the nodes' patches.
-fn gather_split(
-    shards: Option<&ShardRun>,
-    stage: &str,
-    nodes: &Nodes,
-    compute: impl FnOnce(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, hierarchical::GatherRays),
-) -> Result<(Vec<Vec3>, Vec<f32>, hierarchical::GatherRays)> {
-    let (values, rays) = split(
-        shards,
-        stage,
-        nodes.len(),
-        |i| nodes.patch[i] as usize,
-        |only| {
-            let (h, se, rays) = compute(only);
-            let values = h.into_iter().zip(se).collect();
-            (values, [rays.closest, rays.visibility])
-        },
-    )?;
-    let (h, se) = values.into_iter().unzip();
-    let rays = hierarchical::GatherRays {
-        closest: rays[0],
-        visibility: rays[1],
-    };
-    Ok((h, se, rays))
-}
-
-/// Rays per node of the hierarchical solve's correction gather: a quarter of the final
-/// gather's (at least 4). The field it gathers, ρ(H₁ − C), is a few per cent of the light,
-/// so its noise is small at fewer rays.
-fn correction_rays(gather_rays: u32) -> u32 {
-    (gather_rays / 4).max(4)
-}
-
-/// A gather stage's note: its rays per node, and the visibility rays of its start points.
-fn gather_note(per_node: u32, rays: hierarchical::GatherRays) -> String {
-    format!(
-        "{per_node} rays/node, {} visibility rays of start points near geometry",
-        rays.visibility
-    )
-}
-
 /// One round of the hierarchical solve ([`hierarchical`]): the coarse level, the final
 /// gather, its correction and the error estimate, each a stage.
 fn hierarchical_round(
@@ -621,30 +579,21 @@ fn hierarchical_round(
         stages.preview_indirect(ctx, &per_patch, coarse.ambient);
     }
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
+    let FinalGather {
+        light: gathered,
+        error: mut node_error,
+        rays: gather_rays,
+        words: gather_words,
+    } = final_gather(
+        ctx,
+        &mapper,
+        nodes,
+        &b,
+        &coarse.clusters.of_node,
+        suffix,
+        stages,
+    )?;
     let shards = stages.shards();
-    let gathered = stages.run(&format!("final gather{suffix}"), nodes.len() as u64, || {
-        let (h, se, rays) = gather_split(shards, "final gather", nodes, |only| {
-            hierarchical::final_gather(
-                ctx,
-                &mapper,
-                nodes,
-                &b,
-                s.transport_rays,
-                Gather::Final,
-                only,
-                progress,
-            )
-        })?;
-        let note = gather_note(s.transport_rays, rays);
-        Ok((
-            (h, se, rays.visibility),
-            rays.closest + rays.visibility,
-            note,
-        ))
-    })?;
-    let (gathered, mut node_error, visibility) = gathered;
-    stages.annotate(RayKind::Closest, None);
-    stages.shadow_rays(visibility);
     let coarse_per_node = coarse.clusters.prolong(cell_indirect);
     let missed = hierarchical::missed_exitance(nodes, &gathered, &coarse_per_node);
     drop(coarse_per_node);
@@ -656,13 +605,13 @@ fn hierarchical_round(
                 &mapper,
                 nodes,
                 &missed,
-                correction_rays,
+                &|_: usize| 0..correction_rays,
                 Gather::Correction,
                 only,
                 progress,
             )
         })?;
-        let note = gather_note(correction_rays, rays);
+        let note = gather_note(format!("{correction_rays} rays/node"), rays);
         Ok((
             (d, se, rays.visibility),
             rays.closest + rays.visibility,
@@ -690,14 +639,14 @@ fn hierarchical_round(
             &mapper,
             nodes,
             &reflected,
-            correction_rays,
+            &|_: usize| 0..correction_rays,
             Gather::Reflection,
             Some(&near),
             progress,
         );
         let note = format!(
             "{near_count} nodes near geometry, {}",
-            gather_note(correction_rays, rays)
+            gather_note(format!("{correction_rays} rays/node"), rays)
         );
         Ok(((d, rays.visibility), rays.closest + rays.visibility, note))
     })?;
@@ -724,6 +673,7 @@ fn hierarchical_round(
                 gathered: &gathered,
                 missed: &missed,
                 correction: &correction,
+                gather_rays: gather_rays.as_deref(),
             },
             direct,
             s.transport_rays,
@@ -752,8 +702,8 @@ fn hierarchical_round(
         iterations: c.iterations,
         rays: 0,
         stop_reason: format!(
-            "coarse level of {} cells ({}): {}; final gather of {} rays per node, correction of {correction_rays} ({clamped} node(s) held at zero)",
-            report.cells, c.solver, c.stop_reason, s.transport_rays
+            "coarse level of {} cells ({}): {}; final gather of {gather_words}, correction of {correction_rays} ({clamped} node(s) held at zero)",
+            report.cells, c.solver, c.stop_reason
         ),
     };
     Ok(Solved {

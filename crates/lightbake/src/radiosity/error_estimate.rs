@@ -43,7 +43,7 @@ pub fn gather_error(
     }
     let mapper = HitMapper::new(*ctx, nodes, ctx.settings.basis);
     let picked = picked_nodes(n);
-    let gathers = regathers(ctx, &mapper, nodes, &picked, b, rays, [1, 2]);
+    let gathers = regathers(ctx, &mapper, nodes, &picked, b, |_| rays, [1, 2]);
     let terms: Vec<f64> = picked
         .iter()
         .zip(&gathers)
@@ -69,6 +69,9 @@ pub struct HierarchicalFields<'a> {
     pub missed: &'a [Vec3],
     /// Δ: the correction's result, lux (the baked reflected irradiance is H₁ + Δ).
     pub correction: &'a [Vec3],
+    /// Each node's final-gather rays when they were shared out by noise
+    /// ([`super::ray_allocation`]); `None`: the same rays at every node.
+    pub gather_rays: Option<&'a [u32]>,
 }
 
 /// The hierarchical solve's error ([`super::hierarchical`]): the noise of its two gathers and
@@ -76,7 +79,10 @@ pub struct HierarchicalFields<'a> {
 ///
 /// * **Noise.** The final gather H₁ and the correction Δ are each re-gathered twice at the
 ///   sampled nodes from the exitance they read (as in [`gather_error`]), which gives each
-///   one's squared noise without a variance model.
+///   one's squared noise without a variance model. The final gather's re-gathers take each
+///   node's own rays (`gather_rays`): the estimator is unbiased with any, but its own spread
+///   comes from the re-gathers, and a node given 16 × the pilot for its noise would otherwise
+///   be re-gathered with a quarter of its rays.
 /// * **Bias.** With H* the exact reflected irradiance (of the same Monte Carlo transport F)
 ///   and u = E[H₁] − C̃ what the coarse level misses, E[H₁] = H* − (I − Fρ)⁻¹·Fρ·u, and the
 ///   correction gathers E[Δ] = Fρ·u, so the bias left in H₁ + Δ is
@@ -102,20 +108,29 @@ pub fn hierarchical_error(
         return (ErrorEstimate::default(), 0.0, 0);
     }
     let picked = picked_nodes(n);
-    let gathers = regathers(ctx, mapper, nodes, &picked, fields.exitance, rays, [1, 2]);
+    let gather_rays = |i: usize| fields.gather_rays.map_or(rays, |r| r[i]);
+    let gathers = regathers(
+        ctx,
+        mapper,
+        nodes,
+        &picked,
+        fields.exitance,
+        gather_rays,
+        [1, 2],
+    );
     let corrections = regathers(
         ctx,
         mapper,
         nodes,
         &picked,
         fields.missed,
-        correction_rays,
+        |_| correction_rays,
         [3, 4],
     );
     let reflected: Vec<Vec3> = (0..n)
         .map(|i| nodes.albedo[i] * fields.correction[i])
         .collect();
-    let deltas = regathers(ctx, mapper, nodes, &picked, &reflected, rays, [5, 6]);
+    let deltas = regathers(ctx, mapper, nodes, &picked, &reflected, |_| rays, [5, 6]);
     drop(reflected);
     let lum = |v: &[Vec3], i: usize| luminance(v[i]) as f64;
     let gather_noise: Vec<f64> = picked
@@ -163,13 +178,19 @@ pub fn hierarchical_error(
     let bias_rms = (bias.iter().sum::<f64>() / picked.len() as f64)
         .max(0.0)
         .sqrt();
+    let own = if fields.gather_rays.is_some() {
+        "each node's own rays".to_string()
+    } else {
+        format!("{rays} rays")
+    };
     let method = format!(
-        "two re-gathers of {} nodes for each of the final gather ({rays} rays) and the correction ({correction_rays} rays), two gathers of the correction's reflection for the coarse level's bias (×{amplification:.2}: r = {r:.3})",
+        "two re-gathers of {} nodes for each of the final gather ({own}) and the correction ({correction_rays} rays), two gathers of the correction's reflection for the coarse level's bias (×{amplification:.2}: r = {r:.3})",
         picked.len()
     );
     let est = summarise(&terms, method).relative_to(values);
     let bias_relative = if values > 0.0 { bias_rms / values } else { 0.0 };
-    let traced = 2 * picked.len() as u64 * (2 * rays as u64 + correction_rays as u64);
+    let own_rays: u64 = picked.iter().map(|&i| gather_rays(i) as u64).sum();
+    let traced = 2 * (own_rays + picked.len() as u64 * (rays as u64 + correction_rays as u64));
     (est, bias_relative, traced)
 }
 
@@ -179,15 +200,15 @@ fn picked_nodes(n: usize) -> Vec<usize> {
     (0..picked).map(|k| k * n / picked).collect()
 }
 
-/// Two gathers of luminance(`b`) at each of `picked`, with `rays` rays under two seeds
-/// derived from the bake's seed and `keys` (independent of every other ray of the bake).
+/// Two gathers of luminance(`b`) at each of `picked`, with `rays(i)` rays at node i under two
+/// seeds derived from the bake's seed and `keys` (independent of every other ray of the bake).
 fn regathers(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     picked: &[usize],
     b: &[Vec3],
-    rays: u32,
+    rays: impl Fn(usize) -> u32 + Sync,
     keys: [u32; 2],
 ) -> Vec<(f64, f64)> {
     let reseeded = |k: u32| BakeSettings {
@@ -209,8 +230,8 @@ fn regathers(
         .par_iter()
         .map(|&i| {
             (
-                monte_carlo::gather_luminance(&c1, mapper, nodes, i, rays, b),
-                monte_carlo::gather_luminance(&c2, mapper, nodes, i, rays, b),
+                monte_carlo::gather_luminance(&c1, mapper, nodes, i, rays(i), b),
+                monte_carlo::gather_luminance(&c2, mapper, nodes, i, rays(i), b),
             )
         })
         .collect()

@@ -16,6 +16,11 @@
 //! the coarse level holds O(cells) entries, the gather O(1) per node, so memory is linear in
 //! the texels.
 //!
+//! The final gather's rays per node are shared out by the noise a pilot of a quarter of them
+//! measures ([`super::ray_allocation`]; `BakeSettings::adaptive_gather`), so with the same
+//! rays in all a node's row has 1/4 to 4 × the rays of a matrix row: the rays of a row of
+//! that length.
+//!
 //! The coarse level (Cohen & Wallace 1993, ch. 8, adaptive subdivision on texel cells):
 //! 1. start from the cut of [`HierarchyOptions::top_level`] (cells of 2^level texels square);
 //! 2. build the cells' form factors ([`coarse::build`]) and solve the coarse system
@@ -25,6 +30,7 @@
 //!    the rest is within [`HierarchyOptions::tolerance`] of the irradiance, the coarse matrix
 //!    reaches its memory cap, or every cell is one texel; back to 2.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
@@ -99,17 +105,19 @@ pub struct Coarse {
     pub ambient: Vec3,
 }
 
-/// Bytes the hierarchical solve holds at its peak beside the nodes and the hit mapper, for
-/// `nodes` nodes, `page_texels` page texels and `triangles` triangles: the largest of its
-/// phases. The coarse level holds the cells of every node (8 bytes: its cell and its place
-/// in the cell order), the links between neighbouring nodes (1), the fine exitance its
-/// oracle reads (12), the transient of a split (the cells and the sort order, 28) and its
-/// matrix (at most [`solve::COARSE_BYTES_PER_NODE`]); the correction holds the exitance, the
-/// gathered light, the missed light and its result (12 each), the two gathers' standard
-/// errors (4 each) and the exitance grid ([`ExitanceGrid`]); the reflection of the correction
-/// the same with the reflected field and its result (12 each), and which nodes lie near
-/// geometry (1); the error estimate the exitance, the gathered, missed and corrected light,
-/// the correction and its reflection (12 each) and the nodes' errors (4).
+/// Bytes the hierarchical solve holds at its peak beside the nodes and the hit mapper, for `nodes`
+/// nodes, `page_texels` page texels and `triangles` triangles: the largest of its phases. The
+/// coarse level holds the cells of every node (8 bytes: its cell and its place in the cell order),
+/// the links between neighbouring nodes (1), the fine exitance its oracle reads (12), the transient
+/// of a split (the cells and the sort order, 28) and its matrix (at most
+/// [`solve::COARSE_BYTES_PER_NODE`]); the final gather the exitance (12), its pilot's light and
+/// error and the rest's (16 each), each node's rays (4) and the exitance grid, less than the
+/// correction; the correction holds the exitance, the gathered light, the missed light and its
+/// result (12 each), the two gathers' standard errors (4 each) and the exitance grid
+/// ([`ExitanceGrid`]); the reflection of the correction the same with the reflected field and its
+/// result (12 each), and which nodes lie near geometry (1); the error estimate the exitance, the
+/// gathered, missed and corrected light, the correction and its reflection (12 each) and the nodes'
+/// errors (4).
 pub fn planned_bytes(nodes: usize, page_texels: u64, triangles: usize) -> u64 {
     let n = nodes as u64;
     let clusters = 8 * n;
@@ -335,17 +343,18 @@ pub struct GatherRays {
     pub visibility: u64,
 }
 
-/// A gather from exitance `b` with `rays` rays at every node (or those `only` marks): the
-/// final gather H₁, the correction Δ or its reflection Δ₂ (see the module docs). Returns the
-/// irradiance per node (zero at nodes left out), its standard error (luminance, lux;
-/// [`monte_carlo::gather`]) and the rays traced.
+/// A gather from exitance `b` with the rays `rays(i)` of node i's sequence at every node (or
+/// those `only` marks; a node with no rays is left out): the final gather H₁ (or a range of
+/// its rays, see [`super::ray_allocation`]), the correction Δ or its reflection Δ₂ (see the
+/// module docs). Returns the irradiance per node (zero at nodes left out), its standard error
+/// (luminance, lux; [`monte_carlo::gather`]) and the rays traced.
 #[allow(clippy::too_many_arguments)]
 pub fn final_gather(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     b: &[Vec3],
-    rays: u32,
+    rays: &(dyn Fn(usize) -> Range<u32> + Sync),
     which: Gather,
     only: Option<&[bool]>,
     progress: &Progress,
@@ -356,7 +365,7 @@ pub fn final_gather(
         Gather::Reflection => STREAM_CORRECTION + 1,
     };
     let grid = ExitanceGrid::new(mapper, b);
-    let visibility = AtomicU64::new(0);
+    let (visibility, closest) = (AtomicU64::new(0), AtomicU64::new(0));
     let (out, error): (Vec<Vec3>, Vec<f32>) = (0..nodes.len())
         .into_par_iter()
         .with_min_len(64)
@@ -364,15 +373,20 @@ pub fn final_gather(
             if progress.is_cancelled() || only.is_some_and(|o| !o[i]) {
                 return (Vec3::ZERO, 0.0);
             }
-            let (h, se, v) = monte_carlo::gather(ctx, mapper, nodes, i, rays, stream, &grid);
+            let range = rays(i);
+            if range.is_empty() {
+                progress.advance(1);
+                return (Vec3::ZERO, 0.0);
+            }
+            closest.fetch_add(range.len() as u64, Ordering::Relaxed);
+            let (h, se, v) = monte_carlo::gather(ctx, mapper, nodes, i, range, stream, &grid);
             visibility.fetch_add(v, Ordering::Relaxed);
             progress.advance(1);
             (h, se)
         })
         .unzip();
-    let gathered = only.map_or(nodes.len(), |o| o.iter().filter(|&&x| x).count());
     let traced = GatherRays {
-        closest: gathered as u64 * rays as u64,
+        closest: closest.into_inner(),
         visibility: visibility.into_inner(),
     };
     (out, error, traced)

@@ -26,6 +26,7 @@
 //! | [`clusters`] | texel clusters: cuts through a quadtree per chart |
 //! | [`coarse`] | the clusters' form factors and the refinement oracle |
 //! | [`hierarchical`] | the coarse solve, its refinement and the per-texel final gather |
+//! | [`ray_allocation`] | the final gather's rays per node, by each node's noise in a pilot |
 //! | [`error_estimate`] | the pass's estimate of its own error |
 //!
 //! The linear algebra (the matrix F and the matrix solvers) is [`crate::solve`].
@@ -40,6 +41,7 @@ pub mod hierarchical;
 pub mod hit_mapper;
 pub mod monte_carlo;
 pub mod nodes;
+pub mod ray_allocation;
 pub mod stochastic_jacobi;
 pub mod support;
 

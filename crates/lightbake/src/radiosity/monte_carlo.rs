@@ -9,6 +9,7 @@
 //! Rays that leave the scene escape (the sky is direct light, not part of F); rays that hit
 //! the back of a single-sided surface see the inside of a solid, which is black.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
@@ -44,19 +45,19 @@ pub(super) enum RayEnd {
     Hit(Hit),
 }
 
-/// The rays of one row of Monte Carlo transport: `rays` rays from points of node `i`'s
-/// basis support (from its representative point when it is a [`Nodes::sliver`], or when
-/// no support point is open), cosine-distributed about the surface there, numbered by
-/// random-number `stream`. Calls `f(weight, end, k)` for every start point, `k` the ray's
-/// index in the node's sequence. Returns the visibility rays the start points took (see
-/// [`support_point`]).
+/// The rays of one row of Monte Carlo transport: rays `rays` of node `i`'s sequence (`0..n`
+/// for a row of n rays), from points of its basis support (from its representative point
+/// when it is a [`Nodes::sliver`], or when no support point of the range is open),
+/// cosine-distributed about the surface there, numbered by random-number `stream`. Calls
+/// `f(weight, end, k)` for every start point, `k` the ray's index in the node's sequence.
+/// Returns the visibility rays the start points took (see [`support_point`]).
 #[inline]
 pub(super) fn for_each_ray(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     i: usize,
-    rays: u32,
+    rays: Range<u32>,
     stream: u32,
     mut f: impl FnMut(f32, RayEnd, u32),
 ) -> u64 {
@@ -79,7 +80,7 @@ pub(super) fn for_each_ray(
     let mut visibility = 0u64;
     if !nodes.sliver.get(i).copied().unwrap_or(false) {
         let fast = SupportFrame::new(ctx, mapper, i, p);
-        for k in 0..rays {
+        for k in rays.clone() {
             let start = match &fast {
                 Some(frame) => frame.point(starts.point(k)),
                 None => support_point(ctx, mapper, i, p, k, key, &mut visibility),
@@ -92,7 +93,7 @@ pub(super) fn for_each_ray(
     }
     if started == 0 {
         let sp = p.representative();
-        for k in 0..rays {
+        for k in rays {
             trace(&sp, 1.0, k);
         }
     }
@@ -119,7 +120,7 @@ pub(super) fn for_each_sample(
         mapper,
         nodes,
         i,
-        rays,
+        0..rays,
         stream,
         |weight, end, _| match end {
             RayEnd::Below => f(weight, &[]),
@@ -215,10 +216,11 @@ pub fn gather_row(
         .fold(Vec3::ZERO, |s, &(j, w)| s + b[j as usize] * w)
 }
 
-/// Node `i`'s gathered irradiance Σw·B(hit) / Σw from the field on `grid` over the rays of
-/// stream `stream` (the rays [`build`] traces for row i when it is [`STREAM_TRANSPORT`]),
-/// summed as the rays come, without forming the row (lux): (F·B)ᵢ of the matrix row those
-/// rays would make. The final gather of the hierarchical solve.
+/// Node `i`'s gathered irradiance Σw·B(hit) / Σw from the field on `grid` over rays `rays` of
+/// stream `stream` (`0..n`: the rays [`build`] traces for a row of n rays when `stream` is
+/// [`STREAM_TRANSPORT`]; a later range continues the same sequence), summed as the rays come,
+/// without forming the row (lux): (F·B)ᵢ of the matrix row those rays would make. The final
+/// gather of the hierarchical solve.
 ///
 /// Also returns the standard error of its luminance and the visibility rays of the start
 /// points. The error comes from [`GATHER_BLOCKS`] blocks of consecutive rays: each block of
@@ -230,15 +232,16 @@ pub fn gather(
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     i: usize,
-    rays: u32,
+    rays: Range<u32>,
     stream: u32,
     grid: &ExitanceGrid<'_>,
 ) -> (Vec3, f32, u64) {
     let (mut total, mut sum) = (0.0f32, Vec3::ZERO);
     let mut blocks = [(0.0f64, 0.0f64); GATHER_BLOCKS];
+    let (first, len) = (rays.start, rays.len().max(1));
     let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, k| {
         total += weight;
-        let b = &mut blocks[(k as usize * GATHER_BLOCKS) / rays as usize];
+        let b = &mut blocks[((k - first) as usize * GATHER_BLOCKS) / len];
         b.0 += weight as f64;
         if let RayEnd::Hit(hit) = end {
             let v = grid.at(&hit) * weight;

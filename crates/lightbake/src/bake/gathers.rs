@@ -1,0 +1,171 @@
+//! The hierarchical solve's gathers as stages: the final gather (a pilot, then each node's
+//! rays by its noise: [`ray_allocation`]) and the split of any gather across the shards of a
+//! split bake.
+
+use std::ops::Range;
+
+use glam::Vec3;
+
+use super::shard::ShardRun;
+use super::stages::{Stages, split};
+use crate::context::BakeContext;
+use crate::error::Result;
+use crate::progress::RayKind;
+use crate::radiosity::hierarchical::{self, Gather, GatherRays};
+use crate::radiosity::{HitMapper, Nodes, ray_allocation};
+
+/// A gather over every node (`compute(only)` of the nodes `only` marks), split across the
+/// shards of a split bake by the nodes' patches.
+pub(super) fn gather_split(
+    shards: Option<&ShardRun>,
+    stage: &str,
+    nodes: &Nodes,
+    compute: impl FnOnce(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, GatherRays),
+) -> Result<(Vec<Vec3>, Vec<f32>, GatherRays)> {
+    let (values, rays) = split(
+        shards,
+        stage,
+        nodes.len(),
+        |i| nodes.patch[i] as usize,
+        |only| {
+            let (h, se, rays) = compute(only);
+            let values = h.into_iter().zip(se).collect();
+            (values, [rays.closest, rays.visibility])
+        },
+    )?;
+    let (h, se) = values.into_iter().unzip();
+    let rays = GatherRays {
+        closest: rays[0],
+        visibility: rays[1],
+    };
+    Ok((h, se, rays))
+}
+
+/// Rays per node of the hierarchical solve's correction gather: a quarter of the final
+/// gather's (at least 4). The field it gathers, ρ(H₁ − C), is a few per cent of the light,
+/// so its noise is small at fewer rays.
+pub(super) fn correction_rays(gather_rays: u32) -> u32 {
+    (gather_rays / 4).max(4)
+}
+
+/// A gather stage's note: its rays per node (in words), and the visibility rays of its start
+/// points.
+pub(super) fn gather_note(per_node: impl std::fmt::Display, rays: GatherRays) -> String {
+    format!(
+        "{per_node}, {} visibility rays of start points near geometry",
+        rays.visibility
+    )
+}
+
+/// The final gather's result.
+pub(super) struct FinalGather {
+    /// H₁ per node, lux.
+    pub(super) light: Vec<Vec3>,
+    /// Its standard error per node (luminance, lux).
+    pub(super) error: Vec<f32>,
+    /// Each node's rays when they were shared out by noise (`None`: the settings' rays at
+    /// every node).
+    pub(super) rays: Option<Vec<u32>>,
+    /// The rays per node, in words.
+    pub(super) words: String,
+}
+
+/// The final gather H₁ from exitance `b` (`cell_of`: each node's cell of the coarse level),
+/// as stages: with at least [`ray_allocation::MIN_ADAPTIVE_RAYS`] rays per node a pilot
+/// (`gather pilot`) and the rest of each node's rays by its noise (`final gather`), else one
+/// pass of the settings' rays.
+pub(super) fn final_gather(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    b: &[Vec3],
+    cell_of: &[u32],
+    suffix: &str,
+    stages: &mut Stages<'_>,
+) -> Result<FinalGather> {
+    let rays = ctx.settings.transport_rays;
+    let stage = |name: &str| format!("{name}{suffix}");
+    let pilot = ray_allocation::pilot_rays(rays).filter(|_| ctx.settings.adaptive_gather);
+    let Some(pilot) = pilot else {
+        let (h, se) = gather_stage(
+            ctx,
+            mapper,
+            nodes,
+            b,
+            &|_: usize| 0..rays,
+            (&stage("final gather"), "final gather"),
+            |r| gather_note(format!("{rays} rays/node"), r),
+            stages,
+        )?;
+        return Ok(FinalGather {
+            light: h,
+            error: se,
+            rays: None,
+            words: format!("{rays} rays per node"),
+        });
+    };
+    let (pilot_h, pilot_se) = gather_stage(
+        ctx,
+        mapper,
+        nodes,
+        b,
+        &|_: usize| 0..pilot,
+        (&stage("gather pilot"), "gather pilot"),
+        |r| gather_note(format!("{pilot} rays/node"), r),
+        stages,
+    )?;
+    let allocation = ray_allocation::allocate(nodes, cell_of, &pilot_se, pilot, rays);
+    let (rest_h, rest_se) = gather_stage(
+        ctx,
+        mapper,
+        nodes,
+        b,
+        &|i: usize| allocation.rest(i),
+        (&stage("final gather"), "final gather"),
+        |r| gather_note(allocation.note(), r),
+        stages,
+    )?;
+    let (h, se) = ray_allocation::combine(&allocation, (pilot_h, pilot_se), (&rest_h, &rest_se));
+    let words = format!(
+        "{:.1} rays per node on average ({} to {}, by the noise of a pilot of {pilot})",
+        allocation.mean(),
+        allocation.rays.iter().min().copied().unwrap_or(0),
+        allocation.rays.iter().max().copied().unwrap_or(0),
+    );
+    Ok(FinalGather {
+        light: h,
+        error: se,
+        rays: Some(allocation.rays),
+        words,
+    })
+}
+
+/// One stage of the final gather: rays `rays(i)` of every node's sequence; `names` are the
+/// stage's name and its name in a split bake's work folder.
+#[allow(clippy::too_many_arguments)]
+fn gather_stage(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    b: &[Vec3],
+    rays: &(dyn Fn(usize) -> Range<u32> + Sync),
+    names: (&str, &str),
+    note: impl FnOnce(GatherRays) -> String,
+    stages: &mut Stages<'_>,
+) -> Result<(Vec<Vec3>, Vec<f32>)> {
+    let progress = stages.progress();
+    let shards = stages.shards();
+    let (h, se, visibility) = stages.run(names.0, nodes.len() as u64, || {
+        let (h, se, traced) = gather_split(shards, names.1, nodes, |only| {
+            hierarchical::final_gather(ctx, mapper, nodes, b, rays, Gather::Final, only, progress)
+        })?;
+        Ok((
+            (h, se, traced.visibility),
+            traced.closest + traced.visibility,
+            note(traced),
+        ))
+    })?;
+    stages.annotate(RayKind::Closest, None);
+    stages.shadow_rays(visibility);
+    Ok((h, se))
+}
