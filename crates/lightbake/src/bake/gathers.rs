@@ -8,6 +8,7 @@ use glam::Vec3;
 
 use super::shard::ShardRun;
 use super::stages::{Stages, split};
+use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::error::Result;
 use crate::progress::RayKind;
@@ -70,15 +71,18 @@ pub(super) struct FinalGather {
     pub(super) words: String,
 }
 
-/// The final gather H₁ from exitance `b` (`cell_of`: each node's cell of the coarse level),
+/// The final gather H₁ from exitance `b` (`direct`: the direct irradiance per patch, lux;
+/// `cell_of`: each node's cell of the coarse level),
 /// as stages: with at least [`ray_allocation::MIN_ADAPTIVE_RAYS`] rays per node a pilot
 /// (`gather pilot`) and the rest of each node's rays by its noise (`final gather`), else one
 /// pass of the settings' rays.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn final_gather(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     b: &[Vec3],
+    direct: &[Vec3],
     cell_of: &[u32],
     suffix: &str,
     stages: &mut Stages<'_>,
@@ -114,7 +118,11 @@ pub(super) fn final_gather(
         |r| gather_note(format!("{pilot} rays/node"), r),
         stages,
     )?;
-    let allocation = ray_allocation::allocate(nodes, cell_of, &pilot_se, pilot, rays);
+    let light: Vec<f32> = (0..nodes.len())
+        .map(|i| luminance(direct[nodes.patch[i] as usize] + pilot_h[i]))
+        .collect();
+    let allocation = ray_allocation::allocate(nodes, cell_of, &light, &pilot_se, pilot, rays);
+    drop(light);
     let (rest_h, rest_se) = gather_stage(
         ctx,
         mapper,

@@ -589,6 +589,7 @@ fn hierarchical_round(
         &mapper,
         nodes,
         &b,
+        direct,
         &coarse.clusters.of_node,
         suffix,
         stages,
