@@ -30,8 +30,8 @@
 //!    Every node keeps at least half the settings' rays, a node whose cell shows no noise
 //!    too: the pilot's few rays can all miss a small bright source that lights a dim corner
 //!    (with a quarter of the rays at the preview preset, a wall lit only that way on
-//!    `q3dm6ish` read a tenth of the path tracer's light), and such a corner is dim in
-//!    absolute terms, which is all the allocation weighs.
+//!    `q3dm6ish` read a tenth of the path tracer's light), and then its cell shows no noise
+//!    to weigh.
 //! 3. **The rest**: rays `P..n_i` ([`Allocation::rest`]), combined with the pilot by ray count
 //!    ([`combine`]).
 //!
