@@ -32,7 +32,8 @@ pub struct TriangleInfo {
     pub instance: u32,
     /// Triangle index within the instance's mesh.
     pub local: u32,
-    /// Unit geometric normal in world space (from the winding: counter-clockwise is front).
+    /// Unit geometric normal in world space: the side the mesh's counter-clockwise winding
+    /// faces, under a mirroring transform too.
     pub normal: Vec3,
     /// World-space area, m².
     pub area: f32,
@@ -113,6 +114,10 @@ impl RayScene {
             instance_first_triangle.push(triangles.len() as u32);
             let mesh = &scene.meshes[inst.mesh];
             let double_sided = scene.material_of(inst.mesh).double_sided;
+            // A mirroring transform (negative determinant) turns the winding in the world; the
+            // front stays the side the mesh's own counter-clockwise winding names (glTF 2.0
+            // §3.5.3, "Instantiation").
+            let front = if inst.transform.matrix3.determinant() < 0.0 { -1.0 } else { 1.0 };
             for t in 0..mesh.triangle_count() {
                 let [a, b, c] = mesh.triangle(t);
                 let p = [a, b, c].map(|i| inst.transform.transform_point3(mesh.positions[i]));
@@ -121,7 +126,7 @@ impl RayScene {
                 triangles.push(TriangleInfo {
                     instance: ii as u32,
                     local: t as u32,
-                    normal: if len > 0.0 { cross / len } else { Vec3::Y },
+                    normal: if len > 0.0 { front * cross / len } else { Vec3::Y },
                     area: 0.5 * len,
                     double_sided,
                 });

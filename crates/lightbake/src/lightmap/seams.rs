@@ -165,8 +165,9 @@ fn seam(scene: &Scene, layout: &Layout, a: &OpenEdge, b: &OpenEdge) -> Option<Se
         let uv1 = mesh.uv1.as_ref()?;
         let nm = inst.normal_matrix();
         let [i0, i1, i2] = mesh.triangle(e.triangle as usize);
-        let w = [i0, i1, i2].map(|k| inst.transform.transform_point3(mesh.positions[k]));
-        let geometric = (w[1] - w[0]).cross(w[2] - w[0]).normalize_or_zero();
+        // Through the normal matrix, which keeps the front of a mirrored instance's triangle.
+        let l = [i0, i1, i2].map(|k| mesh.positions[k]);
+        let geometric = (nm * (l[1] - l[0]).cross(l[2] - l[0])).normalize_or_zero();
         let texel = |v: u32| {
             let uv = uv1[v as usize];
             Vec2::new(

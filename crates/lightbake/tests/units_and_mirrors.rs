@@ -1,0 +1,147 @@
+//! A real scene as exporters also write it: in centimetres under a node scaled by 0.01, and
+//! mirrored (a negative scale, which flips the triangles' winding: glTF 2.0 §3.5.3,
+//! "Instantiation"). Each is scored against the path tracer's references at the original's
+//! points (mirrored with it), so a bake that lit a mirrored wall from behind, or that read a
+//! tolerance in mesh units, shows as error.
+
+use glam::{Affine3A, Vec3};
+use lightbake::analysis::verify::{measure, verification_points};
+use lightbake::scene::{LightKind, Scene};
+use lightbake::{BakeOutput, BakeSettings, Progress};
+
+/// The FZK house of the corpus (a real architectural model, not built for these tests).
+fn house() -> Scene {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/house.gltf");
+    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
+        .unwrap()
+        .scene
+}
+
+/// `scene` with its meshes in centimetres, each instance scaling them by 0.01: the world
+/// is unchanged.
+fn in_centimetres(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    for mesh in &mut s.meshes {
+        for p in &mut mesh.positions {
+            *p *= 100.0;
+        }
+    }
+    for inst in &mut s.instances {
+        inst.transform = inst.transform * Affine3A::from_scale(Vec3::splat(0.01));
+    }
+    s
+}
+
+/// The reflection x → −x.
+fn mirror() -> Affine3A {
+    Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))
+}
+
+/// `scene` reflected in the plane x = 0, lights and all: every instance gets a negative
+/// determinant.
+fn mirrored(scene: &Scene) -> Scene {
+    let m = mirror();
+    let mut s = scene.clone();
+    for inst in &mut s.instances {
+        inst.transform = m * inst.transform;
+    }
+    for light in &mut s.lights {
+        light.position = m.transform_point3(light.position);
+        light.direction = m.transform_vector3(light.direction);
+        if let LightKind::Rect { right, .. } = &mut light.kind {
+            *right = m.transform_vector3(*right);
+        }
+    }
+    s
+}
+
+fn settings() -> BakeSettings {
+    let mut s = BakeSettings::preview();
+    s.verify_points = 256;
+    s.verify_paths = 1024;
+    s
+}
+
+fn bake(scene: &Scene) -> BakeOutput {
+    lightbake::bake(scene, &settings(), &Progress::new()).unwrap()
+}
+
+/// Every texel finite, none visible left unlit.
+fn sound(name: &str, out: &BakeOutput) {
+    assert!(
+        out.pages
+            .iter()
+            .all(|p| p.texels.iter().all(|t| t.is_finite())),
+        "{name}: a non-finite texel"
+    );
+    assert_eq!(out.report.texels.visible_unlit, 0, "{name}");
+}
+
+#[test]
+fn the_house_in_centimetres_and_mirrored_bakes_as_the_house_does() {
+    let scene = house();
+    let out = bake(&scene);
+    sound("house", &out);
+    let points = verification_points(&scene, &out, 256, 1024, 0x51de, 7);
+    let base = measure(&scene, &out, &points);
+    println!(
+        "house: {:.2}% ± {:.2}%",
+        100.0 * base.relative_rms,
+        100.0 * base.uncertainty
+    );
+    assert!(base.points >= 250 && base.lit_but_black == 0, "{base:?}");
+
+    let cm = in_centimetres(&scene);
+    let cm_out = bake(&cm);
+    sound("house in centimetres", &cm_out);
+    assert_eq!(
+        cm_out.report.plan.texel_density, out.report.plan.texel_density,
+        "the density is of the world, not of the mesh units"
+    );
+    let cm_v = measure(&cm, &cm_out, &points);
+
+    let m = mirror();
+    let mirror_points: Vec<_> = points
+        .iter()
+        .map(|p| {
+            let mut q = *p;
+            q.position = m.transform_point3(p.position);
+            q.normal = m.transform_vector3(p.normal);
+            q
+        })
+        .collect();
+    let mirrored_scene = mirrored(&scene);
+    let mirrored_out = bake(&mirrored_scene);
+    sound("mirrored house", &mirrored_out);
+    let mirrored_v = measure(&mirrored_scene, &mirrored_out, &mirror_points);
+
+    for (name, v) in [("centimetres", &cm_v), ("mirrored", &mirrored_v)] {
+        println!(
+            "{name}: {:.2}% ± {:.2}%, bias {:+.2}%, {} lit but black",
+            100.0 * v.relative_rms,
+            100.0 * v.uncertainty,
+            100.0 * v.relative_bias,
+            v.lit_but_black
+        );
+        assert_eq!(
+            v.points, base.points,
+            "{name}: a point fell off the lightmap"
+        );
+        assert_eq!(v.lit_but_black, 0, "{name}: {v:?}");
+        // A different unwrap draws the texel grid differently: its error differs by about
+        // the check's own spread, not by a wrong side or a wrong tolerance.
+        let bound = base.relative_rms + 3.0 * base.uncertainty.max(v.uncertainty) + 0.01;
+        assert!(
+            v.relative_rms <= bound,
+            "{name}: {:.2}% against the house's {:.2}% (bound {:.2}%)",
+            100.0 * v.relative_rms,
+            100.0 * base.relative_rms,
+            100.0 * bound
+        );
+        assert!(
+            v.relative_bias.abs() <= base.relative_bias.abs() + 0.02,
+            "{name}: {v:?}"
+        );
+    }
+}
