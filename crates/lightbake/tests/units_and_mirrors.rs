@@ -28,7 +28,7 @@ fn in_centimetres(scene: &Scene) -> Scene {
         }
     }
     for inst in &mut s.instances {
-        inst.transform = inst.transform * Affine3A::from_scale(Vec3::splat(0.01));
+        inst.transform *= Affine3A::from_scale(Vec3::splat(0.01));
     }
     s
 }

@@ -117,7 +117,7 @@ impl RayScene {
             // A mirroring transform (negative determinant) turns the winding in the world; the
             // front stays the side the mesh's own counter-clockwise winding names (glTF 2.0
             // §3.5.3, "Instantiation").
-            let front = if inst.transform.matrix3.determinant() < 0.0 { -1.0 } else { 1.0 };
+            let front = inst.transform.matrix3.determinant().signum();
             for t in 0..mesh.triangle_count() {
                 let [a, b, c] = mesh.triangle(t);
                 let p = [a, b, c].map(|i| inst.transform.transform_point3(mesh.positions[i]));
@@ -126,7 +126,11 @@ impl RayScene {
                 triangles.push(TriangleInfo {
                     instance: ii as u32,
                     local: t as u32,
-                    normal: if len > 0.0 { front * cross / len } else { Vec3::Y },
+                    normal: if len > 0.0 {
+                        front * cross / len
+                    } else {
+                        Vec3::Y
+                    },
                     area: 0.5 * len,
                     double_sided,
                 });
