@@ -134,11 +134,10 @@ pub(super) fn final_gather(
         stages,
     )?;
     let (h, se) = ray_allocation::combine(&allocation, (pilot_h, pilot_se), (&rest_h, &rest_se));
+    let (min, max) = allocation.extremes();
     let words = format!(
-        "{:.1} rays per node on average ({} to {}, by the noise of a pilot of {pilot})",
+        "{:.1} rays per node on average ({min} to {max}, by the noise of a pilot of {pilot})",
         allocation.mean(),
-        allocation.rays.iter().min().copied().unwrap_or(0),
-        allocation.rays.iter().max().copied().unwrap_or(0),
     );
     Ok(FinalGather {
         light: h,

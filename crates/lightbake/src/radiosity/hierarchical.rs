@@ -18,7 +18,7 @@
 //!
 //! The final gather's rays per node are shared out by the noise a pilot of a quarter of them
 //! measures ([`super::ray_allocation`]; `BakeSettings::adaptive_gather`), so with the same
-//! rays in all a node's row has 1/4 to 4 × the rays of a matrix row: the rays of a row of
+//! rays in all a node's row has 1/2 to 4 × the rays of a matrix row: the rays of a row of
 //! that length.
 //!
 //! The coarse level (Cohen & Wallace 1993, ch. 8, adaptive subdivision on texel cells):

@@ -89,6 +89,12 @@ impl Allocation {
         self.rays.iter().map(|&r| r as u64).sum()
     }
 
+    /// The fewest and the most rays of any node (0, 0 without nodes).
+    pub fn extremes(&self) -> (u32, u32) {
+        let min = self.rays.iter().min().copied().unwrap_or(0);
+        (min, self.rays.iter().max().copied().unwrap_or(0))
+    }
+
     /// Mean rays per node.
     pub fn mean(&self) -> f64 {
         self.total() as f64 / self.rays.len().max(1) as f64
@@ -102,10 +108,9 @@ impl Allocation {
             .iter()
             .map(|&c| format!("{:.0}%", 100.0 * c as f64 / n))
             .collect();
+        let (min, max) = self.extremes();
         format!(
-            "{} to {} rays/node, mean {:.1} (of {}), by the noise of a pilot of {}; nodes at 1/2/4/8/16× the pilot: {}; variance {:.2}× even rays'",
-            self.rays.iter().min().copied().unwrap_or(0),
-            self.rays.iter().max().copied().unwrap_or(0),
+            "{min} to {max} rays/node, mean {:.1} (of {}), by the noise of a pilot of {}; nodes at 1/2/4/8/16× the pilot: {}; variance {:.2}× even rays'",
             self.mean(),
             self.target,
             self.pilot,
