@@ -1,6 +1,7 @@
 //! The corpus at every preset: the house (`assets/corpus/house.gltf`), Kenney's FPS and
 //! platformer levels (`assets/corpus/kenney_*`), four OpenArena levels
-//! (`assets/corpus/openarena/`) and the generated office floor, each baked at preview, medium
+//! (`assets/corpus/openarena/`), assimp's teapots in centimetres and mirrored cubes
+//! (`assets/corpus/assimp/`) and the generated office floor, each baked at preview, medium
 //! and high with the defaults (automatic texel density, `auto` solver), scored against the
 //! in-tree path tracer at 256 open surface points (4096 paths each; `analysis::points`) and by
 //! the bake's own check at 1 024 points a viewer can see (`--verify 1024`;
@@ -37,6 +38,8 @@ fn scene(name: &str) -> Scene {
                 "q3dm6ish" => "openarena/q3dm6ish.gltf",
                 "oa_bases3" => "openarena/oa_bases3.gltf",
                 "kaos" => "openarena/kaos.gltf",
+                "teapots" => "assimp/teapots.gltf",
+                "mirrored_cubes" => "assimp/mirrored_cubes.gltf",
                 _ => "house.gltf",
             };
             let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -109,6 +112,8 @@ fn main() {
         "q3dm6ish",
         "oa_bases3",
         "kaos",
+        "teapots",
+        "mirrored_cubes",
         "office",
     ];
     let quick = args.iter().any(|a| a == "--quick");

@@ -2,7 +2,9 @@
 //! mirrored (a negative scale, which flips the triangles' winding: glTF 2.0 §3.5.3,
 //! "Instantiation"). Each is scored against the path tracer's references at the original's
 //! points (mirrored with it), so a bake that lit a mirrored wall from behind, or that read a
-//! tolerance in mesh units, shows as error.
+//! tolerance in mesh units, shows as error. And a file authored with mirrored nodes (assimp's
+//! `cubes_with_mirroring_and_pivot.fbx`, `assets/corpus/assimp/mirrored_cubes.gltf`), scored
+//! against the references of the same surfaces written out unmirrored.
 
 use glam::{Affine3A, Vec3};
 use lightbake::analysis::verify::{measure, verification_points};
@@ -29,6 +31,49 @@ fn in_centimetres(scene: &Scene) -> Scene {
     }
     for inst in &mut s.instances {
         inst.transform *= Affine3A::from_scale(Vec3::splat(0.01));
+    }
+    s
+}
+
+/// The corpus' mirrored cubes: four cubes of an FBX file, two of them under a node scaled by
+/// −0.1 in y, on a ground square (`assets/corpus/assimp/`).
+fn mirrored_cubes() -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/corpus/assimp/mirrored_cubes.gltf");
+    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
+        .unwrap()
+        .scene
+}
+
+/// Whether an instance's transform mirrors (negative determinant).
+fn mirrors(inst: &lightbake::scene::Instance) -> bool {
+    inst.transform.matrix3.determinant() < 0.0
+}
+
+/// `scene` with every mirrored instance's mesh written out in world space under the
+/// identity, its winding reversed so its front stays the same side: the same surfaces and
+/// instances in the same order, and no negative determinant.
+fn unmirrored(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    for i in 0..s.instances.len() {
+        let inst = s.instances[i].clone();
+        if !mirrors(&inst) {
+            continue;
+        }
+        let mut mesh = s.meshes[inst.mesh].clone();
+        let nm = inst.normal_matrix();
+        for p in &mut mesh.positions {
+            *p = inst.transform.transform_point3(*p);
+        }
+        for n in &mut mesh.normals {
+            *n = (nm * *n).normalize();
+        }
+        for t in mesh.indices.chunks_mut(3) {
+            t.swap(1, 2);
+        }
+        s.meshes.push(mesh);
+        s.instances[i].mesh = s.meshes.len() - 1;
+        s.instances[i].transform = Affine3A::IDENTITY;
     }
     s
 }
@@ -144,4 +189,51 @@ fn the_house_in_centimetres_and_mirrored_bakes_as_the_house_does() {
             "{name}: {v:?}"
         );
     }
+}
+
+#[test]
+fn cubes_authored_mirrored_bake_as_their_unmirrored_copy() {
+    let scene = mirrored_cubes();
+    assert_eq!(
+        scene.instances.iter().filter(|i| mirrors(i)).count(),
+        2,
+        "the file mirrors Cube2 and its child Cube1"
+    );
+    // The references come from the copy with no mirror, so they do not depend on how the
+    // baker or its path tracer read a negative determinant.
+    let flat = unmirrored(&scene);
+    let flat_out = bake(&flat);
+    sound("unmirrored cubes", &flat_out);
+    let points = verification_points(&flat, &flat_out, 512, 1024, 0x51de, 7);
+    let base = measure(&flat, &flat_out, &points);
+    let on_mirrored = points
+        .iter()
+        .filter(|p| mirrors(&scene.instances[p.instance as usize]))
+        .count();
+    println!(
+        "unmirrored: {:.2}% ± {:.2}%; {on_mirrored} of {} points on the mirrored cubes",
+        100.0 * base.relative_rms,
+        100.0 * base.uncertainty,
+        points.len()
+    );
+    assert!(
+        on_mirrored >= 10,
+        "{on_mirrored} points on the mirrored cubes"
+    );
+    assert_eq!(base.lit_but_black, 0, "{base:?}");
+
+    let out = bake(&scene);
+    sound("mirrored cubes", &out);
+    let v = measure(&scene, &out, &points);
+    println!(
+        "as authored: {:.2}% ± {:.2}%, bias {:+.2}%, {} lit but black",
+        100.0 * v.relative_rms,
+        100.0 * v.uncertainty,
+        100.0 * v.relative_bias,
+        v.lit_but_black
+    );
+    assert_eq!(v.points, base.points, "a point fell off the lightmap");
+    assert_eq!(v.lit_but_black, 0, "{v:?}");
+    let bound = base.relative_rms + 3.0 * base.uncertainty.max(v.uncertainty) + 0.01;
+    assert!(v.relative_rms <= bound, "{v:?} against {base:?}");
 }

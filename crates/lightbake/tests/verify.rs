@@ -177,3 +177,39 @@ fn the_openarena_aggressor_level_has_no_lit_point_left_black() {
 fn the_openarena_q3dm6ish_level_has_no_lit_point_left_black() {
     corpus_scene_checks("openarena/q3dm6ish.gltf", 0.25);
 }
+
+/// A scene of `assets/corpus/assimp/`, as the importer reads it.
+fn assimp_scene(file: &str) -> lightbake::scene::Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/corpus/assimp")
+        .join(file);
+    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
+        .unwrap()
+        .scene
+}
+
+/// Three teapots exported from 3ds Max, authored Z-up in centimetres (assimp's
+/// `teapots.DAE`): meshes in centimetres under transforms that scale them by 0.01, standing
+/// on a ground square in metres, the smallest one floating.
+#[test]
+fn the_teapots_in_centimetres_have_no_lit_point_left_black() {
+    let scene = assimp_scene("teapots.gltf");
+    let teapots: Vec<_> = scene
+        .instances
+        .iter()
+        .filter(|i| i.name.starts_with("Teapot"))
+        .collect();
+    assert_eq!(teapots.len(), 3);
+    // Authored in centimetres: the root's 0.01 (times the node's own scale) is in every
+    // teapot's transform, and its vertices span tens of units.
+    for t in &teapots {
+        let scale = t.transform.matrix3.determinant().abs().cbrt();
+        assert!((0.009..0.023).contains(&scale), "{}: {scale}", t.name);
+        let extent = scene.meshes[t.mesh]
+            .positions
+            .iter()
+            .fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+        assert!(extent > 10.0, "{}: {extent}", t.name);
+    }
+    corpus_scene_checks("assimp/teapots.gltf", 0.08);
+}
