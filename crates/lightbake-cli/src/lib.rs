@@ -210,6 +210,11 @@ struct Args {
     /// stage raises them until its own error estimate reaches its share of the target.
     #[arg(long)]
     target_error: Option<f32>,
+    /// Points at which the bake checks its own texel grid (default 16384; 0 leaves it out):
+    /// the direct light the lightmap shows between texel centres against the direct light
+    /// at the point, added to the printed error estimate.
+    #[arg(long, value_name = "N")]
+    grid_error_points: Option<u32>,
     /// After the bake, check it against the in-tree path tracer at N points spread over the
     /// surfaces a viewer can see: the measured error, its bias, the share of points beyond
     /// ±10% and ±25%, lit points left black, the bake's estimate against the measurement and
@@ -411,6 +416,7 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.max_rays = v;
     }
     s.target_error = args.target_error;
+    set(&mut s.grid_error_points, args.grid_error_points);
     if let Some(v) = args.verify {
         s.verify_points = v;
     }

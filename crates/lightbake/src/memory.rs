@@ -16,8 +16,10 @@ use crate::scene::Scene;
 use crate::unwrap::{Layout, MeshUnwrap};
 
 /// Bytes per covered texel (patch) through the lighting passes: the patch, its footprint
-/// list (two triangles on average), its node index and its direct irradiance.
-pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 4 + 12;
+/// list (two triangles on average), its node index, its direct irradiance and the copy of
+/// it the texel grid's check reads after them (`lightmap::grid_error`; the page it
+/// assembles from it is built once the passes' working memory is freed).
+pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 4 + 12 + 12;
 /// Bytes per page texel: its patch index, the finished page (RGB f32 and coverage) and its
 /// fill state.
 pub const BYTES_PER_PAGE_TEXEL: u64 = 4 + 12 + 1 + 1;

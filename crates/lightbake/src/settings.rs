@@ -340,6 +340,11 @@ pub struct BakeSettings {
     /// the radiosity solver's tolerance is tightened to a quarter of the target. Range
     /// (0, 1). Default none.
     pub target_error: Option<f32>,
+    /// Points at which the bake checks its own texel grid: the direct light's bilinear
+    /// reconstruction against the direct light at the point
+    /// (`lightmap::grid_error`), added to the error estimate; 0 leaves the check out
+    /// (the estimate then covers sampling noise only). Range 0..=1 000 000. Default 16 384.
+    pub grid_error_points: u32,
     /// Points at which the finished bake is checked against the in-tree path tracer
     /// (`lightbake::analysis::verify`; the CLI's `--verify N`), spread over the baked
     /// surfaces a viewer can see; 0 leaves the check out. Range 0..=100 000. Default 0.
@@ -422,6 +427,7 @@ impl BakeSettings {
             memory_budget_mib: 8192,
             max_rays: 100_000_000_000,
             target_error: None,
+            grid_error_points: 16_384,
             verify_points: 0,
             verify_paths: 4096,
             formats: OutputFormats::default(),
@@ -592,6 +598,13 @@ impl BakeSettings {
         }
         if !(1_000_000..=1_000_000_000_000_000).contains(&self.max_rays) {
             return Err(bad("max_rays", self.max_rays, "must be 10⁶..=10¹⁵ rays"));
+        }
+        if self.grid_error_points > 1_000_000 {
+            return Err(bad(
+                "grid_error_points",
+                self.grid_error_points,
+                "must be 0..=1000000 points",
+            ));
         }
         if self.verify_points > 100_000 {
             return Err(bad(

@@ -94,6 +94,7 @@ pub fn measure(scene: &Scene, out: &BakeOutput, points: &[ScorePoint]) -> Verifi
     let mut v = Verification {
         points: n,
         estimated: out.report.error.as_ref().map(|e| e.relative_rms),
+        estimate_covers_grid: out.report.grid_checked(),
         ..Verification::default()
     };
     if n == 0 {

@@ -9,6 +9,7 @@
 //! [`bake_previewing`] also publishes progressive previews ([`preview`]); [`bake_split`] is one
 //! process of a bake split across processes ([`shard`]).
 
+mod estimate;
 mod finite;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
@@ -45,6 +46,7 @@ use crate::sampling::hash_words;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
 use crate::unwrap::{Layout, unwrap_scene};
+use estimate::{denoised_error, with_grid_error};
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
 use shard::Units;
@@ -573,6 +575,13 @@ fn light_scene(
             ));
         }
     }
+    if plan.runs("grid error") && !light.direct.is_empty() {
+        let value = (lit.error.as_ref().map(|e| e.value_rms))
+            .unwrap_or_else(|| rms_luminance(&valid(&patches, &irradiance)));
+        let (direct, se) = (&light.direct, &light.texel_error);
+        let before = lit.error.take();
+        lit.error = with_grid_error(&ctx, &rays, &emitters, stages, direct, se, before, value)?;
+    }
     drop(irradiance);
     assembly.fill_hidden(&patches);
     if plan.runs("contact fit") {
@@ -708,36 +717,6 @@ fn calibration(
 fn rms_of(values: &[f32]) -> f64 {
     let n = values.len().max(1) as f64;
     (values.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / n).sqrt()
-}
-
-/// The bake's error estimate after the denoiser: its per-texel errors (noise and the bias it
-/// added, lux) with the hierarchical solve's coarse bias added in quadrature, relative to the
-/// value `before` was.
-fn denoised_error(
-    patches: &Patches,
-    error: &[f32],
-    before: &ErrorEstimate,
-    coarse_bias: Option<f64>,
-) -> ErrorEstimate {
-    let filtered = ErrorEstimate::from_standard_errors(
-        &valid(patches, error),
-        before.value_rms,
-        "denoised texels: their noise after the filter and the bias it added",
-    );
-    let bias = coarse_bias.unwrap_or(0.0) * before.value_rms;
-    let coarse = ErrorEstimate {
-        rms: bias,
-        p95_abs: bias,
-        texels: filtered.texels,
-        method: "the coarse level's bias".into(),
-        ..ErrorEstimate::default()
-    };
-    ErrorEstimate {
-        method:
-            "the denoised texels' noise and the bias the filter added, with the coarse level's bias"
-                .into(),
-        ..ErrorEstimate::combine([&filtered, &coarse], before.value_rms)
-    }
 }
 
 /// Points the calibration's rays start from: the points of valid texel patches picked at

@@ -30,6 +30,9 @@ pub(super) struct Light {
     pub(super) errors: Vec<ErrorEstimate>,
     /// Per patch, the standard error of its direct irradiance (luminance, lux).
     pub(super) texel_error: Vec<f32>,
+    /// The direct irradiance per patch the lightmap shows (lux: lights baked indirect only
+    /// left out); empty when no direct pass ran.
+    pub(super) direct: Vec<Vec3>,
     /// The indirect irradiance per patch (lux, a part of `irradiance`) and its standard
     /// error (luminance, lux), kept for the denoiser when the indirect pass estimates its
     /// noise texel by texel (the hierarchical solve's gathers) and the denoiser runs.
@@ -60,6 +63,7 @@ pub(super) fn lighting(
         irradiance: vec![Vec3::ZERO; ctx.patches.patches.len()],
         errors: Vec::new(),
         texel_error: vec![0.0; ctx.patches.patches.len()],
+        direct: Vec::new(),
         indirect: None,
         coarse_bias: None,
         radiosity: None,
@@ -83,6 +87,7 @@ pub(super) fn lighting(
                 .map(|(e, r)| (*e - *r).max(Vec3::ZERO))
                 .collect()
         };
+        light.direct = shown.clone();
         stages.preview_direct(ctx, shown);
     }
     if !(indirect_runs && settings.method == Method::Radiosity) {

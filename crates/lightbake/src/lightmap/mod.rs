@@ -11,6 +11,11 @@
 
 pub mod contacts;
 pub mod denoise;
+// The bake's own check of its texel grid: its signature takes the stages' internal types.
+#[cfg(feature = "internals")]
+pub mod grid_error;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod grid_error;
 pub mod least_squares;
 pub mod seams;
 pub mod stitch;

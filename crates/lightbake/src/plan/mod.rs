@@ -583,6 +583,32 @@ impl Facts<'_> {
         stage("indirect", run, why)
     }
 
+    /// The texel grid's check (`crate::lightmap::grid_error`): it reads the direct pass's
+    /// texels and samples the lights and the sky at points.
+    fn grid_error_stage(&self) -> PlannedStage {
+        let s = self.settings;
+        let why_not = if !self.work {
+            Some(self.why_not())
+        } else if s.grid_error_points == 0 {
+            Some("turned off in the settings (grid_error_points; --grid-error-points 0): the estimate covers sampling noise only".to_string())
+        } else if s.method == Method::Vpl {
+            Some("method 'vpl' has no direct pass whose texels it could read".to_string())
+        } else {
+            None
+        };
+        let run = why_not.is_none();
+        stage(
+            "grid error",
+            run,
+            why_not.unwrap_or_else(|| {
+                format!(
+                    "the direct light between texel centres checked against its value at {} points: the texel grid's own error, added to the estimate",
+                    s.grid_error_points
+                )
+            }),
+        )
+    }
+
     /// The finishing steps on the pages, dilation and writing.
     fn output_stages(&self) -> Vec<PlannedStage> {
         let s = self.settings;
@@ -606,6 +632,7 @@ impl Facts<'_> {
                     s.denoise_radius
                 ),
             ),
+            self.grid_error_stage(),
             step(
                 "contact fit",
                 s.contact_fit,
