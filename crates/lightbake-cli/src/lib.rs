@@ -207,7 +207,8 @@ struct Args {
     #[arg(long)]
     max_rays: Option<u64>,
     /// Target relative RMS error (0.02 = 2%): sample counts become a pilot, and each sampling
-    /// stage raises them until its own error estimate reaches its share of the target.
+    /// stage raises them until its own error estimate reaches its share of the target (the
+    /// texel grid's error, which samples do not lower, is printed beside it).
     #[arg(long)]
     target_error: Option<f32>,
     /// Points at which the bake checks its own texel grid (default 16384; 0 leaves it out):

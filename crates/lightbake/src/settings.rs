@@ -337,8 +337,10 @@ pub struct BakeSettings {
     /// 1/√count), runs again with it, and repeats (at most 3 rounds, counts capped at their
     /// ranges) until its estimate is at or below its share (the counts: samples per texel,
     /// form-factor rays per node, or stochastic Jacobi's rays per node, and VPL particles);
-    /// the radiosity solver's tolerance is tightened to a quarter of the target. Range
-    /// (0, 1). Default none.
+    /// the radiosity solver's tolerance is tightened to a quarter of the target. The texel
+    /// grid's own error (the `grid error` stage, [`Self::grid_error_points`]) does not fall
+    /// with samples, only with the texel density: it is printed in the estimate beside them
+    /// and not counted against the target. Range (0, 1). Default none.
     pub target_error: Option<f32>,
     /// Points at which the bake checks its own texel grid: the direct light's bilinear
     /// reconstruction against the direct light at the point

@@ -4,9 +4,10 @@
 //!
 //! The sampling stages estimate their noise ([`crate::error_estimate`]); none of them sees
 //! what a texel grid cannot hold: a shadow edge or a light's falloff finer than a texel, a
-//! texel beside a thin gap, a contact. On real levels that is most of the error (measured by
-//! `bake --verify` against the path tracer: on the corpus the direct light's reconstruction
-//! error alone is 0.93–1.01 of the whole measured error at medium; `docs/benchmarks.md`).
+//! texel beside a thin gap, a contact. On real levels that is most of the error: read at the
+//! points of `bake --verify` on the teapots, the Kenney FPS level and the house at medium,
+//! the direct light's reconstruction error is 0.95–1.01 of the whole error the path tracer
+//! measures (`docs/benchmarks.md`).
 //!
 //! The check:
 //!
@@ -18,24 +19,27 @@
 //! * **Truth**: the direct light at the point itself, E_d(p): every light the plan lets reach
 //!   the instance and baked in full, the sky and emissive triangles, with [`SAMPLES`]
 //!   samples (a point of a sun's disc or an area light, one cosine-distributed sky ray, a
-//!   point of an emitting triangle picked by power), in two halves, each its own scrambled
-//!   (0,2)-sequence, whose difference gives the variance of their mean (two sets of one
-//!   sequence would not be independent, and their difference would overstate it). The emitters' light is their closed-form unoccluded irradiance times the
-//!   visible fraction of the samples' weights (the direct pass's ratio estimator), exact
-//!   where they are wholly visible or hidden.
+//!   point of an emitting triangle picked by power). The samples form two halves, each its
+//!   own scrambled (0,2)-sequence, whose difference gives the variance of their mean (two
+//!   halves of one sequence are not independent, and their difference would overstate it).
+//!   The emitters' light is their closed-form unoccluded irradiance times the visible share
+//!   of the samples' weights (the direct pass's ratio estimator), exact where they are
+//!   wholly visible or hidden. Point and spot lights and a sun without a disc are traced
+//!   once.
 //! * **Lightmap**: the direct pass's texels (what the lightmap shows of them: lights baked
 //!   indirect only left out), assembled into pages as the final light is (hidden texels
-//!   filled from their chart, padding dilated), read bilinearly at the point: B_d(p). The
-//!   contact fit is not run on them: on the corpus it changes the estimate by less than
-//!   0.01 percentage points (the mirrored cubes and the teapots at medium), for twice the
-//!   rays. Its
-//!   variance from the texels' own standard errors, Σ w_j²·se_j².
+//!   filled from their chart, padding dilated), read bilinearly at the point: B_d(p), with
+//!   the variance Σ w_j²·se_j² from the texels' own standard errors. The contact fit is not
+//!   run on these pages: on the mirrored cubes and the teapots at medium it changes the
+//!   estimate by less than 0.01 percentage points, for twice the rays.
 //! * **Estimate**: RMS = √(max(0, Σ(B_d − E_d)² − Σ var E_d − Σ var B_d) / n), luminance, lux;
 //!   p95 the 95th percentile of |B_d − E_d| scaled by the same share (the noise taken out).
 //!   It is added in quadrature to the sampling stages' estimate: the two are independent.
 //!
 //! What it does not see: the indirect light's grid error (smooth away from contacts), and
-//! what the denoiser and the stitch change.
+//! what the denoiser and the stitch change. Beside a lamp a few points can carry most of the
+//! squared error ([`GridError::worst_share`]); the estimate is then as unsure as they make
+//! it.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
