@@ -21,8 +21,11 @@
 //!   again relative to the lightmap's RMS value (not to each texel, which would let dark
 //!   texels dominate).
 //!
-//! Stages sample independently, so their absolute RMS errors add in quadrature. None of the
-//! estimates sees bias (clamping, a basis' discretisation); the convergence study
+//! Stages sample independently, so their absolute RMS errors add in quadrature. The texel
+//! grid's own error (shadow edges and light finer than a texel) is no stage's noise: the bake
+//! checks the direct light's part of it at points (the `grid error` stage,
+//! `lightmap::grid_error`) and adds it in quadrature too. None of the estimates sees other
+//! bias (clamping, a basis' discretisation); the convergence study
 //! (`bake convergence`) prints the ratio of estimated to measured error so the user can see
 //! how far they can be trusted.
 

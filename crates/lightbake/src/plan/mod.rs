@@ -693,6 +693,27 @@ mod tests {
         assert!(text.contains("no punctual"), "{text}");
     }
 
+    /// The texel grid's check runs by default, and says why not when its points are 0 or the
+    /// method has no direct pass.
+    #[test]
+    fn grid_error_stage_runs_unless_turned_off_or_without_a_direct_pass() {
+        let s = cornell_box(CornellLight::Area);
+        assert!(BakePlan::new(&s, &BakeSettings::default()).runs("grid error"));
+        let d = BakeSettings::default;
+        let off = BakeSettings {
+            grid_error_points: 0,
+            ..d()
+        };
+        let vpl = BakeSettings {
+            method: Method::Vpl,
+            ..d()
+        };
+        for (settings, why) in [(off, "grid_error_points"), (vpl, "no direct pass")] {
+            let plan = BakePlan::new(&s, &settings);
+            assert!(!plan.runs("grid error") && plan.describe().contains(why));
+        }
+    }
+
     /// An explicit density wins over the scene's hint, which wins over the budget; the budget
     /// spreads its texels over the baked area (density = √(budget / area)).
     #[test]
