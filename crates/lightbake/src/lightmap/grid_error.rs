@@ -129,7 +129,13 @@ pub fn grid_error(
             Some(((b - e).powi(2), var_e, var_b, n_rays))
         })
         .collect();
-    let done: Vec<Checked> = checked.into_iter().flatten().collect();
+    // A point whose light overflows (a lamp touching the surface) says nothing about the
+    // grid: left out, so the estimate stays finite.
+    let done: Vec<Checked> = checked
+        .into_iter()
+        .flatten()
+        .filter(|c| c.0.is_finite() && c.1.is_finite() && c.2.is_finite())
+        .collect();
     if done.is_empty() {
         return None;
     }
