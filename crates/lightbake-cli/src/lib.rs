@@ -718,6 +718,7 @@ mod tests {
             "--memory-budget=41",
             "--max-rays=1000000000",
             "--target-error=0.05",
+            "--grid-error-points=47",
             "--verify=64",
             "--verify-paths=256",
             "--light-convention=bevy",
