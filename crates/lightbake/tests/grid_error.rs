@@ -29,8 +29,8 @@ fn light(kind: LightKind, position: Vec3, direction: Vec3, intensity: f32) -> Li
     }
 }
 
-/// A 4 m floor under a lamp 2 m up: its light changes slowly over a texel.
-fn lamp_over_floor() -> Scene {
+/// A 4 m grey floor, baked.
+fn floor() -> Scene {
     let mut s = Scene::default();
     add(
         &mut s,
@@ -39,6 +39,12 @@ fn lamp_over_floor() -> Scene {
         Affine3A::IDENTITY,
         true,
     );
+    s
+}
+
+/// The floor under a lamp 2 m up: its light changes slowly over a texel.
+fn lamp_over_floor() -> Scene {
+    let mut s = floor();
     s.lights.push(light(
         LightKind::Point,
         Vec3::new(0.0, 2.0, 0.0),
@@ -48,16 +54,9 @@ fn lamp_over_floor() -> Scene {
     s
 }
 
-/// The 4 m floor with a 1 m box on it under a sun with no disc (a hard-edged shadow).
+/// The floor with a 1 m box on it under a sun with no disc (a hard-edged shadow).
 fn box_in_the_sun() -> Scene {
-    let mut s = Scene::default();
-    add(
-        &mut s,
-        plane("floor", 4.0),
-        Vec3::splat(0.5),
-        Affine3A::IDENTITY,
-        true,
-    );
+    let mut s = floor();
     let cube = cuboid(
         "box",
         Vec3::new(-0.5, 0.0, -0.5),
@@ -153,11 +152,7 @@ fn a_hard_shadow_reads_grid_error_that_shrinks_with_the_texel() {
 /// measures; with it, within 0.7–1.5× of it.
 #[test]
 fn on_the_teapots_the_estimate_meets_the_measured_error_once_the_grid_is_checked() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets/corpus/assimp/teapots.gltf");
-    let scene = lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
-        .unwrap()
-        .scene;
+    let scene = common::corpus_scene("assimp/teapots.gltf");
     let ratio = |grid_points: u32| {
         let mut settings = BakeSettings::medium();
         settings.grid_error_points = grid_points;

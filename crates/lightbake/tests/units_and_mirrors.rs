@@ -6,6 +6,9 @@
 //! `cubes_with_mirroring_and_pivot.fbx`, `assets/corpus/assimp/mirrored_cubes.gltf`), scored
 //! against the references of the same surfaces written out unmirrored.
 
+mod common;
+
+use common::corpus_scene;
 use glam::{Affine3A, Vec3};
 use lightbake::analysis::verify::{measure, verification_points};
 use lightbake::scene::{LightKind, Scene};
@@ -13,11 +16,7 @@ use lightbake::{BakeOutput, BakeSettings, Progress};
 
 /// The FZK house of the corpus (a real architectural model, not built for these tests).
 fn house() -> Scene {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/house.gltf");
-    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
-        .unwrap()
-        .scene
+    corpus_scene("house.gltf")
 }
 
 /// `scene` with its meshes in centimetres, each instance scaling them by 0.01: the world
@@ -38,11 +37,7 @@ fn in_centimetres(scene: &Scene) -> Scene {
 /// The corpus' mirrored cubes: four cubes of an FBX file, two of them under a node scaled by
 /// −0.1 in y, on a ground square (`assets/corpus/assimp/`).
 fn mirrored_cubes() -> Scene {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets/corpus/assimp/mirrored_cubes.gltf");
-    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
-        .unwrap()
-        .scene
+    corpus_scene("assimp/mirrored_cubes.gltf")
 }
 
 /// Whether an instance's transform mirrors (negative determinant).

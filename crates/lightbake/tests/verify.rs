@@ -1,5 +1,8 @@
 //! `bake --verify`: the check of a finished bake against the path tracer.
 
+mod common;
+
+use common::corpus_scene;
 use lightbake::analysis::verify::{measure, verification_points, verify};
 use lightbake::scene::testscenes::{CornellLight, cornell_box};
 use lightbake::{BakeSettings, Progress};
@@ -105,12 +108,7 @@ fn verify_sees_a_black_wall() {
 /// no padding texel brighter than twice the brightest covered one, and the error below
 /// `bound`.
 fn corpus_scene_checks(file: &str, bound: f64) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets/corpus")
-        .join(file);
-    let scene = lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
-        .unwrap()
-        .scene;
+    let scene = corpus_scene(file);
     let mut settings = BakeSettings::preview();
     settings.verify_points = 256;
     settings.verify_paths = 1024;
@@ -178,22 +176,12 @@ fn the_openarena_q3dm6ish_level_has_no_lit_point_left_black() {
     corpus_scene_checks("openarena/q3dm6ish.gltf", 0.25);
 }
 
-/// A scene of `assets/corpus/assimp/`, as the importer reads it.
-fn assimp_scene(file: &str) -> lightbake::scene::Scene {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets/corpus/assimp")
-        .join(file);
-    lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec)
-        .unwrap()
-        .scene
-}
-
 /// Three teapots exported from 3ds Max, authored Z-up in centimetres (assimp's
 /// `teapots.DAE`): meshes in centimetres under transforms that scale them by 0.01, standing
 /// on a ground square in metres, the smallest one floating.
 #[test]
 fn the_teapots_in_centimetres_have_no_lit_point_left_black() {
-    let scene = assimp_scene("teapots.gltf");
+    let scene = corpus_scene("assimp/teapots.gltf");
     let teapots: Vec<_> = scene
         .instances
         .iter()

@@ -31,7 +31,7 @@ pub(super) struct Light {
     /// Per patch, the standard error of its direct irradiance (luminance, lux).
     pub(super) texel_error: Vec<f32>,
     /// The direct irradiance per patch the lightmap shows (lux: lights baked indirect only
-    /// left out); empty when no direct pass ran.
+    /// left out), kept for the texel grid's check; empty when that does not run.
     pub(super) direct: Vec<Vec3>,
     /// The indirect irradiance per patch (lux, a part of `irradiance`) and its standard
     /// error (luminance, lux), kept for the denoiser when the indirect pass estimates its
@@ -87,7 +87,9 @@ pub(super) fn lighting(
                 .map(|(e, r)| (*e - *r).max(Vec3::ZERO))
                 .collect()
         };
-        light.direct = shown.clone();
+        if ctx.plan.runs("grid error") {
+            light.direct = shown.clone();
+        }
         stages.preview_direct(ctx, shown);
     }
     if !(indirect_runs && settings.method == Method::Radiosity) {

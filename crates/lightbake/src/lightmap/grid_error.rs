@@ -144,21 +144,24 @@ pub fn grid_error(
         .iter()
         .fold((0.0, 0.0, 0.0), |(s, a, b), c| (s + c.0, a + c.1, b + c.2));
     let worst = done.iter().map(|c| c.0).fold(0.0, f64::max);
-    let mut abs: Vec<f32> = done.iter().map(|c| c.0.sqrt() as f32).collect();
-    let k = ((abs.len() as f64 * 0.95).ceil() as usize).clamp(1, abs.len()) - 1;
-    let (_, p95, _) = abs.select_nth_unstable_by(k, f32::total_cmp);
+    let abs: Vec<f32> = done.iter().map(|c| c.0.sqrt() as f32).collect();
+    let method = format!(
+        "the texel grid: the direct light's bilinear reconstruction against its value at {} points",
+        done.len()
+    );
+    let differences = ErrorEstimate::from_standard_errors(&abs, value_rms, method);
     // The 95th percentile of the differences, scaled as their RMS is once the noise is
     // taken out (the noise would otherwise stand in for grid error).
     let (raw, rms) = ((sq / n).sqrt(), ((sq - var_e - var_b).max(0.0) / n).sqrt());
+    let p95_abs = if raw > 0.0 {
+        differences.p95_abs * rms / raw
+    } else {
+        0.0
+    };
     let estimate = ErrorEstimate {
         rms,
-        p95_abs: if raw > 0.0 { *p95 as f64 * rms / raw } else { 0.0 },
-        texels: done.len(),
-        method: format!(
-            "the texel grid: the direct light's bilinear reconstruction against its value at {} points",
-            done.len()
-        ),
-        ..ErrorEstimate::default()
+        p95_abs,
+        ..differences
     }
     .relative_to(value_rms);
     Some(GridError {

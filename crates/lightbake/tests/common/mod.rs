@@ -37,6 +37,16 @@ pub fn uv_plane(name: &str, size: f32) -> Mesh {
     m
 }
 
+/// A scene of the real-scene corpus, `assets/corpus/` + `file`, as the importer reads it.
+pub fn corpus_scene(file: &str) -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/corpus")
+        .join(file);
+    lightbake::import_gltf(&path, lightbake::settings::LightConvention::GltfSpec)
+        .unwrap_or_else(|e| panic!("{file}: {e}"))
+        .scene
+}
+
 /// Adds `mesh` with material `albedo` at `transform`; returns the instance index.
 pub fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, transform: Affine3A, bake: bool) -> usize {
     let mat = scene.add_material(Material::diffuse(format!("{}_mat", mesh.name), albedo));
