@@ -122,7 +122,7 @@ fn overlay(
         BakePhase::Idle => "waiting".to_string(),
         BakePhase::Running => format!(
             "baking: {} {:.0}%{}  {:.1} s",
-            status.stage,
+            status.stage.map_or_else(String::new, |s| s.to_string()),
             100.0 * status.fraction,
             status
                 .error_estimate

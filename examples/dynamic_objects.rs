@@ -167,7 +167,7 @@ fn overlay(
     let what = if status.is_running() {
         format!(
             "baking: {} {:.0}%, showing {showing}",
-            status.stage,
+            status.stage.map_or_else(String::new, |s| s.to_string()),
             100.0 * status.fraction
         )
     } else {

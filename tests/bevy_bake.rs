@@ -4,6 +4,7 @@
 
 mod bevy_common;
 
+use lightbake::Stage;
 use std::collections::HashMap;
 use std::path::Path;
 use std::time::Duration;
@@ -96,7 +97,7 @@ fn in_app_bake_gives_uvs_lightmaps_shadows_and_bleeding_and_matches_the_cli() {
     assert_eq!(finished.len(), report.stages.len());
     let direct = finished
         .iter()
-        .find(|s| s.name == "direct")
+        .find(|s| s.run.stage == Stage::Direct)
         .expect("direct");
     assert!(direct.rays > 0 && direct.error.as_ref().is_some_and(|e| e.relative_rms > 0.0));
     assert!(report.error.is_some() && report.floor.is_some());
@@ -387,7 +388,7 @@ fn cancel_keeps_nothing_and_a_new_request_restarts() {
     // The status names the running stage.
     run_until(&mut app, "the bake to start", TIMEOUT, |w| {
         let s = w.resource::<BakeStatus>();
-        s.is_running() && s.stage_index > 0 && !s.stage.is_empty()
+        s.is_running() && s.stage_index > 0 && s.stage.is_some()
     });
     app.world_mut().write_message(CancelBake);
     let mut finished = Vec::new();

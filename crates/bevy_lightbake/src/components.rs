@@ -164,8 +164,8 @@ pub enum BakePhase {
 pub struct BakeStatus {
     /// What is happening.
     pub phase: BakePhase,
-    /// Name of the running stage (`unwrap`, `direct`, `transport`, `solve`, ...).
-    pub stage: String,
+    /// The running stage and its round (`None` before the first stage of a bake).
+    pub stage: Option<lightbake::StageRun>,
     /// How many stages have started.
     pub stage_index: u64,
     /// Fraction of the running stage done, [0, 1].

@@ -20,42 +20,15 @@ pub struct SurfaceHit {
     pub uv1: Vec2,
 }
 
-/// Closest point on triangle abc to p, with its barycentric weights (Ericson, *Real-Time
-/// Collision Detection* §5.1.5).
+/// Closest point on triangle abc to p, with its barycentric weights (of a, b and c).
 fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3) {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, Vec3::X);
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return (b, Vec3::Y);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + v * ab, Vec3::new(1.0 - v, v, 0.0));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return (c, Vec3::Z);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + w * ac, Vec3::new(1.0 - w, 0.0, w));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + w * (c - b), Vec3::new(0.0, 1.0 - w, w));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let (v, w) = (vb * denom, vc * denom);
-    (a + ab * v + ac * w, Vec3::new(1.0 - v - w, v, w))
+    // The core's glam may be another version than Bevy's: the points cross as arrays.
+    let core = |v: Vec3| lightbake::glam::Vec3::from_array(v.to_array());
+    let (q, vw) = lightbake::scene::closest_on_triangle(core(p), [core(a), core(b), core(c)]);
+    (
+        Vec3::from_array(q.to_array()),
+        Vec3::new(1.0 - vw.x - vw.y, vw.x, vw.y),
+    )
 }
 
 /// The point of `mesh` (placed by `transform`) closest to `world_point`, with its `UV_1`.

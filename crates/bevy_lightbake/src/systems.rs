@@ -144,7 +144,7 @@ pub(crate) fn start_bake(world: &mut World) {
     });
     let mut status = world.resource_mut::<BakeStatus>();
     status.phase = BakePhase::Running;
-    status.stage.clear();
+    status.stage = None;
     status.stage_index = 0;
     status.fraction = 0.0;
     status.error_estimate = None;
@@ -210,7 +210,7 @@ pub(crate) fn poll_bake(world: &mut World) {
     let snap = job.handle.snapshot();
     {
         let mut status = world.resource_mut::<BakeStatus>();
-        status.stage = snap.stage.clone();
+        status.stage = snap.stage;
         status.stage_index = snap.stage_index;
         status.fraction = snap.fraction();
         status.error_estimate = snap.error_estimate;

@@ -2,8 +2,12 @@
 //! lives here so that other crates' tests can run exactly what users run ([`run_from`]).
 //!
 //! ```text
-//! bake assets/cornell_box.gltf -o baked/cornell_box
+//! bake assets/cornell_box.gltf -o baked/cornell_box        (the same as `bake bake …`)
 //! bake scene.glb -o out --quality high --format exr,ktx2
+//! bake convergence SCENE -o DIR                            error against time, every method
+//! bake prepare SCENE -o WORK [bake flags]                  a bake split across processes:
+//! bake shard WORK --count N [--index I]                      one shard's part
+//! bake merge WORK -o OUT                                     the outputs
 //! ```
 //!
 //! Exit status: 0 on success, 1 when the bake fails (the cause on one line on stderr),
@@ -14,7 +18,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::Parser;
+use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use lightbake::report::BakePlan;
 use lightbake::{
@@ -22,6 +26,7 @@ use lightbake::{
     OutputFormats, Progress, Quality, Sequence, SolverChoice, import_gltf_with,
 };
 
+mod convergence;
 mod plot;
 mod split;
 
@@ -38,10 +43,72 @@ fn parse_rgb(text: &str) -> Result<[f32; 3], String> {
     Ok([num(r)?, num(g)?, num(b)?])
 }
 
-/// Bake lightmaps for a glTF scene: xatlas unwrap, texel patches, shadow-ray direct light;
-/// HDR lightmaps, a baked glTF (with TEXCOORD_1), manifest.json and report.json out.
+/// The long description `bake --help` starts with.
+const ABOUT: &str = "Bake lightmaps for a glTF scene: lightmap UVs (xatlas, or the scene's TEXCOORD_1), direct light by shadow rays, interreflected light by radiosity (hierarchical, with a final gather) or instant radiosity, an error estimate, and optionally an irradiance volume for dynamic objects. Writes HDR lightmaps, a baked glTF (TEXCOORD_1), manifest.json and report.json.\n\n`bake SCENE -o OUT [flags]` is `bake bake SCENE -o OUT [flags]`.";
+
+/// The command line: a subcommand, or a bake's arguments alone.
 #[derive(Debug, Parser)]
-#[command(name = "bake", version)]
+#[command(
+    name = "bake",
+    version,
+    about = ABOUT,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    command: Option<Command>,
+    /// The bare form: `bake SCENE -o OUT [flags]`.
+    #[command(flatten)]
+    bake: Option<Args>,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Bake a scene (the default when the first argument is a scene).
+    Bake(Args),
+    /// Every method over a sweep of budgets: error against a reference bake versus run time
+    /// (convergence.csv, .md, .svg and .png).
+    Convergence(ConvergenceArgs),
+    /// Start a bake split across processes: plan, unwrap and rasterise into a work folder
+    /// (takes every flag of a bake).
+    Prepare(Args),
+    /// Compute one shard's part of every split stage of a prepared bake.
+    Shard(split::ShardArgs),
+    /// Read every shard's parts of a prepared bake and write its outputs.
+    Merge(split::MergeArgs),
+}
+
+/// What `bake` can fail with.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// The command line could not be parsed (clap's message, with usage).
+    #[error("{0}")]
+    CommandLine(#[from] clap::Error),
+    /// The bake, the import or the writing failed.
+    #[error("{0}")]
+    Bake(#[from] lightbake::BakeError),
+    /// A flag's value or a file the command reads is not usable (the message says which).
+    #[error("{0}")]
+    Input(String),
+}
+
+impl From<String> for CliError {
+    fn from(message: String) -> Self {
+        CliError::Input(message)
+    }
+}
+
+impl From<&str> for CliError {
+    fn from(message: &str) -> Self {
+        CliError::Input(message.to_string())
+    }
+}
+
+/// A bake's arguments: the scene, the output folder and one flag per setting.
+#[derive(Debug, clap::Args)]
 struct Args {
     /// The scene: a .gltf or .glb file.
     scene: PathBuf,
@@ -245,8 +312,7 @@ struct Args {
 /// `bake convergence SCENE -o DIR`: every method over a sweep of budgets, error against a
 /// reference bake versus run time; writes `convergence.csv`, `convergence.md`,
 /// `convergence.svg` and `convergence.png` to DIR.
-#[derive(Debug, Parser)]
-#[command(name = "bake convergence", version)]
+#[derive(Debug, clap::Args)]
 struct ConvergenceArgs {
     /// The scene: a .gltf or .glb file.
     scene: PathBuf,
@@ -278,73 +344,6 @@ fn import_options(settings: &BakeSettings, allow_read: &[PathBuf]) -> ImportOpti
         allow_read: allow_read.to_vec(),
         memory_budget_bytes: settings.memory_budget_mib.saturating_mul(1 << 20),
         ..ImportOptions::default()
-    }
-}
-
-mod convergence {
-    use super::*;
-    use lightbake::analysis::study::{StudyRow, StudySize, run_study};
-    use lightbake::atomic::StagedFiles;
-
-    pub(super) fn run(args: ConvergenceArgs) -> Result<(), String> {
-        let mut settings = BakeSettings::medium();
-        settings.threads = args.threads;
-        settings.light_convention = args.light_convention;
-        if let Some(d) = args.texel_density {
-            settings.texel_density = Some(d);
-            settings.texel_density_from_scene = false;
-        }
-        settings.validate().map_err(|e| e.to_string())?;
-        let imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))
-            .map_err(|e| e.to_string())?;
-        let size = if args.quick {
-            StudySize::Quick
-        } else {
-            StudySize::Full
-        };
-        println!(
-            "convergence study of {} (reference bake first)",
-            args.scene.display()
-        );
-        println!(
-            "{:<20} {:>12} {:>9} {:>10} {:>10}",
-            "curve", "budget", "time", "measured", "estimated"
-        );
-        let study = run_study(&imported.scene, &settings, size, |r: &StudyRow| {
-            println!(
-                "{:<20} {:>12} {:>8.3}s {:>9.3}% {:>10}",
-                r.curve,
-                format!("{}={}", r.parameter, r.budget),
-                r.seconds,
-                100.0 * r.measured,
-                r.estimated
-                    .map_or("-".into(), |e| format!("{:.3}%", 100.0 * e))
-            );
-        })
-        .map_err(|e| e.to_string())?;
-        let mut csv = String::from(StudyRow::CSV_HEADER);
-        csv.push('\n');
-        for r in &study.rows {
-            csv.push_str(&r.csv());
-            csv.push('\n');
-        }
-        let (svg, png) = plot::render(&study)?;
-        let mut files = StagedFiles::new(&args.output);
-        let out = &args.output;
-        let stage = |files: &mut StagedFiles, name: &str, bytes: &[u8]| {
-            files
-                .stage(&out.join(name), bytes)
-                .map_err(|e| e.to_string())
-        };
-        stage(&mut files, "convergence.csv", csv.as_bytes())?;
-        stage(&mut files, "convergence.md", study.markdown().as_bytes())?;
-        stage(&mut files, "convergence.svg", &svg)?;
-        stage(&mut files, "convergence.png", &png)?;
-        let written = files.commit().map_err(|e| e.to_string())?;
-        println!();
-        print!("{}", study.markdown());
-        println!("wrote {} files to {}", written.len(), out.display());
-        Ok(())
     }
 }
 
@@ -436,7 +435,7 @@ enum Lighting {
 }
 
 /// Marks the lights `--lighting` / `--indirect-only` choose as baked indirect only.
-fn choose_lighting(args: &Args, scene: &mut lightbake::scene::Scene) -> Result<(), String> {
+fn choose_lighting(args: &Args, scene: &mut lightbake::scene::Scene) -> Result<(), CliError> {
     use lightbake::scene::LightBake;
     for name in &args.indirect_only {
         if !scene.lights.iter().any(|l| &l.name == name) {
@@ -448,7 +447,8 @@ fn choose_lighting(args: &Args, scene: &mut lightbake::scene::Scene) -> Result<(
                 } else {
                     names.join(", ")
                 }
-            ));
+            )
+            .into());
         }
     }
     for l in &mut scene.lights {
@@ -472,11 +472,10 @@ fn parse_on_off(s: &str) -> Result<bool, String> {
 
 /// The settings and the scene a command line asks for: the preset and every flag, the glTF
 /// imported, the sky and the lights' bake modes applied.
-fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), String> {
+fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), CliError> {
     let settings = settings_from(args);
-    settings.validate().map_err(|e| e.to_string())?;
-    let mut imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))
-        .map_err(|e| e.to_string())?;
+    settings.validate()?;
+    let mut imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))?;
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }
@@ -484,7 +483,7 @@ fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), String>
     Ok((settings, imported))
 }
 
-fn run(args: Args) -> Result<(), String> {
+fn run(args: Args) -> Result<(), CliError> {
     let (settings, imported) = load(&args)?;
     let scene = &imported.scene;
     for w in &scene.warnings {
@@ -500,15 +499,14 @@ fn run(args: Args) -> Result<(), String> {
         scene.lights.len()
     );
     print!("plan:\n{}", plan.describe());
-    plan.check_rays(&settings).map_err(|e| e.to_string())?;
+    plan.check_rays(&settings)?;
     if args.plan_only {
         return Ok(());
     }
 
-    let handle =
-        BakeHandle::spawn(imported.scene.clone(), settings.clone()).map_err(|e| e.to_string())?;
+    let handle = BakeHandle::spawn(imported.scene.clone(), settings.clone())?;
     watch(&handle, args.quiet);
-    let mut output = handle.join().map_err(|e| e.to_string())?;
+    let mut output = handle.join()?;
     write_and_print(&args.output, &mut output, &imported, &settings)
 }
 
@@ -520,7 +518,7 @@ fn write_and_print(
     output: &mut lightbake::BakeOutput,
     imported: &lightbake::ImportedScene,
     settings: &BakeSettings,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     if settings.verify_points > 0 {
         println!(
             "verifying at {} points with the path tracer ({} paths each)",
@@ -534,8 +532,7 @@ fn write_and_print(
         &imported.scene,
         Some(&imported.source),
         settings,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     println!();
     print!("{}", output.report.table());
     println!("{}", output.report.texels.summary());
@@ -593,7 +590,7 @@ fn watch<T: Send + 'static>(handle: &BakeHandle<T>, quiet: bool) {
                 }
                 index = snap.stage_index;
                 let b = ProgressBar::new(snap.total.max(1)).with_style(style.clone());
-                b.set_prefix(snap.stage.clone());
+                b.set_prefix(snap.stage.map_or_else(String::new, |s| s.to_string()));
                 bar = Some(b);
             }
             if let Some(b) = &bar {
@@ -615,45 +612,42 @@ fn watch<T: Send + 'static>(handle: &BakeHandle<T>, quiet: bool) {
 /// binary prints.
 ///
 /// # Errors
-/// A bad command line (clap's message) or a failed bake (the cause on one line).
-pub fn run_from<I, T>(args: I) -> Result<(), String>
+/// A bad command line ([`CliError::CommandLine`], clap's message) or a failed bake (the
+/// cause on one line).
+pub fn run_from<I, T>(args: I) -> Result<(), CliError>
 where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
-    let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
-    if let Some(result) = split::dispatch(&args, false) {
-        return result;
-    }
-    if args.get(1).is_some_and(|a| a == "convergence") {
-        let c =
-            ConvergenceArgs::try_parse_from(convergence_args(&args)).map_err(|e| e.to_string())?;
-        return convergence::run(c);
-    }
-    let args = Args::try_parse_from(args).map_err(|e| e.to_string())?;
-    run(args)
+    run_cli(Cli::try_parse_from(args)?)
 }
 
-/// `bake convergence …` parsed as its own command named `bake convergence`.
-fn convergence_args(args: &[OsString]) -> Vec<OsString> {
-    std::iter::once(OsString::from("bake convergence"))
-        .chain(args.iter().skip(2).cloned())
-        .collect()
+/// Runs what the command line asks for.
+fn run_cli(cli: Cli) -> Result<(), CliError> {
+    match (cli.command, cli.bake) {
+        (Some(Command::Bake(args)), _) | (None, Some(args)) => run(args),
+        (Some(Command::Convergence(args)), _) => convergence::run(args),
+        (Some(Command::Prepare(args)), _) => split::prepare(args),
+        (Some(Command::Shard(args)), _) => split::shard(args),
+        (Some(Command::Merge(args)), _) => split::merge(args),
+        (None, None) => {
+            use clap::CommandFactory;
+            Err(Cli::command()
+                .error(
+                    clap::error::ErrorKind::MissingRequiredArgument,
+                    "give a scene and an output folder (bake SCENE -o OUT), or a subcommand",
+                )
+                .into())
+        }
+    }
 }
 
 /// The binary's `main`: parses the process arguments (exit 2 on a bad command line), runs,
 /// and prints the error on one line (exit 1).
 pub fn main() -> ExitCode {
-    let argv: Vec<OsString> = std::env::args_os().collect();
-    let result = if let Some(result) = split::dispatch(&argv, true) {
-        result
-    } else if argv.get(1).is_some_and(|a| a == "convergence") {
-        convergence::run(ConvergenceArgs::parse_from(convergence_args(&argv)))
-    } else {
-        run(Args::parse_from(argv))
-    };
-    match result {
+    match run_cli(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::CommandLine(e)) => e.exit(),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(1)
@@ -670,7 +664,7 @@ mod tests {
     /// new field without a flag fails here).
     #[test]
     fn every_setting_has_a_flag() {
-        let args = Args::try_parse_from([
+        let cli = Cli::try_parse_from([
             "bake",
             "scene.gltf",
             "-o",
@@ -724,6 +718,7 @@ mod tests {
             "--light-convention=bevy",
         ])
         .unwrap();
+        let args = cli.bake.expect("the bare form is a bake");
         let json = |s: &BakeSettings| match serde_json::to_value(s).unwrap() {
             serde_json::Value::Object(m) => m,
             _ => unreachable!("settings serialise as an object"),

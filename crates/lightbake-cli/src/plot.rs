@@ -2,6 +2,7 @@
 //! as SVG and PNG. Text uses the Noto Mono font shipped in `assets/fonts` (SIL OFL 1.1, see
 //! `assets/fonts/NotoMono-LICENSE`), so no system fonts are needed.
 
+use crate::CliError;
 use lightbake::analysis::study::Study;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -17,7 +18,7 @@ fn err(e: impl std::fmt::Display) -> String {
 }
 
 /// Registers the embedded font (once; later calls are no-ops).
-fn register_font() -> Result<(), String> {
+fn register_font() -> Result<(), CliError> {
     static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let ok = *ONCE.get_or_init(|| {
         plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok()
@@ -30,7 +31,7 @@ fn register_font() -> Result<(), String> {
 }
 
 /// Draws `study` onto `root`.
-fn draw<DB: DrawingBackend>(study: &Study, root: &DrawingArea<DB, Shift>) -> Result<(), String>
+fn draw<DB: DrawingBackend>(study: &Study, root: &DrawingArea<DB, Shift>) -> Result<(), CliError>
 where
     DB::ErrorType: 'static,
 {
@@ -103,7 +104,7 @@ where
 }
 
 /// Renders `study` as an SVG document and a PNG image (bytes).
-pub fn render(study: &Study) -> Result<(Vec<u8>, Vec<u8>), String> {
+pub fn render(study: &Study) -> Result<(Vec<u8>, Vec<u8>), CliError> {
     register_font()?;
     let mut text = String::new();
     {

@@ -7,34 +7,33 @@
 //! bake merge WORK -o OUT [--scene PATH] [--threads T]
 //! ```
 //!
-//! `prepare` writes `WORK/work.json` (the command line, the scene's path and a hash of the
-//! document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
+//! `prepare` writes `WORK/work.json` (the bake's settings as `BakeSettings` serialises them,
+//! the sky and light modes the flags set, the folders the scene may read from, the scene's
+//! path and a hash of the document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
 //! `WORK/units.json` (the work units); each shard and the merge read the scene again (from
 //! `--scene`, else that absolute path, else the same place relative to the work folder) and
 //! check the hash. A shard's index comes from `--index`, else `JOB_COMPLETION_INDEX`
 //! (Kubernetes Indexed Jobs), else `SLURM_ARRAY_TASK_ID` (Slurm job arrays).
 
-use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use clap::Parser;
 use lightbake::bake::shard::{Role, ShardRun};
-use lightbake::{BakeError, Progress};
+use lightbake::scene::LightBake;
+use lightbake::{BakeError, BakeSettings, Progress};
 use serde::{Deserialize, Serialize};
 
-use super::{Args, load, write_and_print};
+use super::{Args, CliError, import_options, load, write_and_print};
 
 /// The work folder's description of the bake.
 const WORK_FILE: &str = "work.json";
 
 /// `work.json`'s format tag.
-const WORK_FORMAT: &str = "lightbake-work-2";
+const WORK_FORMAT: &str = "lightbake-work-3";
 
 /// `bake shard WORK`: compute one shard's part of every split stage.
-#[derive(Debug, Parser)]
-#[command(name = "bake shard", version)]
-struct ShardArgs {
+#[derive(Debug, clap::Args)]
+pub(super) struct ShardArgs {
     /// The work folder `bake prepare` wrote (shared by every shard).
     work: PathBuf,
     /// This shard, 0-based. Default: `JOB_COMPLETION_INDEX`, else `SLURM_ARRAY_TASK_ID`.
@@ -61,9 +60,8 @@ struct ShardArgs {
 }
 
 /// `bake merge WORK -o OUT`: read every shard's parts and write the outputs.
-#[derive(Debug, Parser)]
-#[command(name = "bake merge", version)]
-struct MergeArgs {
+#[derive(Debug, clap::Args)]
+pub(super) struct MergeArgs {
     /// The work folder.
     work: PathBuf,
     /// Output directory, as for a bake.
@@ -94,7 +92,8 @@ fn parse_timeout(text: &str) -> Result<f64, String> {
     Ok(t)
 }
 
-/// `work.json`.
+/// `work.json`: the bake a work folder holds, as settings (not as a command line), so the
+/// shards and the merge rebuild exactly the prepared bake.
 #[derive(Debug, Serialize, Deserialize)]
 struct Work {
     format: String,
@@ -104,85 +103,23 @@ struct Work {
     /// root.
     #[serde(default)]
     scene_from_work: Option<PathBuf>,
-    /// `prepare`'s command line after the scene and without `-o` (the bake's flags).
-    flags: Vec<String>,
+    /// The bake's settings (the shards and the merge set only their own thread count).
+    settings: BakeSettings,
+    /// The sky luminance `--sky` set, nits.
+    sky: Option<[f32; 3]>,
+    /// The lights (by index in the scene) baked indirect only.
+    indirect_only: Vec<usize>,
+    /// Folders besides the scene's own that its URIs may read from.
+    allow_read: Vec<PathBuf>,
     /// FNV-1a of the glTF document, its buffers and its images.
     scene_hash: u64,
 }
 
-/// Runs `prepare`, `shard` or `merge` when `argv[1]` names one (`exit_on_error`: clap
-/// prints help or the error and exits, as the binary does).
-pub(super) fn dispatch(argv: &[OsString], exit_on_error: bool) -> Option<Result<(), String>> {
-    let command = argv.get(1)?.to_str()?;
-    if !matches!(command, "prepare" | "shard" | "merge") {
-        return None;
-    }
-    let named: Vec<OsString> = std::iter::once(OsString::from(format!("bake {command}")))
-        .chain(argv[2..].iter().cloned())
-        .collect();
-    fn parse<P: Parser>(args: Vec<OsString>, exit: bool) -> Result<P, String> {
-        if exit {
-            Ok(P::parse_from(args))
-        } else {
-            P::try_parse_from(args).map_err(|e| e.to_string())
-        }
-    }
-    Some(match command {
-        "prepare" => parse::<Args>(named, exit_on_error).and_then(|a| prepare(a, &argv[2..])),
-        "shard" => parse::<ShardArgs>(named, exit_on_error).and_then(shard),
-        _ => parse::<MergeArgs>(named, exit_on_error).and_then(merge),
-    })
-}
-
-/// FNV-1a of the document, its buffers and its decoded images (sizes and texels): whatever
-/// of the scene's files a shard reads.
-fn scene_hash(imported: &lightbake::ImportedScene) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut add = |bytes: &[u8]| {
-        for b in bytes {
-            h ^= *b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
-    };
-    add(&serde_json::to_vec(&imported.source.json).unwrap_or_default());
-    for buffer in &imported.source.buffers {
-        add(buffer);
-    }
-    for t in &imported.scene.textures {
-        add(&t.width.to_le_bytes());
-        add(&t.height.to_le_bytes());
-        add(t.rgba8.as_flattened());
-    }
-    h
-}
-
-/// The flags of a bake command line: without the scene and without `-o`/`--output`.
-fn bake_flags(tokens: &[OsString], scene: &Path) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut skip = false;
-    for t in tokens.iter().map(|t| t.to_string_lossy().into_owned()) {
-        if skip {
-            skip = false;
-            continue;
-        }
-        if t == "-o" || t == "--output" {
-            skip = true;
-            continue;
-        }
-        if t.starts_with("--output=") || (t.starts_with("-o") && t.len() > 2) {
-            continue;
-        }
-        if Path::new(&t) == scene {
-            continue;
-        }
-        out.push(t);
-    }
-    out
-}
-
-fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
+/// `bake prepare SCENE -o WORK [flags]`: writes `work.json` and the prepared patches.
+pub(super) fn prepare(args: Args) -> Result<(), CliError> {
     let (settings, imported) = load(&args)?;
-    let scene = std::path::absolute(&args.scene).map_err(|e| e.to_string())?;
+    let scene =
+        std::path::absolute(&args.scene).map_err(|e| format!("{}: {e}", args.scene.display()))?;
     std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let scene_from_work = match (args.scene.canonicalize(), args.output.canonicalize()) {
         (Ok(scene), Ok(work)) => relative(&work, &scene),
@@ -190,17 +127,21 @@ fn prepare(args: Args, tokens: &[OsString]) -> Result<(), String> {
     };
     let work = Work {
         format: WORK_FORMAT.into(),
-        flags: bake_flags(tokens, &args.scene),
         scene,
         scene_from_work,
-        scene_hash: scene_hash(&imported),
+        settings: settings.clone(),
+        sky: args.sky,
+        indirect_only: (imported.scene.lights.iter().enumerate())
+            .filter(|(_, l)| l.bake == LightBake::IndirectOnly)
+            .map(|(i, _)| i)
+            .collect(),
+        allow_read: args.allow_read.clone(),
+        scene_hash: imported.content_hash(),
     };
     let text = serde_json::to_vec_pretty(&work).map_err(|e| e.to_string())?;
     let mut staged = lightbake::atomic::StagedFiles::new(&args.output);
-    staged
-        .stage(&args.output.join(WORK_FILE), &text)
-        .map_err(|e| e.to_string())?;
-    staged.commit().map_err(|e| e.to_string())?;
+    staged.stage(&args.output.join(WORK_FILE), &text)?;
+    staged.commit()?;
     run_role(&imported, &settings, &args.output, Role::Prepare).map(|_| ())
 }
 
@@ -223,7 +164,7 @@ fn relative(from: &Path, to: &Path) -> Option<PathBuf> {
 
 /// The scene file of `work`: `chosen`, else where prepare read it, else the same place
 /// relative to the work folder.
-fn scene_path(work: &Work, work_dir: &Path, chosen: Option<&Path>) -> Result<PathBuf, String> {
+fn scene_path(work: &Work, work_dir: &Path, chosen: Option<&Path>) -> Result<PathBuf, CliError> {
     if let Some(path) = chosen {
         return Ok(path.to_path_buf());
     }
@@ -232,14 +173,14 @@ fn scene_path(work: &Work, work_dir: &Path, chosen: Option<&Path>) -> Result<Pat
     }
     match &work.scene_from_work {
         Some(rel) if work_dir.join(rel).exists() => Ok(work_dir.join(rel)),
-        _ => Err(format!(
+        _ => Err(CliError::Input(format!(
             "{}: no such file here{}: give its path on this machine with --scene",
             work.scene.display(),
             work.scene_from_work
                 .as_ref()
                 .map(|rel| format!(", nor at {}", work_dir.join(rel).display()))
                 .unwrap_or_default()
-        )),
+        ))),
     }
 }
 
@@ -249,7 +190,7 @@ fn reload(
     work_dir: &Path,
     threads: usize,
     scene: Option<&Path>,
-) -> Result<(lightbake::BakeSettings, lightbake::ImportedScene), String> {
+) -> Result<(BakeSettings, lightbake::ImportedScene), CliError> {
     let path = work_dir.join(WORK_FILE);
     let text = lightbake::scene::resources::read_regular_file(&path, 1 << 20).map_err(|e| {
         format!(
@@ -265,24 +206,34 @@ fn reload(
             "{}: format '{}', this bake reads '{WORK_FORMAT}': prepare again with this version",
             path.display(),
             work.format
-        ));
+        )
+        .into());
     }
     let scene = scene_path(&work, work_dir, scene)?;
-    let mut tokens = vec![
-        "bake".to_string(),
-        scene.to_string_lossy().into_owned(),
-        "-o".into(),
-        work_dir.to_string_lossy().into_owned(),
-    ];
-    tokens.extend(work.flags);
-    let mut args = Args::try_parse_from(tokens).map_err(|e| format!("{}: {e}", path.display()))?;
-    args.threads = threads;
-    let (settings, imported) = load(&args)?;
-    if scene_hash(&imported) != work.scene_hash {
+    let mut settings = work.settings;
+    settings.threads = threads;
+    settings.validate()?;
+    let mut imported =
+        lightbake::import_gltf_with(&scene, &import_options(&settings, &work.allow_read))?;
+    if let Some(sky) = work.sky {
+        imported.scene.sky = glam::Vec3::from_array(sky);
+    }
+    let lights = imported.scene.lights.len();
+    for &i in &work.indirect_only {
+        let light = imported.scene.lights.get_mut(i).ok_or_else(|| {
+            format!(
+                "{}: light {i} is baked indirect only, and the scene has {lights} lights: prepare again",
+                path.display()
+            )
+        })?;
+        light.bake = LightBake::IndirectOnly;
+    }
+    if imported.content_hash() != work.scene_hash {
         return Err(format!(
             "{} changed since `bake prepare`: prepare again",
             scene.display()
-        ));
+        )
+        .into());
     }
     Ok((settings, imported))
 }
@@ -290,10 +241,10 @@ fn reload(
 /// Runs the bake in `role`; `None` when the process did its part and stopped there.
 fn run_role(
     imported: &lightbake::ImportedScene,
-    settings: &lightbake::BakeSettings,
+    settings: &BakeSettings,
     work: &Path,
     role: Role,
-) -> Result<Option<lightbake::BakeOutput>, String> {
+) -> Result<Option<lightbake::BakeOutput>, CliError> {
     let run = ShardRun::new(work, role);
     let progress = Progress::new();
     match lightbake::bake::bake_split(&imported.scene, settings, &progress, &run) {
@@ -302,11 +253,12 @@ fn run_role(
             println!("{done}");
             Ok(None)
         }
-        Err(e) => Err(e.to_string()),
+        Err(e) => Err(e.into()),
     }
 }
 
-fn shard(args: ShardArgs) -> Result<(), String> {
+/// `bake shard WORK --count N [--index I]`.
+pub(super) fn shard(args: ShardArgs) -> Result<(), CliError> {
     let index = match args.index {
         Some(i) => i,
         None => ["JOB_COMPLETION_INDEX", "SLURM_ARRAY_TASK_ID"]
@@ -321,7 +273,8 @@ fn shard(args: ShardArgs) -> Result<(), String> {
         return Err(format!(
             "--index {index} is not a shard of --count {}: indices run from 0 to count − 1",
             args.count
-        ));
+        )
+        .into());
     }
     let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
     let wait = (!args.no_wait).then(|| Duration::from_secs_f64(args.timeout));
@@ -336,7 +289,8 @@ fn shard(args: ShardArgs) -> Result<(), String> {
     }
 }
 
-fn merge(args: MergeArgs) -> Result<(), String> {
+/// `bake merge WORK -o OUT`.
+pub(super) fn merge(args: MergeArgs) -> Result<(), CliError> {
     let (settings, imported) = reload(&args.work, args.threads, args.scene.as_deref())?;
     let Some(mut output) = run_role(&imported, &settings, &args.work, Role::Merge)? else {
         return Err("internal error: the merge stopped early".into());

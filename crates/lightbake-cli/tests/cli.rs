@@ -44,7 +44,7 @@ fn bakes_the_cornell_box() {
     }
     // The plan and the summary table are printed.
     assert!(
-        stdout.contains("area lights    run") && stdout.contains("direct lights  skip"),
+        stdout.contains("area lights  yes") && stdout.contains("lights       no"),
         "{stdout}"
     );
     assert!(
@@ -58,14 +58,14 @@ fn bakes_the_cornell_box() {
             .as_array()
             .unwrap()
             .iter()
-            .any(|s| s["name"] == "direct" && s["rays"].as_u64().unwrap() > 0)
+            .any(|s| s["stage"] == "direct" && s["rays"].as_u64().unwrap() > 0)
     );
     assert!(
-        report["plan"]["stages"]
+        report["plan"]["sources"]
             .as_array()
             .unwrap()
             .iter()
-            .any(|s| s["name"] == "sky" && s["run"] == false)
+            .any(|s| s["source"] == "sky" && s["used"] == false)
     );
 }
 
@@ -147,6 +147,46 @@ fn bad_input_exits_non_zero_with_one_line() {
     assert!(stderr_line(&r).contains("padding"));
 }
 
+/// `bake --help` says what the tool does and lists every subcommand; `bake bake SCENE` is
+/// the bare form; a bad command line exits with status 2 and clap's usage.
+#[test]
+fn help_lists_the_subcommands_and_both_forms_bake() {
+    let help = bake(&["--help"]);
+    assert!(help.status.success());
+    let text = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        text.starts_with("Bake lightmaps for a glTF scene"),
+        "{text}"
+    );
+    assert!(text.contains("radiosity"), "{text}");
+    for sub in ["bake", "convergence", "prepare", "shard", "merge"] {
+        assert!(
+            text.lines().any(|l| l.trim_start().starts_with(sub)),
+            "--help does not list `{sub}`:\n{text}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let scene = asset("sunlit_room.gltf");
+    for form in [&[][..], &["bake"][..]] {
+        let mut args: Vec<&str> = form.to_vec();
+        args.extend([
+            scene.to_str().unwrap(),
+            "-o",
+            out_dir.to_str().unwrap(),
+            "--plan-only",
+        ]);
+        let r = bake(&args);
+        assert!(r.status.success(), "{args:?}: {}", stderr_line(&r));
+        assert!(String::from_utf8_lossy(&r.stdout).contains("plan:"));
+    }
+    let missing = bake(&[scene.to_str().unwrap()]);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("--output"));
+    assert_eq!(bake(&[]).status.code(), Some(2));
+    assert_eq!(bake(&["shard"]).status.code(), Some(2));
+}
+
 #[test]
 fn plan_only_does_not_write() {
     let dir = tempfile::tempdir().unwrap();
@@ -160,8 +200,8 @@ fn plan_only_does_not_write() {
     assert!(r.status.success());
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(
-        stdout.contains("sky            run")
-            && stdout.contains("area lights    skip no emissive surfaces"),
+        stdout.contains("sky          yes")
+            && stdout.contains("area lights  no   no emissive surfaces"),
         "{stdout}"
     );
     assert!(!out_dir.exists());

@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! cargo run --release -p lightbake --example ray_workload -- /tmp/rays
-//! python3 benches/embree_compare.py /tmp/rays
+//! python3 crates/lightbake/benches/embree_compare.py /tmp/rays
 //! ```
 //!
 //! Files: `triangles.f32` (9 floats per triangle: three vertices), `gather.f32` and

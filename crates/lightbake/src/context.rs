@@ -9,6 +9,7 @@ use crate::plan::BakePlan;
 use crate::raster::Patches;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
+use crate::stage::Stage;
 use crate::unwrap::{Layout, unwrap_scene};
 
 /// What every lighting pass reads: the unwrapped scene, its layout, the ray-tracing structure,
@@ -55,14 +56,16 @@ impl Prepared {
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<Self> {
         settings.validate()?;
         scene.validate()?;
-        let mut plan = BakePlan::new(scene, settings);
+        let plan = BakePlan::new(scene, settings);
         let mut layout = unwrap_scene(scene, settings, plan.texel_density)?;
         // The same triangles as the unwrapped scene's.
         let rays = RayScene::build(scene);
-        if plan.runs("density") {
-            match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
-                Ok((adapted, _)) => layout = adapted,
-                Err(reason) => plan.skip("density", reason),
+        if plan.runs(Stage::Density) {
+            // Where the pilot finds nothing to adapt to, the density stays uniform, as in a
+            // bake.
+            if let Ok((adapted, _)) = crate::density::adapt(scene, settings, &plan, &layout, &rays)
+            {
+                layout = adapted;
             }
         }
         let baked = layout.apply(scene);

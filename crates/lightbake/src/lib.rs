@@ -33,6 +33,7 @@
 //! | 1 | `sampling` | hashes, Halton and Sobol' sequences, warps |
 //! | 1 | [`settings`] | [`BakeSettings`], the presets and the setting enums |
 //! | 1 | [`error_estimate`] | how a stage's error estimate is summarised and combined |
+//! | 1 | [`stage`] | the pipeline's stages by name: [`Stage`] |
 //! | 1 | [`progress`] | progress, cancellation and finished-stage counters |
 //! | 2 | [`scene`] | meshes, instances, materials, textures, lights; glTF import and extras |
 //! | 3 | `unwrap` | lightmap UVs (xatlas or the mesh's own) packed into atlas pages |
@@ -78,6 +79,7 @@ internal!(color, form_factor, sampling);
 pub mod error_estimate;
 pub mod progress;
 pub mod settings;
+pub mod stage;
 // 2–7. The scene and what the lighting passes stand on.
 pub mod scene;
 internal!(unwrap, bvh, raster, lights, plan, memory, density, context);
@@ -109,4 +111,5 @@ pub use settings::{
     BakeSettings, Basis, ImageFormat, LightConvention, Method, OutputFormats, Quality, Sequence,
     SolverChoice,
 };
+pub use stage::{Stage, StageRun};
 pub use unwrap::{InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};

@@ -11,12 +11,14 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use serde::Serialize;
 
 use crate::error_estimate::ErrorEstimate;
+use crate::stage::StageRun;
 
 /// Counters of one stage.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct StageStats {
-    /// Stage name.
-    pub name: String,
+    /// The stage and its round.
+    #[serde(flatten)]
+    pub run: StageRun,
     /// Wall time, seconds.
     pub seconds: f64,
     /// Rays traced.
@@ -47,6 +49,19 @@ pub enum RayKind {
 }
 
 impl StageStats {
+    /// A stage's counters before it has done anything.
+    pub fn new(run: impl Into<StageRun>) -> Self {
+        Self {
+            run: run.into(),
+            seconds: 0.0,
+            rays: 0,
+            ray_kind: RayKind::None,
+            shadow_rays: 0,
+            error: None,
+            note: String::new(),
+        }
+    }
+
     /// (closest-hit, any-hit) rays, for the ray-tracing floor.
     pub fn rays_by_kind(&self) -> (u64, u64) {
         match self.ray_kind {
@@ -72,7 +87,7 @@ impl StageStats {
 /// Thread-safe bake progress.
 #[derive(Debug)]
 pub struct Progress {
-    stage: Mutex<String>,
+    stage: Mutex<Option<StageRun>>,
     stage_index: AtomicU64,
     done: AtomicU64,
     total: AtomicU64,
@@ -102,8 +117,8 @@ impl Default for Progress {
 /// A copy of the progress at one moment.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ProgressSnapshot {
-    /// Name of the running stage.
-    pub stage: String,
+    /// The running stage (`None` before the first).
+    pub stage: Option<StageRun>,
     /// How many stages have started (1 for the first).
     pub stage_index: u64,
     /// Work units done in this stage.
@@ -138,8 +153,8 @@ impl Progress {
     }
 
     /// Starts a stage with `total` work units.
-    pub fn begin(&self, stage: &str, total: u64) {
-        *self.stage.lock().unwrap_or_else(|e| e.into_inner()) = stage.to_string();
+    pub fn begin(&self, stage: impl Into<StageRun>, total: u64) {
+        *self.stage.lock().unwrap_or_else(|e| e.into_inner()) = Some(stage.into());
         self.done.store(0, Ordering::Relaxed);
         self.total.store(total, Ordering::Relaxed);
         self.estimate.store(NO_ESTIMATE, Ordering::Relaxed);
@@ -186,7 +201,7 @@ impl Progress {
     /// The current state.
     pub fn snapshot(&self) -> ProgressSnapshot {
         ProgressSnapshot {
-            stage: self.stage.lock().unwrap_or_else(|e| e.into_inner()).clone(),
+            stage: *self.stage.lock().unwrap_or_else(|e| e.into_inner()),
             stage_index: self.stage_index.load(Ordering::Relaxed),
             done: self.done.load(Ordering::Relaxed),
             total: self.total.load(Ordering::Relaxed),
@@ -204,20 +219,24 @@ impl Progress {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stage::Stage;
 
     #[test]
     fn stages_reset_counts() {
         let p = Progress::new();
-        p.begin("a", 10);
+        p.begin(Stage::Unwrap, 10);
         p.advance(4);
         assert_eq!(p.snapshot().fraction(), 0.4);
-        p.begin("b", 0);
+        p.begin(Stage::Bvh, 0);
         let s = p.snapshot();
-        assert_eq!((s.stage.as_str(), s.stage_index, s.done), ("b", 2, 0));
+        assert_eq!(
+            (s.stage, s.stage_index, s.done),
+            (Some(StageRun::first(Stage::Bvh)), 2, 0)
+        );
         assert_eq!(s.error_estimate, None);
         p.set_error_estimate(0.25);
         assert_eq!(p.snapshot().error_estimate, Some(0.25));
-        p.begin("c", 1);
+        p.begin(Stage::Raster, 1);
         assert_eq!(
             p.snapshot().error_estimate,
             None,

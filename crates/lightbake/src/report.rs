@@ -2,6 +2,7 @@
 //! warnings. The CLI prints it as a table, writes it as `report.json`, and the Bevy plugin
 //! exposes it. Every type the report holds is re-exported here.
 
+use crate::stage::{Stage, StageRun};
 use serde::Serialize;
 
 pub use crate::bvh::workload::RayRates;
@@ -33,7 +34,7 @@ pub struct Floor {
     /// Total bake time / floor (1 = nothing but rays at the measured rate).
     pub ratio: f64,
     /// Per stage that traced rays: (name, its time / the floor of its own rays).
-    pub stages: Vec<(String, f64)>,
+    pub stages: Vec<(StageRun, f64)>,
 }
 
 impl Floor {
@@ -58,7 +59,7 @@ impl Floor {
             stages: stages
                 .iter()
                 .filter(|s| s.ray_kind != RayKind::None)
-                .map(|s| (s.name.clone(), ratio(s.seconds, floor_of(s.rays_by_kind()))))
+                .map(|s| (s.run, ratio(s.seconds, floor_of(s.rays_by_kind()))))
                 .collect(),
         }
     }
@@ -221,6 +222,17 @@ impl Verification {
     }
 }
 
+/// A decision the bake took once it knew what the plan could not.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Decision {
+    /// The planned stage it concerns.
+    pub stage: Stage,
+    /// Whether the stage ran.
+    pub ran: bool,
+    /// What was decided, or why the stage did not run after all.
+    pub what: String,
+}
+
 /// Everything a bake records about itself.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BakeReport {
@@ -230,8 +242,12 @@ pub struct BakeReport {
     pub scene: String,
     /// Settings used.
     pub settings: BakeSettings,
-    /// The plan, with the reason for every skipped stage.
+    /// The plan, as decided before any work, with the reason for every skipped stage.
     pub plan: BakePlan,
+    /// What the bake decided once it knew what the plan could not (the density, the solver,
+    /// the volume's grid; a planned stage it found it could not run, and why).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub decisions: Vec<Decision>,
     /// How the texel density follows the light (each chart's scale and error), when it does.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub density: Option<crate::density::DensityReport>,
@@ -314,7 +330,7 @@ impl BakeReport {
     pub fn grid_checked(&self) -> bool {
         self.stages
             .iter()
-            .any(|s| s.name == "grid error" && s.error.is_some())
+            .any(|s| s.run.stage == Stage::GridError && s.error.is_some())
     }
 
     /// Total rays of every stage.
@@ -336,7 +352,7 @@ impl BakeReport {
         for st in &self.stages {
             s.push_str(&format!(
                 "{:<14} {:>8.3}s {:>12} {:>8} {:>8}  {}\n",
-                st.name,
+                st.run.to_string(),
                 st.seconds,
                 if st.rays > 0 {
                     st.rays.to_string()
@@ -369,6 +385,14 @@ impl BakeReport {
                 .map(|m| format!(", peak memory {m:.0} MiB"))
                 .unwrap_or_default()
         ));
+        for d in &self.decisions {
+            s.push_str(&format!(
+                "decided: {} {}: {}\n",
+                d.stage,
+                if d.ran { "ran" } else { "skipped" },
+                d.what
+            ));
+        }
         if let Some(e) = &self.error {
             s.push_str(&format!(
                 "estimated error: {:.2}% RMS, {:.2}% at the 95th percentile (relative to the RMS texel)\n",
@@ -453,10 +477,10 @@ pub struct ShardPart {
 }
 
 /// A split stage in the merged report: every shard's part.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SplitStage {
-    /// Stage name.
-    pub stage: String,
+    /// The stage.
+    pub stage: Stage,
     /// The parts, by shard.
     pub parts: Vec<ShardPart>,
 }

@@ -4,6 +4,8 @@
 //! light —, the sample number, the dimension and [`crate::settings::BakeSettings::seed`]),
 //! never of the thread that computes it, so a bake gives the same bits on any thread count.
 //!
+//! * [`Fnv1a`]: the FNV-1a hash of a byte stream (Fowler, Noll and Vo), for identifying
+//!   content (a split bake's scene and preparation), not for sampling.
 //! * [`hash`]: an integer mixer (the "lowbias32" finaliser of Chris Wellons' hash prospector)
 //!   to derive independent scrambles.
 //! * [`radical_inverse`] / [`halton`]: the Halton sequence Φ_b(i) with prime bases
@@ -15,6 +17,36 @@
 //!   basis (Duff et al. 2017).
 
 use glam::{Vec2, Vec3};
+
+/// The 64-bit FNV-1a hash of the bytes fed to it.
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv1a {
+    /// Feeds `bytes`.
+    pub fn bytes(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= *b as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// Feeds a 32-bit word, little-endian.
+    pub fn word(&mut self, w: u32) {
+        self.bytes(&w.to_le_bytes());
+    }
+
+    /// The hash so far.
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
 
 /// Mixes a 32-bit value ("lowbias32", bias ≈ 0.17).
 #[inline]

@@ -7,6 +7,7 @@ mod common;
 
 use common::add;
 use glam::{Affine3A, Vec3};
+use lightbake::Stage;
 use lightbake::analysis::verify::{measure, verification_points};
 use lightbake::bvh::RayScene;
 use lightbake::context::Prepared;
@@ -70,11 +71,11 @@ fn the_floor_under_the_near_lamp_gets_the_texels_within_the_same_budget() {
     settings.adaptive_density = false;
     let uniform = Prepared::new(&scene, &settings).unwrap();
     assert!(
-        adaptive.plan.runs("density"),
+        adaptive.plan.runs(Stage::Density),
         "{}",
         adaptive.plan.describe()
     );
-    assert!(!uniform.plan.runs("density"));
+    assert!(!uniform.plan.runs(Stage::Density));
     let (near, far) = (texels_of(&adaptive, 0), texels_of(&adaptive, 1));
     let (near_u, far_u) = (texels_of(&uniform, 0), texels_of(&uniform, 1));
     assert!((near_u / far_u - 1.0).abs() < 0.1, "{near_u} / {far_u}");
@@ -160,7 +161,7 @@ fn the_plan_says_why_the_density_stays_put() {
     let mut settings = BakeSettings::preview();
     settings.texel_density = Some(8.0);
     let p = Prepared::new(&scene, &settings).unwrap();
-    assert!(!p.plan.runs("density"));
+    assert!(!p.plan.runs(Stage::Density));
     assert!(
         p.plan.describe().contains("the settings set the density"),
         "{}",
@@ -180,7 +181,7 @@ fn the_plan_says_why_the_density_stays_put() {
     sky.lights.clear();
     sky.sky = Vec3::splat(1000.0);
     let p = Prepared::new(&sky, &settings).unwrap();
-    assert!(!p.plan.runs("density"));
+    assert!(!p.plan.runs(Stage::Density));
     assert!(
         p.plan.describe().contains("the pilot sees only those"),
         "{}",

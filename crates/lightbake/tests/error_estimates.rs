@@ -14,6 +14,7 @@ use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box};
 use lightbake::settings::SolverChoice;
 use lightbake::settings::{BakeSettings, Method};
+use lightbake::{Stage, StageRun};
 
 /// Cornell box (area light) settings at a low density: about 1 800 texels.
 fn settings(method: Method) -> BakeSettings {
@@ -73,11 +74,11 @@ fn estimates_track_the_measured_error() {
         );
         // Every sampling stage carries its own estimate.
         for st in &out.report.stages {
-            if matches!(st.name.as_str(), "direct" | "vpl" | "estimate") {
+            if matches!(st.run.stage, Stage::Direct | Stage::Vpl) {
                 assert!(
                     st.error.is_some(),
                     "{name}: stage {} has no estimate",
-                    st.name
+                    st.run
                 );
             }
         }
@@ -191,7 +192,7 @@ fn a_target_error_is_reached_by_raising_sample_counts() {
         out.report
             .stages
             .iter()
-            .any(|st| st.name.starts_with("transport #"))
+            .any(|st| st.run.stage == Stage::Transport && st.run.round > 1)
     );
 }
 
@@ -214,7 +215,7 @@ fn an_unreachable_target_says_so() {
         .report
         .stages
         .iter()
-        .find(|s| s.name == "direct")
+        .find(|s| s.run.stage == Stage::Direct)
         .unwrap();
     // The count went to its cap (4096 footprint samples) and stopped there.
     assert!(direct.note.starts_with("4096 spp"), "{}", direct.note);
@@ -235,14 +236,14 @@ fn the_report_has_a_ray_floor_and_progress_lists_finished_stages() {
         "every ray is of a kind"
     );
     // Every stage that traced rays has its own time over its own floor.
-    let traced: Vec<&str> = out
+    let traced: Vec<StageRun> = out
         .report
         .stages
         .iter()
         .filter(|s| s.rays > 0)
-        .map(|s| s.name.as_str())
+        .map(|s| s.run)
         .collect();
-    let per_stage: Vec<&str> = floor.stages.iter().map(|s| s.0.as_str()).collect();
+    let per_stage: Vec<StageRun> = floor.stages.iter().map(|s| s.0).collect();
     assert_eq!(per_stage, traced);
     assert!(floor.stages.iter().all(|s| s.1.is_finite() && s.1 > 0.0));
     let table = out.report.table();
@@ -251,7 +252,11 @@ fn the_report_has_a_ray_floor_and_progress_lists_finished_stages() {
     assert!(table.contains("estimated error"), "{table}");
     let snap = progress.snapshot();
     assert_eq!(snap.finished.len(), out.report.stages.len());
-    let direct = snap.finished.iter().find(|s| s.name == "direct").unwrap();
+    let direct = snap
+        .finished
+        .iter()
+        .find(|s| s.run.stage == Stage::Direct)
+        .unwrap();
     assert!(direct.error.is_some() && direct.rays > 0 && direct.seconds > 0.0);
     let json = serde_json::to_value(&out.report).unwrap();
     assert!(json["error"]["relative_rms"].as_f64().unwrap() > 0.0);

@@ -8,6 +8,7 @@
 mod common;
 
 use lightbake::BakeOutput;
+use lightbake::Stage;
 use lightbake::analysis::study::relative_rms_error;
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
@@ -35,7 +36,7 @@ fn radiosity_estimate(out: &BakeOutput) -> (f64, Option<f64>) {
         .report
         .stages
         .iter()
-        .find(|s| s.name == "error estimate")
+        .find(|s| s.run.stage == Stage::ErrorEstimate)
         .expect("an error estimate stage");
     let radiosity = out.report.radiosity.as_ref().expect("a radiosity report");
     (
@@ -272,7 +273,7 @@ fn gather_rays(out: &BakeOutput) -> u64 {
     out.report
         .stages
         .iter()
-        .filter(|s| s.name == "gather pilot" || s.name == "final gather")
+        .filter(|s| s.run.stage == Stage::GatherPilot || s.run.stage == Stage::FinalGather)
         .map(|s| s.rays)
         .sum()
 }

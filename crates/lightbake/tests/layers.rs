@@ -141,3 +141,154 @@ fn the_checker_reads_paths_and_lists() {
     let want: BTreeSet<String> = ["a", "c", "e", "f", "y"].map(String::from).into();
     assert_eq!(used, want);
 }
+
+/// The sibling modules a file in folder `folder` (its path under `src/`, e.g. `radiosity`)
+/// names: through `super::name` and through `crate::folder::name` (comments left out).
+fn sibling_paths(source: &str, folder: &str, siblings: &BTreeSet<String>) -> BTreeSet<String> {
+    let mut used = BTreeSet::new();
+    let prefixes = [
+        "super::".to_string(),
+        format!("crate::{}::", folder.replace('/', "::")),
+    ];
+    for line in source.lines() {
+        let code = line.split("//").next().unwrap_or("");
+        for prefix in &prefixes {
+            let mut rest = code;
+            while let Some(i) = rest.find(prefix.as_str()) {
+                rest = &rest[i + prefix.len()..];
+                let names: Vec<String> = match rest.strip_prefix('{') {
+                    Some(list) => {
+                        let end = list.find('}').unwrap_or(list.len());
+                        list[..end]
+                            .split(',')
+                            .map(|item| {
+                                item.trim()
+                                    .chars()
+                                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                                    .collect()
+                            })
+                            .collect()
+                    }
+                    None => vec![
+                        rest.chars()
+                            .take_while(|c| c.is_alphanumeric() || *c == '_')
+                            .collect(),
+                    ],
+                };
+                used.extend(names.into_iter().filter(|n| siblings.contains(n)));
+            }
+        }
+    }
+    used
+}
+
+/// A cycle in `graph` (each node's edges), as the nodes along it; `None` when it has none.
+fn find_cycle(graph: &std::collections::BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &str,
+        graph: &std::collections::BTreeMap<String, BTreeSet<String>>,
+        path: &mut Vec<String>,
+        done: &mut BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(i) = path.iter().position(|p| p == node) {
+            let mut cycle = path[i..].to_vec();
+            cycle.push(node.to_string());
+            return Some(cycle);
+        }
+        if done.contains(node) {
+            return None;
+        }
+        path.push(node.to_string());
+        for next in graph.get(node).into_iter().flatten() {
+            if let Some(c) = visit(next, graph, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.insert(node.to_string());
+        None
+    }
+    let mut done = BTreeSet::new();
+    graph
+        .keys()
+        .find_map(|k| visit(k, graph, &mut Vec::new(), &mut done))
+}
+
+/// Inside every folder, the files that use each other through `super::` (or the folder's
+/// own `crate::` path) form no circle: each folder's files stack up as the crate's modules do.
+#[test]
+fn files_inside_a_folder_use_each_other_without_a_circle() {
+    let mut folders = Vec::new();
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                out.push(path.clone());
+                walk(&path, out);
+            }
+        }
+    }
+    walk(&src(), &mut folders);
+    let mut circles = Vec::new();
+    for folder in folders {
+        let name = folder
+            .strip_prefix(src())
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        let mut files = Vec::new();
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+            if stem != "mod" {
+                files.push((stem, path));
+            }
+        }
+        let siblings: BTreeSet<String> = files.iter().map(|(s, _)| s.clone()).collect();
+        let mut graph = std::collections::BTreeMap::new();
+        for (stem, path) in &files {
+            let mut sources = Vec::new();
+            if path.is_dir() {
+                rust_files(path, &mut sources);
+            } else {
+                sources.push(path.clone());
+            }
+            let mut used = BTreeSet::new();
+            for file in sources {
+                let source = std::fs::read_to_string(&file).unwrap();
+                // A file in a sub-folder reaches the folder's siblings through
+                // `super::super::`; count those as the sub-folder's own.
+                let source = if file.parent() == Some(folder.as_path()) {
+                    source
+                } else {
+                    source.replace("super::super::", "super::")
+                };
+                used.extend(sibling_paths(&source, &name, &siblings));
+            }
+            used.remove(stem);
+            graph.insert(stem.clone(), used);
+        }
+        if let Some(cycle) = find_cycle(&graph) {
+            circles.push(format!("{name}: {}", cycle.join(" → ")));
+        }
+    }
+    assert!(circles.is_empty(), "circles:\n{}", circles.join("\n"));
+}
+
+/// The folder checker reads both path forms and finds a circle of two.
+#[test]
+fn the_folder_checker_reads_paths_and_finds_circles() {
+    let siblings: BTreeSet<String> = ["a", "b", "c"].map(String::from).into();
+    let used = sibling_paths(
+        "use super::a::X;\nuse super::{b, d};\n// super::c\nlet y = crate::f::c::g();",
+        "f",
+        &siblings,
+    );
+    assert_eq!(used, ["a", "b", "c"].map(String::from).into());
+    let mut graph = std::collections::BTreeMap::new();
+    graph.insert("a".to_string(), BTreeSet::from(["b".to_string()]));
+    graph.insert("b".to_string(), BTreeSet::from(["a".to_string()]));
+    assert!(find_cycle(&graph).is_some());
+    graph.insert("b".to_string(), BTreeSet::new());
+    assert!(find_cycle(&graph).is_none());
+}

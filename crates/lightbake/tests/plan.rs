@@ -6,13 +6,14 @@ mod common;
 use std::sync::Arc;
 
 use glam::Vec3;
-use lightbake::BakeError;
 use lightbake::output::write_outputs;
+use lightbake::plan::DirectSource;
 use lightbake::progress::Progress;
 use lightbake::scene::gltf_import::import_gltf;
 use lightbake::scene::gltf_write::write_scene_gltf;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
 use lightbake::settings::{BakeSettings, LightConvention};
+use lightbake::{BakeError, Stage};
 
 #[test]
 fn unlit_scene_bakes_black_and_says_why() {
@@ -20,10 +21,10 @@ fn unlit_scene_bakes_black_and_says_why() {
     scene.lights.clear();
     let out = common::bake(&scene, &common::settings(64.0, 4));
     assert!(out.report.plan.nothing_to_bake);
-    let ran: Vec<&str> = out.report.stages.iter().map(|s| s.name.as_str()).collect();
+    let ran: Vec<Stage> = out.report.stages.iter().map(|s| s.run.stage).collect();
     assert_eq!(
         ran,
-        ["plan", "unwrap"],
+        [Stage::Plan, Stage::Unwrap],
         "no raster, BVH or lighting for an unlit scene"
     );
     assert!(
@@ -40,10 +41,16 @@ fn unlit_scene_bakes_black_and_says_why() {
 fn stages_are_skipped_with_reasons() {
     let out = common::bake(&sunlit_room(), &common::settings(6.0, 2));
     let plan = &out.report.plan;
-    let stage = |n: &str| plan.stages.iter().find(|s| s.name == n).unwrap().clone();
-    assert!(!stage("area lights").run && stage("area lights").reason.contains("no emissive"));
-    assert!(stage("sky").run && stage("direct lights").run);
-    assert!(!stage("indirect").run && stage("indirect").reason.contains("direct"));
+    let stage = |n: Stage| plan.stages.iter().find(|s| s.stage == n).unwrap().clone();
+    let source = |n: DirectSource| plan.sources.iter().find(|s| s.source == n).unwrap();
+    let area = source(DirectSource::AreaLights);
+    assert!(!area.used && area.reason.contains("no emissive"));
+    assert!(plan.samples(DirectSource::Sky) && plan.samples(DirectSource::Lights));
+    assert!(stage(Stage::Direct).run && plan.describe().contains("shadow rays to: lights, sky"));
+    let indirect = stage(Stage::Indirect);
+    assert!(!indirect.run && indirect.reason.contains("direct"));
+    // The run's radiosity stages are the plan's indirect stage.
+    assert!(!plan.runs(Stage::FinalGather) && plan.runs(Stage::Dilate));
     assert!(plan.meshes_to_unwrap > 0);
 }
 
@@ -52,7 +59,6 @@ fn over_budget_bakes_are_refused_before_allocating() {
     let scene = cornell_box(CornellLight::Area);
     let mut settings = common::settings(50_000.0, 4);
     settings.memory_budget_mib = 4096;
-    let start = std::time::Instant::now();
     match lightbake::bake(&scene, &settings, &Progress::new()) {
         Err(BakeError::OverMemoryBudget {
             needed_mib,
@@ -67,8 +73,6 @@ fn over_budget_bakes_are_refused_before_allocating() {
             other.map(|o| o.report.texels)
         ),
     }
-    // Refused from the estimate, not after trying (a bake at this density would take minutes).
-    assert!(start.elapsed().as_secs_f64() < 5.0);
 }
 
 #[test]
@@ -78,7 +82,8 @@ fn cancelled_bake_returns_cancelled_and_writes_nothing() {
     let progress = Arc::new(Progress::new());
     let p = Arc::clone(&progress);
     let handle = std::thread::spawn(move || lightbake::bake(&scene, &settings, &p));
-    while progress.snapshot().stage != "direct" && !handle.is_finished() {
+    while progress.snapshot().stage.map(|s| s.stage) != Some(Stage::Direct) && !handle.is_finished()
+    {
         std::thread::yield_now();
     }
     progress.cancel();

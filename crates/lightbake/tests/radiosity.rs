@@ -6,6 +6,7 @@
 mod common;
 
 use common::{radiosity_settings, two_squares};
+use lightbake::Stage;
 
 use glam::{Affine3A, DVec3, Vec3};
 use lightbake::context::Prepared;
@@ -490,7 +491,7 @@ fn cornell_box_bleeds_colour_and_lights_the_ceiling() {
         "{dark} ceiling texels have direct light"
     );
     let report = out.report.radiosity.as_ref().unwrap();
-    assert!(report.solution.converged && out.report.plan.runs("indirect"));
+    assert!(report.solution.converged && out.report.plan.runs(Stage::Indirect));
 }
 
 #[test]

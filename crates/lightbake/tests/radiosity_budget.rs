@@ -5,6 +5,7 @@
 mod common;
 
 use common::radiosity_settings;
+use lightbake::Stage;
 
 use lightbake::progress::Progress;
 use lightbake::scene::Scene;
@@ -30,10 +31,9 @@ fn transport_over_budget_goes_hierarchical_or_is_refused() {
     assert!(report.solver_reason.contains("budget") && report.transport_nnz == 0);
     assert!(
         out.report
-            .plan
-            .stages
+            .decisions
             .iter()
-            .any(|s| s.name == "indirect" && s.reason.contains("hierarchical"))
+            .any(|d| d.stage == Stage::Indirect && d.what.contains("hierarchical"))
     );
     settings.solver = SolverChoice::GaussSeidel;
     assert_over_budget(&scene, &settings, "gauss-seidel");

@@ -14,6 +14,7 @@ use crate::lightmap::grid_error::grid_error;
 use crate::lights::Emitters;
 use crate::progress::RayKind;
 use crate::raster::Patches;
+use crate::stage::Stage;
 
 /// The bake's error estimate after the denoiser: its per-texel errors (noise and the bias it
 /// added, lux) with the hierarchical solve's coarse bias added in quadrature, relative to the
@@ -60,7 +61,7 @@ pub(super) fn with_grid_error(
     estimate: Option<ErrorEstimate>,
     value_rms: f64,
 ) -> Result<Option<ErrorEstimate>> {
-    let grid = stages.run("grid error", 1, || {
+    let grid = stages.run(Stage::GridError, 1, || {
         let grid = grid_error(
             ctx.scene,
             ctx.layout,

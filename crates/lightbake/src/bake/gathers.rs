@@ -14,12 +14,13 @@ use crate::error::Result;
 use crate::progress::RayKind;
 use crate::radiosity::hierarchical::{self, Gather, GatherRays};
 use crate::radiosity::{HitMapper, Nodes, ray_allocation};
+use crate::stage::{Stage, StageRun};
 
 /// A gather over every node (`compute(only)` of the nodes `only` marks), split across the
 /// shards of a split bake by the nodes' patches.
 pub(super) fn gather_split(
     shards: Option<&ShardRun>,
-    stage: &str,
+    stage: Stage,
     nodes: &Nodes,
     compute: impl FnOnce(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, GatherRays),
 ) -> Result<(Vec<Vec3>, Vec<f32>, GatherRays)> {
@@ -84,11 +85,11 @@ pub(super) fn final_gather(
     b: &[Vec3],
     direct: &[Vec3],
     cell_of: &[u32],
-    suffix: &str,
+    round: u32,
     stages: &mut Stages<'_>,
 ) -> Result<FinalGather> {
     let rays = ctx.settings.transport_rays;
-    let stage = |name: &str| format!("{name}{suffix}");
+    let stage = |stage: Stage| StageRun { stage, round };
     let pilot = ray_allocation::pilot_rays(rays).filter(|_| ctx.settings.adaptive_gather);
     let Some(pilot) = pilot else {
         let (h, se) = gather_stage(
@@ -97,7 +98,7 @@ pub(super) fn final_gather(
             nodes,
             b,
             &|_: usize| 0..rays,
-            (&stage("final gather"), "final gather"),
+            stage(Stage::FinalGather),
             |r| gather_note(format!("{rays} rays/node"), r),
             stages,
         )?;
@@ -114,7 +115,7 @@ pub(super) fn final_gather(
         nodes,
         b,
         &|_: usize| 0..pilot,
-        (&stage("gather pilot"), "gather pilot"),
+        stage(Stage::GatherPilot),
         |r| gather_note(format!("{pilot} rays/node"), r),
         stages,
     )?;
@@ -129,7 +130,7 @@ pub(super) fn final_gather(
         nodes,
         b,
         &|i: usize| allocation.rest(i),
-        (&stage("final gather"), "final gather"),
+        stage(Stage::FinalGather),
         |r| gather_note(allocation.note(), r),
         stages,
     )?;
@@ -147,8 +148,8 @@ pub(super) fn final_gather(
     })
 }
 
-/// One stage of the final gather: rays `rays(i)` of every node's sequence; `names` are the
-/// stage's name and its name in a split bake's work folder.
+/// One stage of the final gather, `run`: rays `rays(i)` of every node's sequence (a split
+/// bake's work folder names its parts by the stage, whatever the round).
 #[allow(clippy::too_many_arguments)]
 fn gather_stage(
     ctx: &BakeContext<'_>,
@@ -156,14 +157,14 @@ fn gather_stage(
     nodes: &Nodes,
     b: &[Vec3],
     rays: &(dyn Fn(usize) -> Range<u32> + Sync),
-    names: (&str, &str),
+    run: StageRun,
     note: impl FnOnce(GatherRays) -> String,
     stages: &mut Stages<'_>,
 ) -> Result<(Vec<Vec3>, Vec<f32>)> {
     let progress = stages.progress();
     let shards = stages.shards();
-    let (h, se, visibility) = stages.run(names.0, nodes.len() as u64, || {
-        let (h, se, traced) = gather_split(shards, names.1, nodes, |only| {
+    let (h, se, visibility) = stages.run(run, nodes.len() as u64, || {
+        let (h, se, traced) = gather_split(shards, run.stage, nodes, |only| {
             hierarchical::final_gather(ctx, mapper, nodes, b, rays, Gather::Final, only, progress)
         })?;
         Ok((

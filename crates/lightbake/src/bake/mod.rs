@@ -41,10 +41,11 @@ use crate::probes::gather::Solution;
 use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats, bake_volume};
 use crate::progress::{Progress, RayKind};
 use crate::raster::Patches;
-use crate::report::{BakeReport, Floor, TexelStats};
+use crate::report::{BakeReport, Decision, Floor, TexelStats};
 use crate::sampling::hash_words;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
+use crate::stage::Stage;
 use crate::unwrap::{Layout, unwrap_scene};
 use estimate::{denoised_error, with_grid_error};
 pub use handle::BakeHandle;
@@ -201,7 +202,7 @@ struct Lit {
     texels: TexelStats,
     radiosity: Option<crate::radiosity::RadiosityReport>,
     vpl: Option<crate::vpl::VplReport>,
-    /// How the indirect light was computed, for the plan.
+    /// How the indirect light was computed (for the report's decisions).
     indirect_reason: Option<String>,
     error: Option<ErrorEstimate>,
     rates: RayRates,
@@ -210,7 +211,7 @@ struct Lit {
     denoise: Option<DenoiseStats>,
     volume: Option<(IrradianceVolume, VolumeStats)>,
     /// Stages the plan meant to run that the bake found it could not, with why.
-    skipped: Vec<(&'static str, String)>,
+    skipped: Vec<(Stage, String)>,
 }
 
 fn bake_in_pool(
@@ -228,7 +229,9 @@ fn bake_in_pool(
     warnings.extend(notes);
 
     // Plan, and refuse early when the texel count alone would not fit.
-    let mut plan = stages.run("plan", 1, || {
+    let mut decisions = Vec::new();
+    let decide = |stage: Stage, ran: bool, what: String| Decision { stage, ran, what };
+    let plan = stages.run(Stage::Plan, 1, || {
         let plan = BakePlan::new(scene, settings);
         let note = format!("{} texels/m", crate::plan::density_text(plan.texel_density));
         Ok((plan, 0, note))
@@ -236,7 +239,7 @@ fn bake_in_pool(
     memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;
     plan.check_rays(settings)?;
 
-    let layout = stages.run("unwrap", scene.meshes.len() as u64, || {
+    let layout = stages.run(Stage::Unwrap, scene.meshes.len() as u64, || {
         let layout = unwrap_scene(scene, settings, plan.texel_density)?;
         let note = format!(
             "{} mesh(es) xatlas, {} kept, {} page(s)",
@@ -248,8 +251,8 @@ fn bake_in_pool(
     })?;
     // The density that follows the light: a pilot on the first layout, which is then
     // repacked; the ray scene it traces is the lighting passes' (same triangles).
-    let (layout, early_rays, density) = if plan.runs("density") {
-        let (layout, rays, density) = stages.run("density", 1, || {
+    let (layout, early_rays, density) = if plan.runs(Stage::Density) {
+        let (layout, rays, density) = stages.run(Stage::Density, 1, || {
             let rays = RayScene::build(scene);
             match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
                 Ok((adapted, report)) => {
@@ -262,11 +265,11 @@ fn bake_in_pool(
         })?;
         match density {
             Ok(report) => {
-                plan.set_reason("density", report.summary());
+                decisions.push(decide(Stage::Density, true, report.summary()));
                 (layout, Some(rays), Some(report))
             }
             Err(reason) => {
-                plan.skip("density", reason);
+                decisions.push(decide(Stage::Density, false, reason));
                 (layout, Some(rays), None)
             }
         }
@@ -277,10 +280,14 @@ fn bake_in_pool(
     let mut estimate = memory::estimate_from_layout(scene, &layout);
     // The volume's grid, planned here so that a spacing it cannot take is refused before
     // the lighting passes run.
-    let volume_grid = if plan.runs("volume") {
+    let volume_grid = if plan.runs(Stage::Volume) {
         let grid = VolumeGrid::plan(scene, &layout, settings, plan.texel_density)?;
         if grid.is_none() {
-            plan.skip("volume", "no instance has a lightmap".into());
+            decisions.push(decide(
+                Stage::Volume,
+                false,
+                "no instance has a lightmap".into(),
+            ));
         }
         grid
     } else {
@@ -291,8 +298,9 @@ fn bake_in_pool(
             "irradiance volume",
             grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
         );
-        plan.set_reason(
-            "volume",
+        decisions.push(decide(
+            Stage::Volume,
+            true,
             format!(
                 "irradiance volume for dynamic objects: {} × {} × {} probes {:.3e} m apart ({}), {} rays each",
                 grid.resolution.x,
@@ -302,7 +310,7 @@ fn bake_in_pool(
                 grid.reason,
                 settings.probe_rays
             ),
-        );
+        ));
     }
     if previews.is_enabled() {
         // The direct light kept per patch (at most one per page texel, 12 bytes) and two
@@ -322,7 +330,7 @@ fn bake_in_pool(
             ..Lit::default()
         }
     } else {
-        let rays = stages.run("bvh", 1, || {
+        let rays = stages.run(Stage::Bvh, 1, || {
             // The density pilot's ray scene has the same triangles as the unwrapped scene's.
             let reused = early_rays.is_some();
             let rays = early_rays.unwrap_or_else(|| RayScene::build(&baked_scene));
@@ -353,10 +361,10 @@ fn bake_in_pool(
     lit.texels.page_texels = layout.page_texels();
     warnings.extend(half_float_warning(&lit.pages));
     if let Some(reason) = lit.indirect_reason.take() {
-        plan.set_reason("indirect", reason);
+        decisions.push(decide(Stage::Indirect, true, reason));
     }
-    for (name, reason) in lit.skipped.drain(..) {
-        plan.skip(name, reason);
+    for (stage, reason) in lit.skipped.drain(..) {
+        decisions.push(decide(stage, false, reason));
     }
     let total_seconds = start.elapsed().as_secs_f64();
     let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
@@ -370,6 +378,7 @@ fn bake_in_pool(
         scene: scene.name.clone(),
         settings: settings.clone(),
         plan,
+        decisions,
         density,
         stages: stages.list,
         radiosity: lit.radiosity,
@@ -431,7 +440,7 @@ fn light_scene(
     let reader = stages.shards().filter(|run| run.reads_patches());
     let patches = match reader {
         // A shard or the merge of a split bake reads prepare's patches.
-        Some(run) => stages.run("patches", 1, || {
+        Some(run) => stages.run(Stage::Patches, 1, || {
             let p = run.read_prepared(layout, rays.triangles.len(), scene.instances.len())?;
             let note = format!(
                 "{} texel patches, read from the work folder",
@@ -440,12 +449,12 @@ fn light_scene(
             Ok((p, 0, note))
         })?,
         None => {
-            let mut patches = stages.run("raster", 1, || {
+            let mut patches = stages.run(Stage::Raster, 1, || {
                 let p = Patches::build(scene, layout, &rays);
                 let note = format!("{} texel patches", p.patches.len());
                 Ok((p, 0, note))
             })?;
-            stages.run("validity", patches.patches.len() as u64, || {
+            stages.run(Stage::Validity, patches.patches.len() as u64, || {
                 patches.fix_validity(scene, layout, &rays);
                 let note = format!(
                     "{} moved ({} seen only in part), {} hidden, {} visible but unlit",
@@ -493,7 +502,7 @@ fn light_scene(
         lit.error = Some(ErrorEstimate::combine(&light.errors, value));
     }
     // The rates the floor is measured at: a short calibration on the same pool.
-    lit.rates = stages.run("calibrate", 1, || {
+    lit.rates = stages.run(Stage::Calibrate, 1, || {
         let r = calibrate(
             &rays,
             &calibration_origins(&patches, settings.seed),
@@ -513,10 +522,10 @@ fn light_scene(
     }
     finite::patches("lighting", scene, &patches, &mut irradiance)?;
     let mut assembly = Assembly::new(layout, &patches, &irradiance);
-    if plan.runs("denoise") {
-        let covers = light.indirect.is_some() || !plan.runs("indirect");
+    if plan.runs(Stage::Denoise) {
+        let covers = light.indirect.is_some() || !plan.runs(Stage::Indirect);
         if covers {
-            let (st, error) = stages.run("denoise", 1, || {
+            let (st, error) = stages.run(Stage::Denoise, 1, || {
                 let radius = settings.denoise_radius;
                 let (st, error) = match &light.indirect {
                     // Direct and indirect light apart, each with its own noise (scaled as the
@@ -570,12 +579,12 @@ fn light_scene(
             lit.denoise = Some(st);
         } else {
             lit.skipped.push((
-                "denoise",
+                Stage::Denoise,
                 "the indirect pass gives no per-texel noise estimate (only the hierarchical solve's gathers do)".to_string(),
             ));
         }
     }
-    if plan.runs("grid error") && !light.direct.is_empty() {
+    if plan.runs(Stage::GridError) && !light.direct.is_empty() {
         let value = (lit.error.as_ref().map(|e| e.value_rms))
             .unwrap_or_else(|| rms_luminance(&valid(&patches, &irradiance)));
         let (direct, se) = (&light.direct, &light.texel_error);
@@ -584,8 +593,8 @@ fn light_scene(
     }
     drop(irradiance);
     assembly.fill_hidden(&patches);
-    if plan.runs("contact fit") {
-        let st = stages.run("contact fit", 1, || {
+    if plan.runs(Stage::ContactFit) {
+        let st = stages.run(Stage::ContactFit, 1, || {
             let st = contact_fit(&mut assembly, scene, layout, &patches, &rays);
             let note = if st.texels == 0 {
                 "no texel next to geometry shows light of the wrong side".to_string()
@@ -601,7 +610,7 @@ fn light_scene(
         finite::pages("contact fit", scene, &patches, &mut assembly.pages)?;
         lit.contact = Some(st);
     }
-    stages.run("dilate", 1, || {
+    stages.run(Stage::Dilate, 1, || {
         assembly.dilate(settings.padding + 2);
         let st = assembly.stats;
         lit.texels.filled = st.filled;
@@ -611,8 +620,8 @@ fn light_scene(
         Ok(((), 0, note))
     })?;
     finite::pages("dilate", scene, &patches, &mut assembly.pages)?;
-    if plan.runs("stitch") {
-        let st = stages.run("stitch", 1, || {
+    if plan.runs(Stage::Stitch) {
+        let st = stages.run(Stage::Stitch, 1, || {
             let seams = find_seams(scene, layout);
             let st = stitch(&mut assembly, &patches, &seams, &rays);
             let note = if seams.is_empty() {
@@ -670,7 +679,7 @@ fn volume_stage(
         emitters,
     };
     let progress = stages.progress();
-    let volume = stages.run("volume", grid.len() as u64, || {
+    let volume = stages.run(Stage::Volume, grid.len() as u64, || {
         let (volume, st) = bake_volume(&solution, grid, settings.probe_rays, settings.seed, progress);
         let note = format!(
             "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",

@@ -20,6 +20,7 @@ use crate::radiosity::{self, HitMapper, Nodes, RadiosityReport};
 use crate::raster::Patch;
 use crate::settings::{MAX_VPL_DEPTH, Method, SolverChoice};
 use crate::solve::{Solution, Transport};
+use crate::stage::{Stage, StageRun};
 use crate::vpl::{VplReport, instant_radiosity};
 
 /// What the lighting passes produced.
@@ -54,7 +55,7 @@ pub(super) fn lighting(
 ) -> Result<Light> {
     let settings = ctx.settings;
     let direct_runs = direct_pass_runs(settings.method);
-    let indirect_runs = ctx.plan.runs("indirect");
+    let indirect_runs = ctx.plan.runs(Stage::Indirect);
     let sampling_stages = u32::from(direct_runs) + u32::from(indirect_runs);
     let share = settings
         .target_error
@@ -87,7 +88,7 @@ pub(super) fn lighting(
                 .map(|(e, r)| (*e - *r).max(Vec3::ZERO))
                 .collect()
         };
-        if ctx.plan.runs("grid error") {
+        if ctx.plan.runs(Stage::GridError) {
             light.direct = shown.clone();
         }
         stages.preview_direct(ctx, shown);
@@ -114,7 +115,7 @@ pub(super) fn lighting(
             *e += *r;
         }
         if let Some(re) = reflected_error
-            && ctx.plan.runs("denoise")
+            && ctx.plan.runs(Stage::Denoise)
         {
             light.indirect = Some((reflected, re));
         }
@@ -155,7 +156,7 @@ fn direct(
     }
     let shards = stages.shards();
     let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
-    let rounds = stages.run("direct", patches.patches.len() as u64, || {
+    let rounds = stages.run(Stage::Direct, patches.patches.len() as u64, || {
         let mut rays = 0;
         let rounds = until_target(
             share,
@@ -163,7 +164,10 @@ fn direct(
             |s, round| {
                 if round > 1 {
                     progress.begin(
-                        &format!("direct (round {round})"),
+                        StageRun {
+                            stage: Stage::Direct,
+                            round,
+                        },
                         patches.patches.len() as u64,
                     );
                 }
@@ -175,7 +179,7 @@ fn direct(
                 // refused there).
                 let (values, split_rays) = split(
                     shards,
-                    "direct",
+                    Stage::Direct,
                     patches.patches.len(),
                     |p| p,
                     |only| {
@@ -266,7 +270,7 @@ fn vpl(
     let settings = ctx.settings;
     let vpl_only = settings.method == Method::Vpl;
     let progress = stages.progress();
-    let (from_vpls, report) = stages.run("vpl", ctx.patches.patches.len() as u64, || {
+    let (from_vpls, report) = stages.run(Stage::Vpl, ctx.patches.patches.len() as u64, || {
         let direct = (!vpl_only).then_some(direct);
         let mut rays = 0;
         let rounds = until_target(
@@ -369,7 +373,7 @@ fn radiosity(
     warnings: &mut Vec<String>,
 ) -> Result<RadiosityResult> {
     let settings = ctx.settings;
-    let nodes = stages.run("nodes", 1, || {
+    let nodes = stages.run(Stage::Nodes, 1, || {
         let nodes = Nodes::new(ctx, settings.basis);
         let note = format!(
             "{} nodes, max albedo {:.3}",
@@ -478,37 +482,31 @@ fn radiosity_round(
 ) -> Result<Solved> {
     let s = ctx.settings;
     let progress = stages.progress();
-    let suffix = if round > 1 {
-        format!(" #{round}")
-    } else {
-        String::new()
-    };
+    let at = |stage: Stage| StageRun { stage, round };
     let plan = radiosity::plan_solver(ctx, nodes)?;
     if plan.choice == SolverChoice::Hierarchical {
-        return hierarchical_round(ctx, nodes, direct, plan, &suffix, stages);
+        return hierarchical_round(ctx, nodes, direct, plan, round, stages);
     }
     // The matrix solvers' stages are not split: a shard stops, the merge runs them.
     stages.shard_stops()?;
     let source = radiosity::source(nodes, direct);
     let transport = if plan.choice.needs_matrix() {
-        Some(
-            stages.run(&format!("transport{suffix}"), nodes.len() as u64, || {
-                let t = radiosity::build_transport(ctx, nodes, progress);
-                let note = format!(
-                    "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
-                    s.transport_rays,
-                    t.nnz(),
-                    t.bytes() as f64 / 1048576.0,
-                    plan.transport_estimate_bytes as f64 / 1048576.0
-                );
-                let rays = t.rays;
-                Ok((t, rays, note))
-            })?,
-        )
+        Some(stages.run(at(Stage::Transport), nodes.len() as u64, || {
+            let t = radiosity::build_transport(ctx, nodes, progress);
+            let note = format!(
+                "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
+                s.transport_rays,
+                t.nnz(),
+                t.bytes() as f64 / 1048576.0,
+                plan.transport_estimate_bytes as f64 / 1048576.0
+            );
+            let rays = t.rays;
+            Ok((t, rays, note))
+        })?)
     } else {
         None
     };
-    let solution = stages.run(&format!("solve{suffix}"), 0, || {
+    let solution = stages.run(at(Stage::Solve), 0, || {
         let sol = radiosity::solve_system(ctx, nodes, &plan, transport.as_ref(), &source, progress);
         let note = format!("{}: {}", sol.solver, sol.stop_reason);
         let rays = sol.rays;
@@ -524,7 +522,7 @@ fn radiosity_round(
         stages.preview_indirect(ctx, &indirect, ambient);
     }
     // The Monte Carlo error of the matrix rows, or of stochastic Jacobi's shooting.
-    let error = stages.run(&format!("error estimate{suffix}"), 1, || {
+    let error = stages.run(at(Stage::ErrorEstimate), 1, || {
         let (e, rays) = radiosity::gather_error(
             ctx,
             nodes,
@@ -554,15 +552,16 @@ fn hierarchical_round(
     nodes: &Nodes,
     direct: &[Vec3],
     plan: radiosity::SolverPlan,
-    suffix: &str,
+    round: u32,
     stages: &mut Stages<'_>,
 ) -> Result<Solved> {
+    let at = |stage: Stage| StageRun { stage, round };
     let s = ctx.settings;
     let progress = stages.progress();
     let mapper = HitMapper::new(*ctx, nodes, s.basis);
     // The plan admitted the coarse matrix at its per-node cap.
     let options = radiosity::hierarchy_options(ctx, nodes, u64::MAX);
-    let coarse = stages.run(&format!("coarse solve{suffix}"), 0, || {
+    let coarse = stages.run(at(Stage::CoarseSolve), 0, || {
         let c = hierarchical::coarse_solve(ctx, &mapper, nodes, direct, &options, progress);
         let r = &c.report;
         let note = format!(
@@ -598,7 +597,7 @@ fn hierarchical_round(
         &b,
         direct,
         &coarse.clusters.of_node,
-        suffix,
+        round,
         stages,
     )?;
     let shards = stages.shards();
@@ -606,8 +605,8 @@ fn hierarchical_round(
     let missed = hierarchical::missed_exitance(nodes, &gathered, &coarse_per_node);
     drop(coarse_per_node);
     let correction_rays = correction_rays(s.transport_rays);
-    let correction = stages.run(&format!("correction{suffix}"), nodes.len() as u64, || {
-        let (d, se, rays) = gather_split(shards, "correction", nodes, |only| {
+    let correction = stages.run(at(Stage::Correction), nodes.len() as u64, || {
+        let (d, se, rays) = gather_split(shards, Stage::Correction, nodes, |only| {
             hierarchical::final_gather(
                 ctx,
                 &mapper,
@@ -641,7 +640,7 @@ fn hierarchical_round(
     let reflected: Vec<Vec3> = (0..nodes.len())
         .map(|i| nodes.albedo[i] * correction[i])
         .collect();
-    let reflection = stages.run(&format!("reflection{suffix}"), near_count, || {
+    let reflection = stages.run(at(Stage::Reflection), near_count, || {
         let (d, _, rays) = hierarchical::final_gather(
             ctx,
             &mapper,
@@ -671,7 +670,7 @@ fn hierarchical_round(
         *e = e.hypot(*ce);
     }
     let (indirect, clamped) = hierarchical::corrected(&gathered, &correction);
-    let (error, bias) = stages.run(&format!("error estimate{suffix}"), 1, || {
+    let (error, bias) = stages.run(at(Stage::ErrorEstimate), 1, || {
         let (e, bias, rays) = radiosity::hierarchical_error(
             ctx,
             &mapper,

@@ -31,7 +31,9 @@ use crate::atomic::StagedFiles;
 use crate::error::{BakeError, Result};
 use crate::raster::{Patch, Patches};
 pub use crate::report::{ShardPart, SplitStage};
+use crate::sampling::Fnv1a;
 use crate::settings::BakeSettings;
+use crate::stage::Stage;
 use crate::unwrap::Layout;
 
 /// File of the work units in the work folder.
@@ -94,28 +96,12 @@ fn patch_rays(p: &Patch, settings: &BakeSettings, lights: usize, sky: bool) -> f
     spp * (lights as f64 + 1.0) + sky + 1.25 * settings.transport_rays as f64
 }
 
-/// FNV-1a over 32-bit words.
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Self {
-        Self(0xcbf2_9ce4_8422_2325)
-    }
-
-    fn eat(&mut self, w: u32) {
-        for b in w.to_le_bytes() {
-            self.0 ^= b as u64;
-            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-}
-
 /// An identifier of this `prepare` run: the clock, the process and the patches, mixed.
 fn preparation_id(units: &Units) -> u64 {
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos());
-    let mut h = Fnv::new();
+    let mut h = Fnv1a::default();
     for w in [
         nanos as u32,
         (nanos >> 32) as u32,
@@ -124,40 +110,40 @@ fn preparation_id(units: &Units) -> u64 {
         units.patches_hash as u32,
         (units.patches_hash >> 32) as u32,
     ] {
-        h.eat(w);
+        h.word(w);
     }
     // 0 means "not prepared".
-    h.0.max(1)
+    h.finish().max(1)
 }
 
 /// FNV-1a over the layout: pages, instance rectangles, every unwrap's UVs and triangles.
 pub fn layout_hash(layout: &Layout) -> u64 {
-    let mut h = Fnv::new();
+    let mut h = Fnv1a::default();
     for p in &layout.pages {
-        h.eat(p.width);
-        h.eat(p.height);
+        h.word(p.width);
+        h.word(p.height);
     }
     for r in layout.instances.iter().flatten() {
         for w in [r.page, r.x, r.y, r.width, r.height] {
-            h.eat(w);
+            h.word(w);
         }
     }
     for u in layout.meshes.iter().flatten() {
-        h.eat(u.width);
-        h.eat(u.height);
+        h.word(u.width);
+        h.word(u.height);
         for v in &u.uv1 {
-            h.eat(v.x.to_bits());
-            h.eat(v.y.to_bits());
+            h.word(v.x.to_bits());
+            h.word(v.y.to_bits());
         }
-        u.indices.iter().for_each(|&i| h.eat(i));
+        u.indices.iter().for_each(|&i| h.word(i));
     }
-    h.0
+    h.finish()
 }
 
 /// FNV-1a over every patch's identity and geometry.
 pub fn patches_hash(patches: &Patches) -> u64 {
-    let mut h = Fnv::new();
-    let mut eat = |w: u32| h.eat(w);
+    let mut h = Fnv1a::default();
+    let mut eat = |w: u32| h.word(w);
     for p in &patches.patches {
         for w in [
             p.instance,
@@ -176,7 +162,7 @@ pub fn patches_hash(patches: &Patches) -> u64 {
             }
         }
     }
-    h.0
+    h.finish()
 }
 
 impl Units {
@@ -335,7 +321,7 @@ pub struct ShardRun {
 /// The header of a part file, as JSON before its values.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 struct PartHeader {
-    stage: String,
+    stage: Stage,
     count: u32,
     /// [`Units::preparation`] of the work folder it was written for.
     preparation: u64,
@@ -436,16 +422,16 @@ impl ShardRun {
         Ok(patches)
     }
 
-    fn part_path(&self, index: u32, stage: &str) -> PathBuf {
+    fn part_path(&self, index: u32, stage: Stage) -> PathBuf {
         self.dir
             .join("shards")
             .join(index.to_string())
-            .join(format!("{}.bin", stage.replace(' ', "_")))
+            .join(format!("{}.bin", stage.name().replace(' ', "_")))
     }
 
     /// The shards' count: this shard's, or (merge) the one every part of the first split
     /// stage was written with.
-    fn shard_count(&self, stage: &str) -> Result<u32> {
+    fn shard_count(&self, stage: Stage) -> Result<u32> {
         if let Some(c) = *self.count.lock().unwrap_or_else(|e| e.into_inner()) {
             return Ok(c);
         }
@@ -460,7 +446,7 @@ impl ShardRun {
 
     /// The header of shard `index`'s part of `stage` when it was written for the work units
     /// read here (this preparation).
-    fn current_header(&self, index: u32, stage: &str) -> Option<PartHeader> {
+    fn current_header(&self, index: u32, stage: Stage) -> Option<PartHeader> {
         let preparation = self
             .units
             .lock()
@@ -514,7 +500,7 @@ impl ShardRun {
     /// preparation.
     pub(super) fn split<T: Record>(
         &self,
-        stage: &str,
+        stage: Stage,
         items: usize,
         patch: impl Fn(usize) -> usize,
         compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
@@ -579,7 +565,7 @@ impl ShardRun {
     }
 
     /// Refuses parts of `stage` that other shards wrote for another count.
-    fn check_counts(&self, stage: &str, count: u32) -> Result<()> {
+    fn check_counts(&self, stage: Stage, count: u32) -> Result<()> {
         let Ok(entries) = std::fs::read_dir(self.dir.join("shards")) else {
             return Ok(());
         };
@@ -603,17 +589,17 @@ impl ShardRun {
         Ok(())
     }
 
-    fn all_there(&self, stage: &str, count: u32) -> bool {
+    fn all_there(&self, stage: Stage, count: u32) -> bool {
         (0..count).all(|s| self.current_header(s, stage).is_some())
     }
 
-    fn missing(&self, stage: &str, count: u32) -> Vec<u32> {
+    fn missing(&self, stage: Stage, count: u32) -> Vec<u32> {
         (0..count)
             .filter(|&s| self.current_header(s, stage).is_none())
             .collect()
     }
 
-    fn wait_for(&self, stage: &str, count: u32, limit: Duration) -> Result<()> {
+    fn wait_for(&self, stage: Stage, count: u32, limit: Duration) -> Result<()> {
         let start = Instant::now();
         while !self.all_there(stage, count) {
             if start.elapsed() > limit {
@@ -632,7 +618,7 @@ impl ShardRun {
     fn write_part<T: Record>(
         &self,
         path: &Path,
-        stage: &str,
+        stage: Stage,
         count: u32,
         units: &Units,
         values: &[T],
@@ -641,7 +627,7 @@ impl ShardRun {
     ) -> Result<()> {
         let owned = mask.iter().filter(|&&m| m).count();
         let header = PartHeader {
-            stage: stage.to_string(),
+            stage,
             count,
             preparation: units.preparation,
             values: owned as u64,
@@ -663,7 +649,7 @@ impl ShardRun {
 
     fn read_all<T: Record>(
         &self,
-        stage: &str,
+        stage: Stage,
         items: usize,
         count: u32,
         units: &Units,
@@ -716,10 +702,7 @@ impl ShardRun {
         self.split
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .push(SplitStage {
-                stage: stage.to_string(),
-                parts,
-            });
+            .push(SplitStage { stage, parts });
         Ok((values, rays))
     }
 }

@@ -12,13 +12,14 @@ use crate::error_estimate::ErrorEstimate;
 use crate::lightmap::LightmapPage;
 use crate::progress::{Progress, RayKind, StageStats};
 use crate::settings::BakeSettings;
+use crate::stage::{Stage, StageRun};
 use crate::unwrap::Layout;
 
 /// A split stage (see [`ShardRun::split`]) in a bake that may not be split (`shards` none:
 /// `compute` of every item).
 pub(super) fn split<T: Record>(
     shards: Option<&ShardRun>,
-    stage: &str,
+    stage: Stage,
     items: usize,
     patch: impl Fn(usize) -> usize,
     compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
@@ -123,21 +124,22 @@ impl<'p> Stages<'p> {
         self.progress
     }
 
-    /// Runs stage `name` of `total` work units: `f` returns its value, rays traced and note.
+    /// Runs stage `run` of `total` work units: `f` returns its value, rays traced and note.
     ///
     /// # Errors
     /// What `f` returns, or [`BakeError::Cancelled`] when the bake was cancelled meanwhile.
     pub(super) fn run<T>(
         &mut self,
-        name: &str,
+        run: impl Into<StageRun>,
         total: u64,
         f: impl FnOnce() -> Result<(T, u64, String)>,
     ) -> Result<T> {
-        self.progress.begin(name, total);
+        let run = run.into();
+        self.progress.begin(run, total);
         let start = Instant::now();
         let (value, rays, note) = f()?;
         self.list.push(StageStats {
-            name: name.to_string(),
+            run,
             seconds: start.elapsed().as_secs_f64(),
             rays,
             ray_kind: if rays > 0 {

@@ -15,22 +15,58 @@ use serde::Serialize;
 use glam::Vec3;
 
 use crate::lights::LightSource;
-use crate::lights::tree::{MANY_LIGHTS, PER_TEXEL_LIGHTS};
 use crate::scene::Scene;
-use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
+use crate::settings::BakeSettings;
+use crate::stage::Stage;
 
+mod facts;
 mod texel_density;
+use facts::Facts;
 use texel_density::covered_area;
-pub use texel_density::{density_from_budget, density_text, texel_density};
+pub use texel_density::{density_text, texel_density};
 
 /// One stage of the pipeline and whether it runs.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PlannedStage {
-    /// Stage name as shown in the summary (`unwrap`, `direct`, ...).
-    pub name: String,
+    /// The stage.
+    pub stage: Stage,
     /// Whether it runs.
     pub run: bool,
     /// Why it runs or why it is skipped.
+    pub reason: String,
+}
+
+/// What the direct pass samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DirectSource {
+    /// Point, spot, directional and rect lights.
+    Lights,
+    /// Emissive surfaces.
+    AreaLights,
+    /// The sky.
+    Sky,
+}
+
+impl DirectSource {
+    /// The source's name in the plan.
+    pub const fn name(self) -> &'static str {
+        match self {
+            DirectSource::Lights => "lights",
+            DirectSource::AreaLights => "area lights",
+            DirectSource::Sky => "sky",
+        }
+    }
+}
+
+/// One source of the direct pass and whether it is sampled.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlannedSource {
+    /// The source.
+    pub source: DirectSource,
+    /// Whether the direct pass samples it.
+    pub used: bool,
+    /// Why, or why not.
     pub reason: String,
 }
 
@@ -64,6 +100,8 @@ pub struct BakePlan {
     pub meshes_keeping_uv1: usize,
     /// The stages in order.
     pub stages: Vec<PlannedStage>,
+    /// The direct pass's sources.
+    pub sources: Vec<PlannedSource>,
     /// Per light.
     pub lights: Vec<LightReach>,
     /// Emissive surfaces exist: the area-light pass runs.
@@ -122,7 +160,8 @@ impl BakePlan {
             .iter()
             .any(|l| l.instances > 0 && l.bake == crate::scene::LightBake::Full);
         stages.insert(1, facts.density_stage(pilot_lights));
-        stages.extend(facts.light_stages());
+        let sources = facts.sources();
+        stages.push(facts.direct_stage(&sources));
         stages.push(facts.indirect_stage());
         stages.extend(facts.output_stages());
         let estimated_texels = covered_area(scene) * (texel_density as f64).powi(2);
@@ -136,6 +175,7 @@ impl BakePlan {
             meshes_to_unwrap: unwrapping,
             meshes_keeping_uv1: keeping,
             stages,
+            sources,
             lights,
             area_lights,
             sky,
@@ -169,24 +209,16 @@ impl BakePlan {
         &self.lights_per_instance[instance]
     }
 
-    /// Replaces the reason given for a stage (once a decision made later is known).
-    pub fn set_reason(&mut self, name: &str, reason: String) {
-        if let Some(s) = self.stages.iter_mut().find(|s| s.name == name) {
-            s.reason = reason;
-        }
+    /// Whether `stage` runs (for a stage of the indirect pass: whether the indirect pass
+    /// runs, see [`Stage::planned_as`]).
+    pub fn runs(&self, stage: Stage) -> bool {
+        let planned = stage.planned_as();
+        self.stages.iter().any(|s| s.stage == planned && s.run)
     }
 
-    /// Marks the named stage skipped, with the reason (found once the bake knows it).
-    pub fn skip(&mut self, name: &str, reason: String) {
-        if let Some(s) = self.stages.iter_mut().find(|s| s.name == name) {
-            s.run = false;
-            s.reason = reason;
-        }
-    }
-
-    /// Whether the named stage runs.
-    pub fn runs(&self, name: &str) -> bool {
-        self.stages.iter().any(|s| s.name == name && s.run)
+    /// Whether the direct pass samples `source`.
+    pub fn samples(&self, source: DirectSource) -> bool {
+        self.sources.iter().any(|s| s.source == source && s.used)
     }
 
     /// A human-readable plan, one line per stage and per skipped light.
@@ -204,10 +236,20 @@ impl BakePlan {
         for st in &self.stages {
             s.push_str(&format!(
                 "  {:<14} {:<4} {}\n",
-                st.name,
+                st.stage.name(),
                 if st.run { "run" } else { "skip" },
                 st.reason
             ));
+            if st.stage == Stage::Direct {
+                for src in &self.sources {
+                    s.push_str(&format!(
+                        "    {:<12} {:<4} {}\n",
+                        src.source.name(),
+                        if src.used { "yes" } else { "no" },
+                        src.reason
+                    ));
+                }
+            }
         }
         for l in &self.lights {
             if l.bake == crate::scene::LightBake::IndirectOnly {
@@ -288,398 +330,12 @@ fn light_reaches(scene: &Scene, baked: &[usize]) -> (Vec<LightReach>, Vec<Vec<u3
     (lights, lights_per_instance)
 }
 
-/// What the stage list is decided from.
-struct Facts<'a> {
-    scene: &'a Scene,
-    settings: &'a BakeSettings,
-    /// Baked instances.
-    baked: usize,
-    /// Meshes xatlas unwraps, and meshes that keep their own `TEXCOORD_1`.
-    unwrapping: usize,
-    keeping: usize,
-    /// Lights that reach a baked instance.
-    lights: usize,
-    emissive_instances: usize,
-    area_lights: bool,
-    sky: bool,
-    /// Something is lit: the lighting stages run.
-    work: bool,
-}
-
-impl Facts<'_> {
-    /// Rays per covered texel, roughly: the validity pass's, direct samples for every light
-    /// that reaches a baked instance (emissive surfaces as one more), sky rays, and the
-    /// indirect pass's gathers (radiosity's final gather and correction and its coarse
-    /// level's share; instant radiosity's shadow rays, about two VPLs per particle).
-    fn rays_per_texel(&self) -> f64 {
-        let s = self.settings;
-        if !self.work {
-            return 16.0;
-        }
-        let weighed = if self.lights > MANY_LIGHTS && self.lights <= PER_TEXEL_LIGHTS {
-            // Each texel's shadow rays to every light from two points, once
-            // (`direct::light_choice`).
-            2.0 * self.lights as f64
-        } else {
-            0.0
-        };
-        let lights = if self.lights > MANY_LIGHTS {
-            // One picked per sample, and the suns one by one.
-            1.0 + self
-                .scene
-                .lights
-                .iter()
-                .filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. }))
-                .count() as f64
-        } else {
-            self.lights as f64
-        } + if self.area_lights { 1.0 } else { 0.0 };
-        let direct = s.samples_per_texel as f64 * lights + weighed;
-        let sky = if self.sky { s.sky_samples as f64 } else { 0.0 };
-        let cluster = (s.cluster_texels as f64).powi(2);
-        let indirect = match s.method {
-            Method::Direct => 0.0,
-            Method::Radiosity => {
-                1.5 * s.transport_rays as f64 + 4.0 * s.cluster_rays as f64 / cluster
-            }
-            Method::Vpl | Method::Hybrid => {
-                2.0 * s.vpl_particles as f64
-                    + if s.vpl_bias_compensation {
-                        s.vpl_compensation_rays as f64
-                    } else {
-                        0.0
-                    }
-            }
-        };
-        16.0 + direct + sky + indirect
-    }
-
-    /// The irradiance volume's rays: at most 65 536 probes by default (2²⁰ with an explicit
-    /// spacing), each with its rays and a quarter as many emitter samples.
-    fn volume_rays(&self, texels: f64) -> f64 {
-        let s = self.settings;
-        if !(s.irradiance_volume && self.work) {
-            return 0.0;
-        }
-        let probes = match s.probe_spacing {
-            None => 65_536f64.min(texels.max(1.0)),
-            Some(_) => (1u64 << 20) as f64,
-        };
-        probes * 1.25 * s.probe_rays as f64
-    }
-}
-
-fn stage(name: &str, run: bool, reason: String) -> PlannedStage {
-    PlannedStage {
-        name: name.into(),
-        run,
-        reason,
-    }
-}
-
-impl Facts<'_> {
-    /// Why the lighting stages are skipped when nothing is lit.
-    fn why_not(&self) -> String {
-        if self.baked == 0 {
-            "no instance is baked".to_string()
-        } else {
-            "nothing to bake: no light reaches the scene, nothing is emissive and the sky is black"
-                .to_string()
-        }
-    }
-
-    /// `reason` when the lighting stages run, else why they do not.
-    fn when_lit(&self, reason: String) -> String {
-        if self.work { reason } else { self.why_not() }
-    }
-
-    /// Whether the texel density follows the light (see `crate::density`), and why.
-    fn density_stage(&self, pilot_lights: bool) -> PlannedStage {
-        let s = self.settings;
-        let why_not = if !self.work {
-            Some(self.why_not())
-        } else if !s.adaptive_density {
-            Some(
-                "turned off (adaptive_density, --uniform-density): every chart at one density"
-                    .to_string(),
-            )
-        } else if s.texel_density.is_some() {
-            Some("the settings set the density (texel_density): every chart keeps it".to_string())
-        } else if !density_from_budget(self.scene, s) {
-            Some(
-                "the scene sets its density (extras.lightbake.texel_density): every chart keeps it"
-                    .to_string(),
-            )
-        } else if !pilot_lights {
-            Some("no point, spot, directional or rect light has its direct light baked: the pilot sees only those".to_string())
-        } else {
-            None
-        };
-        match why_not {
-            Some(reason) => stage("density", false, reason),
-            None => stage(
-                "density",
-                true,
-                "a pilot of the direct light shares the texel budget out by each chart's error (½ to 2× the density)".to_string(),
-            ),
-        }
-    }
-
-    /// Unwrap, raster, BVH and validity.
-    fn geometry_stages(&self) -> Vec<PlannedStage> {
-        vec![
-            stage(
-                "unwrap",
-                self.unwrapping > 0 || self.keeping > 0,
-                match (self.unwrapping, self.keeping) {
-                    (0, 0) => "no instance is baked".to_string(),
-                    (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
-                    (0, k) => {
-                        format!("all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)")
-                    }
-                    (u, k) => {
-                        format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1")
-                    }
-                },
-            ),
-            stage(
-                "raster",
-                self.work,
-                self.when_lit(format!("{} instance(s) into texel patches", self.baked)),
-            ),
-            stage(
-                "bvh",
-                self.work,
-                self.when_lit(format!(
-                    "{} triangles for shadow rays",
-                    self.scene.instanced_triangle_count()
-                )),
-            ),
-            stage(
-                "validity",
-                self.work,
-                self.when_lit("move texels out of geometry; mark those that cannot be".into()),
-            ),
-        ]
-    }
-
-    /// Direct lights, area lights and the sky.
-    fn light_stages(&self) -> Vec<PlannedStage> {
-        let scene = self.scene;
-        // Method vpl carries all light, direct included, by VPLs.
-        let vpl_only = self.settings.method == Method::Vpl;
-        let as_vpls = "method 'vpl': the light sources are the first generation of VPLs";
-        vec![
-            stage(
-                "direct lights",
-                self.lights > 0 && self.work && !vpl_only,
-                if scene.lights.is_empty() {
-                    "the scene has no punctual or directional lights".to_string()
-                } else if self.lights == 0 {
-                    "no light reaches a baked instance (range, cone or zero intensity)".to_string()
-                } else if vpl_only {
-                    as_vpls.to_string()
-                } else if self.lights > MANY_LIGHTS {
-                    format!(
-                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes one light instead of all: picked by the texel's own weights (each light's unoccluded light and its visibility from the texel) up to {PER_TEXEL_LIGHTS} lights, from a light tree (by power over distance²) beyond",
-                        self.lights,
-                        scene.lights.len()
-                    )
-                } else {
-                    format!(
-                        "{} of {} light(s) reach baked instances",
-                        self.lights,
-                        scene.lights.len()
-                    )
-                },
-            ),
-            stage(
-                "area lights",
-                self.area_lights && self.work && !vpl_only,
-                if !self.area_lights {
-                    "no emissive surfaces".to_string()
-                } else if vpl_only {
-                    as_vpls.to_string()
-                } else {
-                    format!("{} emissive instance(s)", self.emissive_instances)
-                },
-            ),
-            stage(
-                "sky",
-                self.sky && self.work && !vpl_only,
-                if !self.sky {
-                    "the sky is black".to_string()
-                } else if vpl_only {
-                    as_vpls.to_string()
-                } else {
-                    format!("sky luminance {:?} nits", scene.sky.to_array())
-                },
-            ),
-        ]
-    }
-
-    /// Indirect light: radiosity, instant radiosity, or why neither runs.
-    fn indirect_stage(&self) -> PlannedStage {
-        let (scene, settings) = (self.scene, self.settings);
-        let all_black = scene
-            .instances
-            .iter()
-            .all(|inst| scene.material_of(inst.mesh).albedo_factor().max_element() <= 0.0);
-        let particles = settings.vpl_time_budget_s.map_or_else(
-            || format!("{} particles", settings.vpl_particles),
-            |t| format!("particles for a {t} s gather"),
-        );
-        let (run, why) = match settings.method {
-            Method::Direct if all_black => (
-                false,
-                "method 'direct' computes no interreflection (and every albedo is zero)"
-                    .to_string(),
-            ),
-            Method::Direct => (
-                false,
-                "method 'direct' computes no interreflection".to_string(),
-            ),
-            Method::Radiosity | Method::Hybrid if all_black => (
-                false,
-                "every surface has zero albedo: nothing is reflected".to_string(),
-            ),
-            _ if !self.work => (false, self.why_not()),
-            Method::Radiosity => (
-                true,
-                format!(
-                    "radiosity, {} basis, solver {}{}",
-                    match settings.basis {
-                        Basis::Linear => "piecewise-linear",
-                        Basis::Constant => "piecewise-constant",
-                    },
-                    settings.solver.name(),
-                    if settings.solver == SolverChoice::Auto {
-                        " (chosen once the texels are known)"
-                    } else {
-                        ""
-                    }
-                ),
-            ),
-            Method::Hybrid => (
-                true,
-                format!(
-                    "instant radiosity from the first reflection on: {particles}, {:?} walks",
-                    settings.vpl_sequence
-                ),
-            ),
-            Method::Vpl => (
-                true,
-                format!(
-                    "instant radiosity, all light from VPLs: {particles}, {:?} walks{}",
-                    settings.vpl_sequence,
-                    if all_black {
-                        " (every albedo is zero: no reflections)"
-                    } else {
-                        ""
-                    }
-                ),
-            ),
-        };
-        stage("indirect", run, why)
-    }
-
-    /// The texel grid's check (`crate::lightmap::grid_error`): it reads the direct pass's
-    /// texels and samples the lights and the sky at points.
-    fn grid_error_stage(&self) -> PlannedStage {
-        let s = self.settings;
-        let why_not = if !self.work {
-            Some(self.why_not())
-        } else if s.grid_error_points == 0 {
-            Some("turned off in the settings (grid_error_points; --grid-error-points 0): the estimate covers sampling noise only".to_string())
-        } else if s.method == Method::Vpl {
-            Some("method 'vpl' has no direct pass whose texels it could read".to_string())
-        } else {
-            None
-        };
-        let run = why_not.is_none();
-        stage(
-            "grid error",
-            run,
-            why_not.unwrap_or_else(|| {
-                format!(
-                    "the direct light between texel centres checked against its value at {} points: the texel grid's own error, added to the estimate",
-                    s.grid_error_points
-                )
-            }),
-        )
-    }
-
-    /// The finishing steps on the pages, dilation and writing.
-    fn output_stages(&self) -> Vec<PlannedStage> {
-        let s = self.settings;
-        let step = |name: &str, on: bool, off: &str, what: &str| {
-            let reason = if !self.work {
-                self.when_lit(String::new())
-            } else if on {
-                what.to_string()
-            } else {
-                off.to_string()
-            };
-            stage(name, self.work && on, reason)
-        };
-        vec![
-            step(
-                "denoise",
-                s.denoise,
-                "turned off in the settings (denoise; the preview preset's default is off, medium's and high's on)",
-                &format!(
-                    "edge-aware filter of {} texels' radius, as strong as each texel's noise warrants",
-                    s.denoise_radius
-                ),
-            ),
-            self.grid_error_stage(),
-            step(
-                "contact fit",
-                s.contact_fit,
-                "turned off in the settings (contact_fit)",
-                "texels next to geometry fitted so the bilinear reconstruction is right on the visible surface",
-            ),
-            stage(
-                "dilate",
-                self.work,
-                self.when_lit(format!(
-                    "fill invalid texels and {} texels of padding",
-                    self.settings.padding
-                )),
-            ),
-            step(
-                "stitch",
-                s.stitch_seams,
-                "turned off in the settings (stitch_seams)",
-                "both sides of every seam made to agree after bilinear filtering",
-            ),
-            step(
-                "volume",
-                s.irradiance_volume,
-                "no irradiance volume asked for (irradiance_volume; --irradiance-volume)",
-                &format!(
-                    "irradiance volume for dynamic objects, {} rays per probe, spacing {}",
-                    s.probe_rays,
-                    s.probe_spacing.map_or_else(
-                        || "from the texel density".to_string(),
-                        |d| format!("{d} m")
-                    )
-                ),
-            ),
-            stage(
-                "write",
-                true,
-                "lightmaps, baked glTF, manifest and report".to_string(),
-            ),
-        ]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::testscenes::{CornellLight, cornell_box, plane};
     use crate::scene::{Instance, Light, LightKind};
+    use crate::settings::Method;
     use glam::{Affine3A, Vec3};
 
     #[test]
@@ -687,7 +343,8 @@ mod tests {
         let s = cornell_box(CornellLight::Area);
         let plan = BakePlan::new(&s, &BakeSettings::default());
         assert!(plan.area_lights && !plan.sky && !plan.nothing_to_bake);
-        assert!(!plan.runs("direct lights") && plan.runs("area lights") && !plan.runs("sky"));
+        assert!(!plan.samples(DirectSource::Lights) && plan.samples(DirectSource::AreaLights));
+        assert!(!plan.samples(DirectSource::Sky) && plan.runs(Stage::Direct));
         assert_eq!(plan.texel_density, 256.0);
         let text = plan.describe();
         assert!(text.contains("no punctual"), "{text}");
@@ -698,7 +355,7 @@ mod tests {
     #[test]
     fn grid_error_stage_runs_unless_turned_off_or_without_a_direct_pass() {
         let s = cornell_box(CornellLight::Area);
-        assert!(BakePlan::new(&s, &BakeSettings::default()).runs("grid error"));
+        assert!(BakePlan::new(&s, &BakeSettings::default()).runs(Stage::GridError));
         let d = BakeSettings::default;
         let off = BakeSettings {
             grid_error_points: 0,
@@ -710,7 +367,7 @@ mod tests {
         };
         for (settings, why) in [(off, "grid_error_points"), (vpl, "no direct pass")] {
             let plan = BakePlan::new(&s, &settings);
-            assert!(!plan.runs("grid error") && plan.describe().contains(why));
+            assert!(!plan.runs(Stage::GridError) && plan.describe().contains(why));
         }
     }
 
@@ -742,7 +399,7 @@ mod tests {
         s.lights.clear();
         let plan = BakePlan::new(&s, &BakeSettings::default());
         assert!(plan.nothing_to_bake);
-        assert!(!plan.runs("raster") && !plan.runs("direct lights"));
+        assert!(!plan.runs(Stage::Raster) && !plan.runs(Stage::Direct));
         assert!(plan.describe().contains("NOTHING TO BAKE"));
     }
 

@@ -1,6 +1,6 @@
-//! The area of each node's basis function, ∫φᵢ dA: split from the texels' open areas by the
-//! basis weights, in closed form inside a chart (`exact_split`) and by stratified footprint
-//! samples elsewhere.
+//! The nodes made whole ([`Nodes::new`]) and the area of each node's basis function, ∫φᵢ dA:
+//! split from the texels' open areas by the basis weights, in closed form inside a chart
+//! (`exact_split`) and by stratified footprint samples elsewhere.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -25,6 +25,22 @@ const CHUNK_PATCHES: usize = 512;
 /// Chunks whose shares are made before they are added up: their entries (up to nine per
 /// patch) are all that exists beside the result.
 const BLOCK_CHUNKS: usize = 64;
+
+impl Nodes {
+    /// One node per valid patch, with its albedo, the area of its basis function
+    /// ([`basis_areas`]) and where geometry cuts its support (`HitMapper::split_flags`).
+    pub fn new(ctx: &BakeContext<'_>, basis: Basis) -> Self {
+        let mut nodes = Nodes::unknowns(ctx);
+        let mapper = HitMapper::new(*ctx, &nodes, basis);
+        let split = mapper.split_flags();
+        let (area, sliver) = basis_areas(ctx, &nodes, &mapper);
+        drop(mapper);
+        nodes.area = area;
+        nodes.split = split;
+        nodes.sliver = sliver;
+        nodes
+    }
+}
 
 /// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];
 /// invalid texels contribute their open rim), split over stratified points of its footprint,

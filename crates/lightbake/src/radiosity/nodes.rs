@@ -5,11 +5,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::basis::basis_areas;
-use super::hit_mapper::HitMapper;
 use crate::context::BakeContext;
 use crate::raster::{Footprint, Patch, Surface};
-use crate::settings::Basis;
 
 /// Footprint samples averaged for a texel's albedo.
 const ALBEDO_SAMPLES: u32 = 16;
@@ -30,8 +27,8 @@ pub struct Nodes {
     /// averaged over the texel's footprint.
     pub albedo: Vec<Vec3>,
     /// Per node: whether geometry cuts its basis support (its anchor cannot see the anchor of
-    /// a neighbouring node of its chart; see [`HitMapper`]). Traced once here, for every
-    /// mapper made for these nodes.
+    /// a neighbouring node of its chart; see `HitMapper::split_flags`). Traced once, when the
+    /// nodes are made (`Nodes::new`, in `basis.rs`), for every mapper made for these nodes.
     pub split: Vec<bool>,
     /// Per node: none of its texel's footprint points is open surface (the texel lies under
     /// geometry, and validity moved its point to the open side of it, possibly past the
@@ -44,8 +41,9 @@ pub struct Nodes {
 }
 
 impl Nodes {
-    /// One node per valid patch, with its albedo and basis area.
-    pub fn new(ctx: &BakeContext<'_>, basis: Basis) -> Self {
+    /// One node per valid patch, with its albedo; its basis areas and support flags still
+    /// empty (`Nodes::new` fills them, with a mapper over these nodes).
+    pub(super) fn unknowns(ctx: &BakeContext<'_>) -> Self {
         let patches = &ctx.patches.patches;
         let mut of_patch = vec![u32::MAX; patches.len()];
         let mut patch = Vec::new();
@@ -60,22 +58,14 @@ impl Nodes {
             .par_iter()
             .map(|&pi| texel_albedo(ctx, &surface, &patches[pi as usize]))
             .collect();
-        let mut nodes = Self {
+        Self {
             patch,
             of_patch,
             area: Vec::new(),
             albedo,
             split: Vec::new(),
             sliver: Vec::new(),
-        };
-        let mapper = HitMapper::new(*ctx, &nodes, basis);
-        let split = mapper.split_flags();
-        let (area, sliver) = basis_areas(ctx, &nodes, &mapper);
-        drop(mapper);
-        nodes.area = area;
-        nodes.split = split;
-        nodes.sliver = sliver;
-        nodes
+        }
     }
 
     /// Number of nodes.

@@ -52,6 +52,25 @@ pub struct ImportedScene {
     pub source: GltfSource,
 }
 
+impl ImportedScene {
+    /// A 64-bit FNV-1a hash of what the import read: the glTF document, its buffers and its
+    /// decoded images (sizes and texels). Two imports with the same hash read the same
+    /// content (a split bake's shards check it against `prepare`'s).
+    pub fn content_hash(&self) -> u64 {
+        let mut h = crate::sampling::Fnv1a::default();
+        h.bytes(&serde_json::to_vec(&self.source.json).unwrap_or_default());
+        for buffer in &self.source.buffers {
+            h.bytes(buffer);
+        }
+        for t in &self.scene.textures {
+            h.word(t.width);
+            h.word(t.height);
+            h.bytes(t.rgba8.as_flattened());
+        }
+        h.finish()
+    }
+}
+
 /// How a glTF file is read: the light convention, the folders its URIs may read from besides
 /// its own, and the limits that keep a hostile file from exhausting the machine.
 #[derive(Clone, Debug)]

@@ -23,6 +23,7 @@ use crate::error::{BakeError, Result};
 /// a fuzzed scene with a vertex at 1.4·10²² m (`crates/lightbake/tests/fuzz_import.rs`).
 pub const MAX_COORDINATE: f32 = 1e9;
 
+mod closest;
 pub mod extras;
 pub mod glb;
 pub mod gltf_accessor;
@@ -37,6 +38,7 @@ pub mod resources;
 pub mod testscenes;
 mod texture;
 
+pub use closest::closest_on_triangle;
 pub use light::{Light, LightBake, LightKind};
 pub use material::{Material, TexCoords, TextureRef};
 pub use mesh::{CREASE_DEGREES, GltfPrimitiveRef, Mesh};

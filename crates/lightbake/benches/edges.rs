@@ -9,6 +9,7 @@
 //! `cargo bench -p lightbake --bench edges` (add `-- --quick` for the small scenes alone,
 //! `-- --corpus` for the house and the office floor alone)
 
+use lightbake::Stage;
 use std::path::Path;
 
 use lightbake::analysis::edges::{ClassScore, edge_points, edge_score};
@@ -65,11 +66,11 @@ fn run_case(name: &str, quality: Quality) {
     };
     let out_bare = lightbake::bake(&scene, &bare, &Progress::new()).expect("bake");
     let score_bare = edge_score(&points, &out_bare);
-    let stage = |n: &str| {
+    let stage = |n: Stage| {
         out.report
             .stages
             .iter()
-            .find(|s| s.name == n)
+            .find(|s| s.run.stage == n)
             .map_or("-".to_string(), |s| format!("{:.2}", s.seconds))
     };
     let jumps = out.report.seams.map_or("-".to_string(), |s| {
@@ -94,9 +95,9 @@ fn run_case(name: &str, quality: Quality) {
         cell(&score.seam),
         cell(&score_bare.interior),
         cell(&score.interior),
-        stage("contact fit"),
-        stage("stitch"),
-        stage("denoise"),
+        stage(Stage::ContactFit),
+        stage(Stage::Stitch),
+        stage(Stage::Denoise),
         out.report.total_seconds,
     );
 }

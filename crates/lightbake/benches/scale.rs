@@ -15,6 +15,7 @@
 //!
 //! `cargo bench -p lightbake --bench scale` (add `-- --quick` for the smaller half)
 
+use lightbake::Stage;
 use std::process::Command;
 use std::time::Instant;
 
@@ -58,12 +59,12 @@ fn peak_rss_mib() -> f64 {
     lightbake::memory::peak_resident_bytes().map_or(0.0, |b| b as f64 / 1048576.0)
 }
 
-/// Seconds of the stages whose names start with one of `names`.
-fn stage(out: &BakeOutput, names: &[&str]) -> f64 {
+/// Seconds of the stages `stages` (every round).
+fn stage(out: &BakeOutput, stages: &[Stage]) -> f64 {
     out.report
         .stages
         .iter()
-        .filter(|st| names.iter().any(|n| st.name.starts_with(n)))
+        .filter(|st| stages.contains(&st.run.stage))
         .map(|st| st.seconds)
         .sum()
 }
@@ -96,7 +97,7 @@ fn texel_case(scene: &str, budget: f64) {
     let gather_ratio = floor
         .stages
         .iter()
-        .find(|(n, _)| n == "final gather")
+        .find(|(n, _)| n.stage == Stage::FinalGather)
         .map_or(f64::NAN, |s| s.1);
     let patches = out.report.texels.patches;
     let rss = peak_rss_mib();
@@ -107,11 +108,26 @@ fn texel_case(scene: &str, budget: f64) {
         scene.instanced_triangle_count(),
         patches,
         seconds,
-        stage(&out, &["unwrap", "raster", "validity", "bvh", "nodes"]),
-        stage(&out, &["direct"]),
-        stage(&out, &["coarse solve", "transport", "solve"]),
-        stage(&out, &["gather pilot", "final gather", "correction"]),
-        stage(&out, &["error estimate", "calibrate", "dilate"]),
+        stage(
+            &out,
+            &[
+                Stage::Unwrap,
+                Stage::Raster,
+                Stage::Validity,
+                Stage::Bvh,
+                Stage::Nodes
+            ]
+        ),
+        stage(&out, &[Stage::Direct]),
+        stage(&out, &[Stage::CoarseSolve, Stage::Transport, Stage::Solve]),
+        stage(
+            &out,
+            &[Stage::GatherPilot, Stage::FinalGather, Stage::Correction]
+        ),
+        stage(
+            &out,
+            &[Stage::ErrorEstimate, Stage::Calibrate, Stage::Dilate]
+        ),
         floor.ratio,
         gather_ratio,
         planned_mib(&out),
@@ -135,17 +151,17 @@ fn triangle_case(n: f64) {
         scene.instanced_triangle_count(),
         out.report.texels.patches,
         seconds,
-        stage(&out, &["bvh"]),
-        stage(&out, &["direct"]),
+        stage(&out, &[Stage::Bvh]),
+        stage(&out, &[Stage::Direct]),
         stage(
             &out,
             &[
-                "coarse solve",
-                "transport",
-                "solve",
-                "gather pilot",
-                "final gather",
-                "correction"
+                Stage::CoarseSolve,
+                Stage::Transport,
+                Stage::Solve,
+                Stage::GatherPilot,
+                Stage::FinalGather,
+                Stage::Correction
             ]
         ),
         out.report.floor.as_ref().map_or(f64::NAN, |f| f.ratio),

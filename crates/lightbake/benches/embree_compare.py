@@ -3,7 +3,7 @@
 
     cargo run --release -p lightbake --example ray_workload -- /tmp/rays
     pip install embreex numpy
-    python3 benches/embree_compare.py /tmp/rays
+    python3 crates/lightbake/benches/embree_compare.py /tmp/rays
 
 Reads triangles.f32, gather.f32, shadow.f32 and lightbake.json written by the example,
 traces the gather rays (closest hit, INTERSECT) and the shadow rays (any hit, OCCLUDED) with

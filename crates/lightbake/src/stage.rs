@@ -1,0 +1,214 @@
+//! The pipeline's stages, by one name each: the plan lists them, the run times and counts
+//! them, progress and previews name the running one, the report records them, a split bake's
+//! part files are named after them, and the Bevy plugin's status shows them.
+//!
+//! A stage that a bake repeats (the radiosity rounds of a target error) is recorded once per
+//! round: [`StageRun`] is a stage and its round.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// Declares the stages with their names, in pipeline order.
+macro_rules! stages {
+    ($($(#[$doc:meta])* $variant:ident = $name:literal,)*) => {
+        /// One stage of the pipeline, in the order a bake runs them.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Stage {
+            $($(#[$doc])* $variant,)*
+        }
+
+        impl Stage {
+            /// Every stage, in pipeline order.
+            pub const ALL: &'static [Stage] = &[$(Stage::$variant,)*];
+
+            /// The stage's name, as the plan, the report and the progress show it.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(Stage::$variant => $name,)*
+                }
+            }
+        }
+    };
+}
+
+stages! {
+    /// Which stages the scene needs ([`crate::plan`]).
+    Plan = "plan",
+    /// Lightmap UVs: xatlas, or the meshes' own `TEXCOORD_1`, packed into pages.
+    Unwrap = "unwrap",
+    /// The texel density that follows the light: a direct-light pilot and a repack.
+    Density = "density",
+    /// The BVH for the ray queries.
+    Bvh = "bvh",
+    /// A split bake's shard or merge reads the prepared texel patches.
+    Patches = "patches",
+    /// Texel patches rasterised from the unwrapped triangles.
+    Raster = "raster",
+    /// Texels moved out of geometry; those that cannot be are marked.
+    Validity = "validity",
+    /// The ray-tracing floor: the machine's closest-hit and any-hit rates.
+    Calibrate = "calibrate",
+    /// Direct light from the lights, the emissive surfaces and the sky.
+    Direct = "direct",
+    /// The indirect light as a whole, as the plan decides it: radiosity's stages (nodes to
+    /// error estimate) or instant radiosity's ([`Stage::Vpl`]) run it.
+    Indirect = "indirect",
+    /// Instant radiosity: virtual point lights traced and gathered.
+    Vpl = "vpl",
+    /// Radiosity's nodes (the basis functions' support on the texel grid).
+    Nodes = "nodes",
+    /// The matrix solvers' transport matrix.
+    Transport = "transport",
+    /// A matrix solve.
+    Solve = "solve",
+    /// Hierarchical radiosity's coarse level, solved.
+    CoarseSolve = "coarse solve",
+    /// The adaptive final gather's pilot rays.
+    GatherPilot = "gather pilot",
+    /// The final gather of the coarse solution at every node.
+    FinalGather = "final gather",
+    /// The correction of the coarse level's light near geometry.
+    Correction = "correction",
+    /// The reflection near geometry the coarse level cannot resolve.
+    Reflection = "reflection",
+    /// The radiosity solution's error estimate.
+    ErrorEstimate = "error estimate",
+    /// The edge-aware filter of the sampling noise.
+    Denoise = "denoise",
+    /// The texel grid's own error, checked at points.
+    GridError = "grid error",
+    /// Texels next to geometry fitted to the visible surface.
+    ContactFit = "contact fit",
+    /// Invalid texels filled and the padding dilated.
+    Dilate = "dilate",
+    /// Both sides of every seam made to agree.
+    Stitch = "stitch",
+    /// The irradiance volume for dynamic objects.
+    Volume = "volume",
+    /// Lightmaps, baked glTF, manifest and report written.
+    Write = "write",
+}
+
+impl Stage {
+    /// The stage of the plan that runs this one: [`Stage::Indirect`] for radiosity's and
+    /// instant radiosity's stages, the stage itself otherwise.
+    pub const fn planned_as(self) -> Stage {
+        match self {
+            Stage::Vpl
+            | Stage::Nodes
+            | Stage::Transport
+            | Stage::Solve
+            | Stage::CoarseSolve
+            | Stage::GatherPilot
+            | Stage::FinalGather
+            | Stage::Correction
+            | Stage::Reflection
+            | Stage::ErrorEstimate => Stage::Indirect,
+            s => s,
+        }
+    }
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is not a stage's.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}' is not a stage (stages: plan, unwrap, density, ..., write)")]
+pub struct UnknownStage(pub String);
+
+impl FromStr for Stage {
+    type Err = UnknownStage;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Stage::ALL
+            .iter()
+            .copied()
+            .find(|st| st.name() == s)
+            .ok_or_else(|| UnknownStage(s.to_string()))
+    }
+}
+
+impl Serialize for Stage {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Stage {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// One run of a stage: the stage and its round (1 for the first; a target error repeats the
+/// radiosity stages).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct StageRun {
+    /// The stage.
+    pub stage: Stage,
+    /// Its round, 1 for the first.
+    pub round: u32,
+}
+
+impl StageRun {
+    /// The first (usually only) run of `stage`.
+    pub const fn first(stage: Stage) -> Self {
+        Self { stage, round: 1 }
+    }
+}
+
+impl From<Stage> for StageRun {
+    fn from(stage: Stage) -> Self {
+        Self::first(stage)
+    }
+}
+
+impl fmt::Display for StageRun {
+    /// The stage's name, with ` #round` after the first round.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.round > 1 {
+            write!(f, "{} #{}", self.stage.name(), self.round)
+        } else {
+            f.write_str(self.stage.name())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_parse_back() {
+        for (i, a) in Stage::ALL.iter().enumerate() {
+            assert_eq!(a.name().parse::<Stage>(), Ok(*a));
+            assert!(Stage::ALL[i + 1..].iter().all(|b| b.name() != a.name()));
+        }
+        assert!("indirekt".parse::<Stage>().is_err());
+        let json = serde_json::to_string(&Stage::CoarseSolve).unwrap();
+        assert_eq!(json, "\"coarse solve\"");
+        assert_eq!(
+            serde_json::from_str::<Stage>(&json).unwrap(),
+            Stage::CoarseSolve
+        );
+    }
+
+    #[test]
+    fn rounds_after_the_first_are_numbered() {
+        let run = StageRun {
+            stage: Stage::FinalGather,
+            round: 2,
+        };
+        assert_eq!(run.to_string(), "final gather #2");
+        assert_eq!(StageRun::first(Stage::Direct).to_string(), "direct");
+        assert_eq!(Stage::CoarseSolve.planned_as(), Stage::Indirect);
+        assert_eq!(Stage::Denoise.planned_as(), Stage::Denoise);
+    }
+}
