@@ -11,7 +11,7 @@ use bevy::light::GlobalAmbientLight;
 use bevy::mesh::{Indices, MeshAccessError};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use lightbake::bake::PreviewKind;
+use lightbake::bake::{PreviewKind, PreviewSlot};
 use lightbake::{
     BakeError, BakeHandle, BakeOutput, BakeSettings, Layout, MeshUnwrap, Scene, UvOrigin,
 };
@@ -125,11 +125,15 @@ pub(crate) fn start_bake(world: &mut World) {
         lightbake::analysis::verify::verify(scene, &mut output);
         write_files(output, scene, settings, out_dir.as_deref(), &output_dir)
     };
-    let spawned = if config.previews {
-        BakeHandle::spawn_then_previewing(scene, settings, then)
+    let previews = if config.previews {
+        PreviewSlot::enabled()
     } else {
-        BakeHandle::spawn_then(scene, settings, then)
+        PreviewSlot::default()
     };
+    let spawned = lightbake::BakeBuilder::new(scene)
+        .settings(settings)
+        .previews(std::sync::Arc::new(previews))
+        .spawn_then(then);
     let handle = match spawned {
         Ok(h) => h,
         Err(e) => return fail(world, started, e.to_string()),

@@ -22,8 +22,8 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use lightbake::report::BakePlan;
 use lightbake::{
-    BakeHandle, BakeSettings, Basis, ImageFormat, ImportOptions, LightConvention, Method,
-    OutputFormats, Progress, Quality, Sequence, SolverChoice, import_gltf_with,
+    BakeBuilder, BakeHandle, BakeSettings, Basis, ImageFormat, ImportOptions, LightConvention,
+    Method, OutputFormats, Progress, Quality, Sequence, SolverChoice, import_gltf_with,
 };
 
 mod convergence;
@@ -504,7 +504,9 @@ fn run(args: Args) -> Result<(), CliError> {
         return Ok(());
     }
 
-    let handle = BakeHandle::spawn(imported.scene.clone(), settings.clone())?;
+    let handle = BakeBuilder::new(imported.scene.clone())
+        .settings(settings.clone())
+        .spawn()?;
     watch(&handle, args.quiet);
     let mut output = handle.join()?;
     write_and_print(&args.output, &mut output, &imported, &settings)

@@ -20,7 +20,7 @@ use std::time::Duration;
 
 use lightbake::bake::shard::{Role, ShardRun};
 use lightbake::scene::LightBake;
-use lightbake::{BakeError, BakeSettings, Progress};
+use lightbake::{BakeBuilder, BakeSettings, SplitOutcome};
 use serde::{Deserialize, Serialize};
 
 use super::{Args, CliError, import_options, load, write_and_print};
@@ -246,14 +246,15 @@ fn run_role(
     role: Role,
 ) -> Result<Option<lightbake::BakeOutput>, CliError> {
     let run = ShardRun::new(work, role);
-    let progress = Progress::new();
-    match lightbake::bake::bake_split(&imported.scene, settings, &progress, &run) {
-        Ok(out) => Ok(Some(out)),
-        Err(BakeError::ShardPartDone { done }) => {
+    let outcome = BakeBuilder::new(imported.scene.clone())
+        .settings(settings.clone())
+        .run_split(&run)?;
+    match outcome {
+        SplitOutcome::Merged(out) => Ok(Some(*out)),
+        SplitOutcome::PartDone(done) => {
             println!("{done}");
             Ok(None)
         }
-        Err(e) => Err(e.into()),
     }
 }
 

@@ -239,13 +239,6 @@ pub enum BakeError {
         /// What is wrong and what to run.
         message: String,
     },
-    /// A `prepare` or `shard` process of a split bake did its part and stopped where it was
-    /// meant to (not a failure).
-    #[error("{done}")]
-    ShardPartDone {
-        /// What it did.
-        done: String,
-    },
 }
 
 /// Shorthand for results with [`BakeError`].

@@ -1,7 +1,8 @@
 //! # lightbake
 //!
 //! An engine-free lightmap baker. A [`Scene`] (imported from glTF with [`import_gltf`], or
-//! built in code) is baked with [`bake()`] (or in the background with [`BakeHandle`]) into HDR
+//! built in code) is baked with [`bake()`] (or, set up with [`BakeBuilder`], with previews,
+//! in the background as a [`BakeHandle`], or split across processes) into HDR
 //! lightmap pages with direct and interreflected light, and [`write_outputs`] writes them with
 //! a baked glTF (`TEXCOORD_1`), a manifest and a report:
 //!
@@ -60,14 +61,18 @@
 //! tests and of the shipped assets are behind the `testscenes` feature
 //! (`lightbake::scene::testscenes`).
 
-/// Declares stage modules: private, or public with the `internals` feature.
+// Every type a public item names can be named by its users (the stages' types stay behind
+// `internals`).
+#![warn(unnameable_types)]
+
+/// Declares stage modules: crate-private, or public with the `internals` feature.
 macro_rules! internal {
     ($($name:ident),* $(,)?) => {
         $(
             #[cfg(feature = "internals")]
             pub mod $name;
             #[cfg(not(feature = "internals"))]
-            mod $name;
+            pub(crate) mod $name;
         )*
     };
 }
@@ -93,7 +98,7 @@ pub mod output;
 pub mod probes;
 pub mod report;
 
-pub use bake::{BakeHandle, BakeOutput, bake};
+pub use bake::{BakeBuilder, BakeHandle, BakeOutput, SplitOutcome, bake};
 pub use density::{DensityReport, MeshDensity};
 pub use error::{BakeError, Result};
 /// The `glam` the scene types use (re-exported so engine layers name the same version).

@@ -291,17 +291,17 @@ pub struct BakeSettings {
     pub reunwrap: bool,
     /// Fit the texels next to geometry so that the lightmap's bilinear reconstruction is right
     /// on the visible surface (a floor texel whose centre is under a thin wall, a texel
-    /// under a rug, padding beside a contact; [`crate::lightmap::contacts`]). Default true.
+    /// under a rug, padding beside a contact; `lightmap::contacts`). Default true.
     pub contact_fit: bool,
     /// Filter each chart's texels with an edge-aware denoiser, as strongly as each texel's
     /// estimated noise warrants, and carry the error estimate through it
-    /// ([`crate::lightmap::denoise`]). Default off (preview), on (medium, high).
+    /// (`lightmap::denoise`). Default off (preview), on (medium, high).
     pub denoise: bool,
     /// The denoiser's radius, texels. Range 1..=8. Default 3.
     pub denoise_radius: u32,
     /// Make the two sides of every seam (a surface split between charts) agree after
     /// bilinear filtering, by a least-squares stitch of the texels along it
-    /// ([`crate::lightmap::stitch`]). Default true.
+    /// (`lightmap::stitch`). Default true.
     pub stitch_seams: bool,
     /// Also bake an irradiance volume for dynamic objects ([`crate::probes`]): a grid of
     /// probes over the baked instances, each the light from the six axis directions read from

@@ -34,7 +34,7 @@ macro_rules! stages {
 }
 
 stages! {
-    /// Which stages the scene needs ([`crate::plan`]).
+    /// Which stages the scene needs ([`crate::report::BakePlan`]).
     Plan = "plan",
     /// Lightmap UVs: xatlas, or the meshes' own `TEXCOORD_1`, packed into pages.
     Unwrap = "unwrap",

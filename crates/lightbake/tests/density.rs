@@ -8,7 +8,7 @@ mod common;
 use common::add;
 use glam::{Affine3A, Vec3};
 use lightbake::Stage;
-use lightbake::analysis::verify::{measure, verification_points};
+use lightbake::analysis::checks::{measure, verification_points};
 use lightbake::bvh::RayScene;
 use lightbake::context::Prepared;
 use lightbake::density::adapt;

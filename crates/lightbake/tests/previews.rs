@@ -4,8 +4,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use lightbake::bake::{PreviewKind, PreviewSlot, bake_previewing};
-use lightbake::progress::Progress;
+use lightbake::bake::{BakeBuilder, PreviewKind, PreviewSlot};
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
 use lightbake::settings::{BakeSettings, Method, SolverChoice};
@@ -30,14 +29,18 @@ fn mean(pages: &[lightbake::LightmapPage]) -> (f64, bool) {
 fn previews_of(scene: &Scene, settings: &BakeSettings) -> (Vec<Seen>, f64) {
     let seen: Arc<Mutex<Vec<Seen>>> = Arc::default();
     let sink = Arc::clone(&seen);
-    let slot = PreviewSlot::observed(move |p| {
+    let slot = Arc::new(PreviewSlot::observed(move |p| {
         let (m, finite) = mean(&p.pages);
         let ambient = 0.2126 * p.ambient.x + 0.7152 * p.ambient.y + 0.0722 * p.ambient.z;
         sink.lock()
             .unwrap()
             .push((p.kind, p.sequence, m, finite, ambient));
-    });
-    let out = bake_previewing(scene, settings, &Progress::new(), &slot).unwrap();
+    }));
+    let out = BakeBuilder::new(scene.clone())
+        .settings(settings.clone())
+        .previews(Arc::clone(&slot))
+        .run()
+        .unwrap();
     let last = slot.latest().unwrap();
     assert_eq!(last.kind, PreviewKind::Final);
     assert_eq!(
@@ -120,7 +123,11 @@ fn a_direct_bake_previews_direct_then_final_and_a_plain_bake_none() {
     let (seen, _) = previews_of(&scene, &settings);
     let kinds: Vec<PreviewKind> = seen.iter().map(|s| s.0).collect();
     assert_eq!(kinds, [PreviewKind::Direct, PreviewKind::Final]);
-    let slot = PreviewSlot::default();
-    bake_previewing(&scene, &settings, &Progress::new(), &slot).unwrap();
+    let slot = Arc::new(PreviewSlot::default());
+    BakeBuilder::new(scene)
+        .settings(settings)
+        .previews(Arc::clone(&slot))
+        .run()
+        .unwrap();
     assert!(slot.latest().is_none(), "previews only when asked for");
 }

@@ -10,7 +10,7 @@ mod common;
 
 use common::corpus_scene;
 use glam::{Affine3A, Vec3};
-use lightbake::analysis::verify::{measure, verification_points};
+use lightbake::analysis::checks::{measure, verification_points};
 use lightbake::scene::{LightKind, Scene};
 use lightbake::{BakeOutput, BakeSettings, Progress};
 

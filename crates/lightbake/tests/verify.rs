@@ -3,7 +3,8 @@
 mod common;
 
 use common::corpus_scene;
-use lightbake::analysis::verify::{measure, verification_points, verify};
+use lightbake::analysis::checks::{measure, verification_points};
+use lightbake::analysis::verify::verify;
 use lightbake::scene::testscenes::{CornellLight, cornell_box};
 use lightbake::{BakeSettings, Progress};
 

@@ -22,6 +22,10 @@
 //! and too dark (points where both are black, below 1% of the RMS reference, are left out of
 //! the shares).
 
+// Without `internals` only `verify` and `study` use this module; the rest is for the tests
+// and the benchmarks.
+#![cfg_attr(not(feature = "internals"), allow(dead_code))]
+
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 

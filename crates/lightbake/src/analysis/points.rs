@@ -17,6 +17,10 @@
 //!   normalisation of [`crate::error_estimate`] (relative to the RMS value), with the
 //!   reference's noise taken out.
 
+// Without `internals` only `verify` and `study` use this module; the rest is for the tests
+// and the benchmarks.
+#![cfg_attr(not(feature = "internals"), allow(dead_code))]
+
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

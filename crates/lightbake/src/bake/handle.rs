@@ -5,14 +5,13 @@
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
+use super::BakeOutput;
 use super::preview::{Preview, PreviewSlot};
-use super::{BakeOutput, bake_previewing};
 use crate::error::{BakeError, Result};
 use crate::progress::{Progress, ProgressSnapshot};
-use crate::scene::Scene;
-use crate::settings::BakeSettings;
 
-/// A running bake (and whatever follows it on the same thread, such as writing its files).
+/// A running bake (and whatever follows it on the same thread, such as writing its files),
+/// started by [`super::BakeBuilder::spawn`] or [`super::BakeBuilder::spawn_then`].
 #[derive(Debug)]
 pub struct BakeHandle<T = BakeOutput> {
     thread: Option<JoinHandle<Result<T>>>,
@@ -20,58 +19,17 @@ pub struct BakeHandle<T = BakeOutput> {
     previews: Arc<PreviewSlot>,
 }
 
-impl BakeHandle<BakeOutput> {
-    /// Starts [`bake`](super::bake()) of `scene` with `settings` on a new thread.
-    ///
-    /// # Errors
-    /// [`BakeError::Thread`] when the thread cannot be started.
-    pub fn spawn(scene: Scene, settings: BakeSettings) -> Result<Self> {
-        Self::spawn_then(scene, settings, |output, _, _| Ok(output))
-    }
-}
-
 impl<T: Send + 'static> BakeHandle<T> {
-    /// Starts [`bake`](super::bake()) of `scene` with `settings` on a new thread named `lightbake`, then runs
-    /// `then(output, &scene, &settings)` there (writing the outputs, say).
-    ///
-    /// # Errors
-    /// [`BakeError::Thread`] when the thread cannot be started.
-    pub fn spawn_then(
-        scene: Scene,
-        settings: BakeSettings,
-        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
+    /// Runs `work` on a new thread named `lightbake`, watched through `progress` and
+    /// `previews` ([`super::BakeBuilder::spawn_then`] starts bakes this way).
+    pub(super) fn start(
+        progress: Arc<Progress>,
+        previews: Arc<PreviewSlot>,
+        work: impl FnOnce() -> Result<T> + Send + 'static,
     ) -> Result<Self> {
-        Self::start(scene, settings, PreviewSlot::default(), then)
-    }
-
-    /// [`Self::spawn_then`], with the bake publishing progressive previews of its lightmaps
-    /// ([`super::preview`]; read them with [`Self::preview`]).
-    ///
-    /// # Errors
-    /// [`BakeError::Thread`] when the thread cannot be started.
-    pub fn spawn_then_previewing(
-        scene: Scene,
-        settings: BakeSettings,
-        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
-    ) -> Result<Self> {
-        Self::start(scene, settings, PreviewSlot::enabled(), then)
-    }
-
-    fn start(
-        scene: Scene,
-        settings: BakeSettings,
-        previews: PreviewSlot,
-        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
-    ) -> Result<Self> {
-        let progress = Arc::new(Progress::new());
-        let previews = Arc::new(previews);
-        let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
         let thread = std::thread::Builder::new()
             .name("lightbake".into())
-            .spawn(move || {
-                let output = bake_previewing(&scene, &settings, &watched, &published)?;
-                then(output, &scene, &settings)
-            })
+            .spawn(work)
             .map_err(|source| BakeError::Thread { source })?;
         Ok(Self {
             thread: Some(thread),
@@ -80,8 +38,8 @@ impl<T: Send + 'static> BakeHandle<T> {
         })
     }
 
-    /// The latest progressive preview of the lightmaps (a bake started with
-    /// [`Self::spawn_then_previewing`]; `None` before the first and for other bakes).
+    /// The latest progressive preview of the lightmaps (a bake set up with
+    /// [`super::BakeBuilder::previews`]; `None` before the first and for other bakes).
     pub fn preview(&self) -> Option<Arc<Preview>> {
         self.previews.latest()
     }
@@ -142,7 +100,9 @@ impl<T: Send + 'static> BakeHandle<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bake::BakeBuilder;
     use crate::scene::testscenes::{CornellLight, cornell_box};
+    use crate::settings::BakeSettings;
 
     #[test]
     fn a_handle_bakes_and_reports_panics() {
@@ -154,12 +114,17 @@ mod tests {
             ..BakeSettings::preview()
         };
         let scene = cornell_box(CornellLight::Point);
-        let handle = BakeHandle::spawn(scene.clone(), settings.clone()).unwrap();
+        let handle = BakeBuilder::new(scene.clone())
+            .settings(settings.clone())
+            .spawn()
+            .unwrap();
         let output = handle.join().unwrap();
         assert!(!output.pages.is_empty());
 
-        let mut handle: BakeHandle<()> =
-            BakeHandle::spawn_then(scene, settings, |_, _, _| panic!("on purpose")).unwrap();
+        let mut handle: BakeHandle<()> = BakeBuilder::new(scene)
+            .settings(settings)
+            .spawn_then(|_, _, _| panic!("on purpose"))
+            .unwrap();
         let result = loop {
             if let Some(r) = handle.try_join() {
                 break r;

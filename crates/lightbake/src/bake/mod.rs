@@ -4,15 +4,16 @@
 //! report (`bake::stages`); the lighting passes are `bake::passes`.
 //!
 //! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
-//! writes it; [`BakeHandle`] runs both on a thread of their own. Work runs on a rayon pool of
-//! `settings.threads` threads; the result does not depend on the thread count.
-//! [`bake_previewing`] also publishes progressive previews ([`preview`]); [`bake_split`] is one
-//! process of a bake split across processes ([`shard`]).
+//! writes it. [`BakeBuilder`] sets up any other bake: with progressive previews
+//! ([`preview`]), on a thread of its own ([`BakeHandle`]), or as one process of a bake split
+//! across processes ([`shard`]). Work runs on a rayon pool of `settings.threads` threads; the
+//! result does not depend on the thread count.
 
 mod estimate;
 mod finite;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
+mod builder;
 mod gathers;
 mod handle;
 mod passes;
@@ -47,6 +48,7 @@ use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
 use crate::stage::Stage;
 use crate::unwrap::{Layout, unwrap_scene};
+pub use builder::{BakeBuilder, SplitOutcome};
 use estimate::{denoised_error, with_grid_error};
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
@@ -73,46 +75,34 @@ pub struct BakeOutput {
     pub report: BakeReport,
 }
 
-/// Bakes `scene` with `settings`, reporting progress to (and obeying cancellation from)
-/// `progress`.
+/// Bakes `scene` with `settings` on this thread, reporting progress to (and obeying
+/// cancellation from) `progress`: the short form of
+/// `BakeBuilder::new(scene).settings(settings).run()` for a borrowed scene. [`BakeBuilder`]
+/// also runs a bake with previews, on a thread of its own ([`BakeHandle`]) or as one process
+/// of a split bake.
 ///
 /// # Errors
 /// Invalid settings or scene ([`BakeError::BadSetting`] and the scene errors),
 /// [`BakeError::OverMemoryBudget`], [`BakeError::Unwrap`], [`BakeError::Cancelled`].
 pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<BakeOutput> {
-    bake_previewing(scene, settings, progress, &PreviewSlot::default())
-}
-
-/// [`bake`], leaving progressive previews of the lightmaps in `previews` when it is
-/// [`PreviewSlot::enabled`] ([`preview`]): the direct light, then the first indirect
-/// solution, then the final pages.
-///
-/// # Errors
-/// As [`bake`].
-pub fn bake_previewing(
-    scene: &Scene,
-    settings: &BakeSettings,
-    progress: &Progress,
-    previews: &PreviewSlot,
-) -> Result<BakeOutput> {
-    bake_with(scene, settings, progress, previews, None)
+    bake_with(scene, settings, progress, &PreviewSlot::default(), None)
 }
 
 /// One process of a bake split across processes ([`shard`]): `run` says which (prepare,
 /// shard I of N, merge) and where the work folder is. The merge returns the bake, bit for bit
-/// the output of [`bake`] with the same scene and settings; prepare and the shards end with
-/// [`BakeError::ShardPartDone`] when they have done their part.
+/// the output of [`bake`] with the same scene and settings; prepare and the shards say what
+/// they did.
 ///
 /// # Errors
 /// As [`bake`]; [`BakeError::Shard`] when the work folder is incomplete or from another
 /// preparation; [`BakeError::BadSetting`] for a target error (its rounds need each whole
 /// stage's estimate).
-pub fn bake_split(
+fn bake_split(
     scene: &Scene,
     settings: &BakeSettings,
     progress: &Progress,
     run: &ShardRun,
-) -> Result<BakeOutput> {
+) -> Result<SplitOutcome> {
     if let Some(t) = settings.target_error {
         return Err(BakeError::BadSetting {
             name: "target_error",
@@ -120,13 +110,20 @@ pub fn bake_split(
             message: "a split bake takes fixed sample counts: its rounds would need every shard's estimate".into(),
         });
     }
-    bake_with(
+    match bake_with(
         scene,
         settings,
         progress,
         &PreviewSlot::default(),
         Some(run),
-    )
+    ) {
+        Ok(output) => Ok(SplitOutcome::Merged(Box::new(output))),
+        Err(BakeError::Cancelled) if !progress.is_cancelled() => match run.stopped() {
+            Some(done) => Ok(SplitOutcome::PartDone(done)),
+            None => Err(BakeError::Cancelled),
+        },
+        Err(e) => Err(e),
+    }
 }
 
 fn bake_with(

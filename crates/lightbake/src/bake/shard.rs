@@ -141,7 +141,7 @@ pub fn layout_hash(layout: &Layout) -> u64 {
 }
 
 /// FNV-1a over every patch's identity and geometry.
-pub fn patches_hash(patches: &Patches) -> u64 {
+fn patches_hash(patches: &Patches) -> u64 {
     let mut h = Fnv1a::default();
     let mut eat = |w: u32| h.word(w);
     for p in &patches.patches {
@@ -168,7 +168,7 @@ pub fn patches_hash(patches: &Patches) -> u64 {
 impl Units {
     /// Cuts `patches` (of `layout`) into at most [`UNITS`] units of about equal estimated
     /// rays (direct samples of `lights` lights and the sky, gathers).
-    pub fn plan(
+    pub(crate) fn plan(
         patches: &Patches,
         layout: &Layout,
         settings: &BakeSettings,
@@ -316,6 +316,8 @@ pub struct ShardRun {
     units: Mutex<Option<Units>>,
     started: Instant,
     split: Mutex<Vec<SplitStage>>,
+    /// What this process did when it stopped after its part (prepare, or a shard).
+    stopped: Mutex<Option<String>>,
 }
 
 /// The header of a part file, as JSON before its values.
@@ -343,6 +345,7 @@ impl ShardRun {
             units: Mutex::new(None),
             started: Instant::now(),
             split: Mutex::new(Vec::new()),
+            stopped: Mutex::new(None),
         }
     }
 
@@ -366,14 +369,28 @@ impl ShardRun {
         staged.stage(&self.dir.join(PATCHES_FILE), &patches.to_bytes())?;
         staged.stage(&self.dir.join(UNITS_FILE), &text)?;
         staged.commit()?;
-        Err(BakeError::ShardPartDone {
-            done: format!(
-                "prepared {} work units over {} texel patches in {}",
-                units.rays.len(),
-                patches.patches.len(),
-                self.dir.display()
-            ),
-        })
+        Err(self.stop(format!(
+            "prepared {} work units over {} texel patches in {}",
+            units.rays.len(),
+            patches.patches.len(),
+            self.dir.display()
+        )))
+    }
+
+    /// Stops this process after its part: records `done` (what it did) for
+    /// [`super::SplitOutcome::PartDone`] and returns the error that unwinds the bake's stages
+    /// ([`BakeError::Cancelled`]; the split bake's entry point turns it into the outcome).
+    fn stop(&self, done: String) -> BakeError {
+        *self.stopped.lock().unwrap_or_else(|e| e.into_inner()) = Some(done);
+        BakeError::Cancelled
+    }
+
+    /// What this process did, when it stopped after its part.
+    pub(super) fn stopped(&self) -> Option<String> {
+        self.stopped
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// Whether this process reads prepare's patches (a shard or the merge) rather than making
@@ -480,11 +497,9 @@ impl ShardRun {
     /// (the rest is the merge's).
     pub(super) fn shard_stops(&self) -> Result<()> {
         match self.role {
-            Role::Shard { index, count, .. } => Err(BakeError::ShardPartDone {
-                done: format!(
+            Role::Shard { index, count, .. } => Err(self.stop(format!(
                     "shard {index} of {count}: every split stage done; run `bake merge` when all shards are"
-                ),
-            }),
+                ))),
             _ => Ok(()),
         }
     }
@@ -495,7 +510,7 @@ impl ShardRun {
     /// here or read from the shards' parts.
     ///
     /// # Errors
-    /// [`BakeError::ShardPartDone`] when this shard stops after its part;
+    /// [`BakeError::Cancelled`] when this shard stops after its part (see [`Self::stop`]);
     /// [`BakeError::Shard`] when a part is missing, from another count or another
     /// preparation.
     pub(super) fn split<T: Record>(
@@ -543,19 +558,15 @@ impl ShardRun {
                 // Without waiting, a call computes one stage at most: the waves of an engine
                 // that runs the stages one by one each do the same work.
                 None if !kept => {
-                    return Err(BakeError::ShardPartDone {
-                        done: format!(
+                    return Err(self.stop(format!(
                             "shard {index} of {count}: stage '{stage}' done; run the shard again for the next stage once every shard's part of this one is written"
-                        ),
-                    });
+                        )));
                 }
                 None if !self.all_there(stage, count) => {
-                    return Err(BakeError::ShardPartDone {
-                        done: format!(
+                    return Err(self.stop(format!(
                             "shard {index} of {count}: stage '{stage}' was done already; the next stage waits for shards {:?}",
                             self.missing(stage, count)
-                        ),
-                    });
+                        )));
                 }
                 None => {}
                 Some(limit) => self.wait_for(stage, count, limit)?,

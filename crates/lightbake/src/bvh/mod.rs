@@ -94,6 +94,7 @@ pub struct RayScene {
     /// Length of the bounds' diagonal, m (at least 1e-30).
     pub extent: f32,
     /// Core BVH build time.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub build_time: Duration,
 }
 
@@ -263,6 +264,7 @@ impl RayScene {
     }
 
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn closest_hit_brute_force(
         &self,
         origin: Vec3,
@@ -295,6 +297,7 @@ impl RayScene {
     ///
     /// # Panics
     /// When an invariant is broken.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn validate(&self) {
         self.bvh.validate(self.accel.len());
         assert_eq!(self.bvh_to_global.len(), self.accel.len());

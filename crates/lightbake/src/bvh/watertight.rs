@@ -70,6 +70,7 @@ pub fn edge_functions_f64(shear: &Shear, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] 
 /// The watertight test of the ray from `origin` with frame `shear` against the triangle
 /// `v`: (t, u, v) for a hit with t in [tmin, tmax], u and v the barycentric weights of the
 /// second and third vertices.
+#[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
 #[inline]
 pub fn intersect(
     v: &[Vec3; 3],

@@ -362,6 +362,7 @@ impl Bvh4 {
     ///
     /// # Panics
     /// When an invariant is broken.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn validate(&self, prim_count: usize) {
         let mut seen = vec![false; prim_count];
         if self.root != EMPTY {
@@ -380,6 +381,7 @@ impl Bvh4 {
 
     /// Bounds of subtree `r` (checked against its parent by the caller) and the stack entries
     /// it needs with `pending` entries already waiting.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     fn check(&self, r: u32, seen: &mut [bool], pending: usize) -> (Vec3, Vec3, usize) {
         if r & LEAF_BIT != 0 {
             let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);

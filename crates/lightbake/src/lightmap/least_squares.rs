@@ -47,6 +47,7 @@ impl Unknowns {
     }
 
     /// Whether there are none.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn is_empty(&self) -> bool {
         self.keys.is_empty()
     }

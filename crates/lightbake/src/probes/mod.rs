@@ -10,13 +10,19 @@
 //! shadows.
 //!
 //! * [`grid`]: where the probes go (the baked instances' bounds, the spacing and why);
-//! * [`gather`]: one probe's six sides from the solution (rays read the baked lightmaps);
-//! * [`volume`]: the volume stage: every probe gathered, probes inside geometry moved to the
+//! * `gather`: one probe's six sides from the solution (rays read the baked lightmaps);
+//! * `bake`: the volume stage: every probe gathered, probes inside geometry moved to the
 //!   nearest open point or filled from their neighbours, and the texture in Bevy's layout.
 
-pub mod gather;
+// One probe's gather and the volume stage read the stages' ray scene: public with the
+// `internals` feature.
+internal!(bake, gather);
 pub mod grid;
 pub mod volume;
 
+#[cfg(not(feature = "internals"))]
+pub(crate) use bake::bake_volume;
+#[cfg(feature = "internals")]
+pub use bake::bake_volume;
 pub use grid::VolumeGrid;
-pub use volume::{IrradianceVolume, ProbeState, VolumeStats, bake_volume};
+pub use volume::{IrradianceVolume, ProbeState, VolumeStats};

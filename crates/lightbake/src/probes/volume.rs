@@ -1,9 +1,7 @@
-//! The volume stage: every probe of the grid gathered from the bake's solution
-//! ([`super::gather`]), probes that sit inside geometry moved to the nearest open point or,
-//! failing that, filled from their neighbours, and the result laid out as the 3D texture
-//! Bevy's `IrradianceVolume` reads.
+//! The irradiance volume: every probe's six sides (gathered by the volume stage,
+//! `probes::bake`), and the 3D texture Bevy's `IrradianceVolume` reads.
 //!
-//! **Inside geometry.** A probe whose rays meet the back of single-sided surfaces more than
+//! **Inside geometry** (what the volume stage does). A probe whose rays meet the back of single-sided surfaces more than
 //! [`INSIDE_FRACTION`] of the time is inside a solid (a pillar, a thick wall) or under a
 //! floor: its light is not the light a dynamic object there would get, and with trilinear
 //! filtering a black voxel darkens every point within a cell of it. Such a probe is moved
@@ -19,14 +17,9 @@
 //! and the shader put the positive sides in the first half, and the shader is what renders.
 
 use glam::{UVec3, Vec3};
-use rayon::prelude::*;
 use serde::Serialize;
 
-use super::gather::Solution;
 use super::grid::VolumeGrid;
-use crate::color::luminance;
-use crate::progress::Progress;
-use crate::sampling::hash_words;
 
 /// A probe whose rays meet back faces more often than this is inside geometry.
 pub const INSIDE_FRACTION: f32 = 0.25;
@@ -42,7 +35,7 @@ pub struct IrradianceVolume {
     /// Where the probes are.
     pub grid: VolumeGrid,
     /// Per probe ([`VolumeGrid::index`]), the irradiance over π from each side in the order
-    /// −X, +X, −Y, +Y, −Z, +Z ([`SIDES`](super::gather::SIDES)), linear RGB: what a white Lambertian surface
+    /// −X, +X, −Y, +Y, −Z, +Z (`gather::SIDES`), linear RGB: what a white Lambertian surface
     /// facing that way would show, in the lightmap's units.
     pub voxels: Vec<[Vec3; 6]>,
     /// Per probe, what became of it.
@@ -86,182 +79,6 @@ pub struct VolumeStats {
     pub relative_standard_error: f64,
     /// Rays traced (gather, emitter and shadow rays).
     pub rays: u64,
-}
-
-/// One probe's gather after the inside test.
-struct Probe {
-    sides: [Vec3; 6],
-    /// Standard error of each side's luminance.
-    error: [f32; 6],
-    /// Where it was gathered, when it was moved.
-    moved: Option<Vec3>,
-    open: bool,
-    rays: u64,
-}
-
-/// Bakes the volume over `grid` from `solution` with `rays` rays per probe (numbers keyed by
-/// the probe and `seed`; the same bits on any thread count).
-pub fn bake_volume(
-    solution: &Solution<'_>,
-    grid: VolumeGrid,
-    rays: u32,
-    seed: u32,
-    progress: &Progress,
-) -> (IrradianceVolume, VolumeStats) {
-    let probes: Vec<Probe> = (0..grid.len())
-        .into_par_iter()
-        .with_min_len(4)
-        .map(|i| {
-            if progress.is_cancelled() {
-                return Probe {
-                    sides: [Vec3::ZERO; 6],
-                    error: [0.0; 6],
-                    moved: None,
-                    open: true,
-                    rays: 0,
-                };
-            }
-            let p = probe(solution, &grid, i, rays, seed);
-            progress.advance(1);
-            p
-        })
-        .collect();
-    let mut stats = VolumeStats {
-        probes: grid.len(),
-        resolution: grid.resolution.to_array(),
-        spacing: grid.spacing,
-        spacing_reason: grid.reason.clone(),
-        rays_per_probe: rays,
-        rays: probes.iter().map(|p| p.rays).sum(),
-        ..VolumeStats::default()
-    };
-    let (mut err2, mut val2) = (0.0f64, 0.0f64);
-    for p in probes.iter().filter(|p| p.open) {
-        for s in 0..6 {
-            err2 += (p.error[s] as f64).powi(2);
-            val2 += (luminance(p.sides[s]) as f64).powi(2);
-        }
-    }
-    if val2 > 0.0 {
-        stats.relative_standard_error = (err2 / val2).sqrt();
-    }
-    stats.moved = probes.iter().filter(|p| p.moved.is_some()).count();
-    let mut voxels: Vec<[Vec3; 6]> = probes.iter().map(|p| p.sides).collect();
-    let open: Vec<bool> = probes.iter().map(|p| p.open).collect();
-    let mut states: Vec<ProbeState> = probes
-        .iter()
-        .map(|p| match (p.open, p.moved) {
-            (true, Some(at)) => ProbeState::Moved(at),
-            (true, None) => ProbeState::Open,
-            (false, _) => ProbeState::Black,
-        })
-        .collect();
-    let filled = fill(&grid, &mut voxels, open);
-    for i in filled {
-        states[i] = ProbeState::Filled;
-    }
-    stats.filled = states.iter().filter(|s| **s == ProbeState::Filled).count();
-    stats.unfilled = states.iter().filter(|s| **s == ProbeState::Black).count();
-    (
-        IrradianceVolume {
-            grid,
-            voxels,
-            states,
-        },
-        stats,
-    )
-}
-
-/// Probe `i`: gathered at its cell's centre, or moved out of the geometry it sits in.
-fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: u32) -> Probe {
-    let key = hash_words(&[seed, 0x9b0e, i as u32]);
-    let centre = grid.position(i);
-    let g = solution.gather(centre, rays, key);
-    let mut spent = g.rays;
-    let inside = |backs: u32| backs as f32 > INSIDE_FRACTION * rays as f32;
-    if !inside(g.back_hits) {
-        return Probe {
-            sides: g.sides,
-            error: g.standard_error,
-            moved: None,
-            open: true,
-            rays: spent,
-        };
-    }
-    // Out past the nearest back faces it saw, nearest first, within one cell.
-    let margin = (0.05 * grid.spacing).max(16.0 * solution.rays.epsilon(centre));
-    for (k, &(t, dir)) in g.nearest_backs[..g.backs_kept].iter().enumerate() {
-        let to = dir * (t + margin);
-        if to.length() > grid.spacing {
-            break;
-        }
-        let at = centre + to;
-        let moved = solution.gather(at, rays, hash_words(&[key, k as u32 + 1]));
-        spent += moved.rays;
-        if !inside(moved.back_hits) {
-            return Probe {
-                sides: moved.sides,
-                error: moved.standard_error,
-                moved: Some(at),
-                open: true,
-                rays: spent,
-            };
-        }
-    }
-    Probe {
-        sides: [Vec3::ZERO; 6],
-        error: [0.0; 6],
-        moved: None,
-        open: false,
-        rays: spent,
-    }
-}
-
-/// Fills the probes that are not `open` with the mean of their open neighbours (the 26
-/// around them), pass after pass outwards. Returns the probes filled.
-fn fill(grid: &VolumeGrid, voxels: &mut [[Vec3; 6]], mut open: Vec<bool>) -> Vec<usize> {
-    let r = grid.resolution.as_ivec3();
-    let mut filled = Vec::new();
-    loop {
-        let mut updates = Vec::new();
-        for i in 0..voxels.len() {
-            if open[i] {
-                continue;
-            }
-            let c = grid.coords(i).as_ivec3();
-            let mut sum = [Vec3::ZERO; 6];
-            let mut count = 0;
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let q = c + glam::IVec3::new(dx, dy, dz);
-                        if q.cmplt(glam::IVec3::ZERO).any() || q.cmpge(r).any() {
-                            continue;
-                        }
-                        let j = grid.index(q.x as u32, q.y as u32, q.z as u32);
-                        if open[j] {
-                            for s in 0..6 {
-                                sum[s] += voxels[j][s];
-                            }
-                            count += 1;
-                        }
-                    }
-                }
-            }
-            if count > 0 {
-                updates.push((i, sum.map(|v| v / count as f32)));
-            }
-        }
-        if updates.is_empty() {
-            break;
-        }
-        for (i, v) in updates {
-            voxels[i] = v;
-            open[i] = true;
-            filled.push(i);
-        }
-    }
-    filled
 }
 
 impl IrradianceVolume {
@@ -414,23 +231,5 @@ mod tests {
         let mid = 0.5 * (p + v.grid.position(j));
         assert!((v.sample(mid, Vec3::Y) - 0.5 * (v.voxels[i][3] + v.voxels[j][3])).length() < 1e-4);
         assert_eq!(v.sample(p + Vec3::X * 5.0, Vec3::Y), v.voxels[i][3]);
-    }
-
-    #[test]
-    fn closed_probes_are_filled_from_open_neighbours() {
-        let grid = VolumeGrid::over(Vec3::ZERO, Vec3::new(4.0, 2.0, 2.0), 1.0, String::new());
-        let mut voxels = vec![[Vec3::ONE; 6]; grid.len()];
-        let mut open = vec![true; grid.len()];
-        // A solid column at x = 0..1 of the first row: two probes, one behind the other.
-        for x in 0..2 {
-            let i = grid.index(x, 0, 0);
-            voxels[i] = [Vec3::ZERO; 6];
-            open[i] = false;
-        }
-        let filled = fill(&grid, &mut voxels, open);
-        assert_eq!(filled, vec![grid.index(0, 0, 0), grid.index(1, 0, 0)]);
-        assert!(voxels.iter().all(|v| v[0] == Vec3::ONE));
-        let mut none = vec![[Vec3::ZERO; 6]; grid.len()];
-        assert!(fill(&grid, &mut none, vec![false; grid.len()]).is_empty());
     }
 }

@@ -235,6 +235,7 @@ impl Patches {
     ///
     /// # Errors
     /// A description of the first violation.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn validate(&self, layout: &Layout, padding: u32) -> Result<(), String> {
         for (i, p) in self.patches.iter().enumerate() {
             let w = layout.pages[p.page as usize].width;

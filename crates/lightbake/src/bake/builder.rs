@@ -1,0 +1,141 @@
+//! One way to set up any bake, in the manner of texture-synthesis's `Session::builder()`: the
+//! scene and its settings, then how it is watched (progress, previews), then where it runs
+//! (this thread, a thread of its own, or one process of a split bake).
+//!
+//! ```no_run
+//! use std::sync::Arc;
+//! use lightbake::bake::{BakeBuilder, PreviewSlot};
+//! use lightbake::{BakeSettings, Scene};
+//!
+//! # fn scene() -> Scene { unimplemented!() }
+//! let previews = Arc::new(PreviewSlot::enabled());
+//! let handle = BakeBuilder::new(scene())
+//!     .settings(BakeSettings::preview())
+//!     .previews(Arc::clone(&previews))
+//!     .spawn()?;
+//! while !handle.is_finished() {
+//!     if let Some(p) = handle.preview() { /* show p.pages */ }
+//! }
+//! let output = handle.join()?;
+//! # Ok::<(), lightbake::BakeError>(())
+//! ```
+
+use std::sync::Arc;
+
+use super::handle::BakeHandle;
+use super::preview::PreviewSlot;
+use super::shard::ShardRun;
+use super::{BakeOutput, bake_split, bake_with};
+use crate::error::Result;
+use crate::progress::Progress;
+use crate::scene::Scene;
+use crate::settings::BakeSettings;
+
+/// A bake being set up: [`BakeBuilder::new`], the optional steps, then [`BakeBuilder::run`],
+/// [`BakeBuilder::spawn`] or [`BakeBuilder::run_split`].
+#[derive(Debug)]
+pub struct BakeBuilder {
+    scene: Scene,
+    settings: BakeSettings,
+    progress: Arc<Progress>,
+    previews: Arc<PreviewSlot>,
+}
+
+/// How one process of a split bake ended.
+#[derive(Debug)]
+pub enum SplitOutcome {
+    /// The merge finished the bake: bit for bit the output of the same bake in one process.
+    Merged(Box<BakeOutput>),
+    /// `prepare` or a shard did its part and stopped where it was meant to; what it did.
+    PartDone(String),
+}
+
+impl BakeBuilder {
+    /// A bake of `scene` with the default settings ([`BakeSettings::default`], the medium
+    /// preset), a fresh progress and no previews.
+    pub fn new(scene: Scene) -> Self {
+        Self {
+            scene,
+            settings: BakeSettings::default(),
+            progress: Arc::new(Progress::new()),
+            previews: Arc::new(PreviewSlot::default()),
+        }
+    }
+
+    /// Bakes with `settings`.
+    pub fn settings(mut self, settings: BakeSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// Reports progress to (and obeys cancellation from) `progress`, which another thread
+    /// may watch.
+    pub fn progress(mut self, progress: Arc<Progress>) -> Self {
+        self.progress = progress;
+        self
+    }
+
+    /// Publishes progressive previews of the lightmaps to `previews` when it is
+    /// [`PreviewSlot::enabled`] (see [`super::preview`]): the direct light, then the first
+    /// indirect solution, then the final pages.
+    pub fn previews(mut self, previews: Arc<PreviewSlot>) -> Self {
+        self.previews = previews;
+        self
+    }
+
+    /// Runs the bake on this thread (its work on a pool of `settings.threads` threads).
+    ///
+    /// # Errors
+    /// As [`super::bake()`].
+    pub fn run(self) -> Result<BakeOutput> {
+        bake_with(
+            &self.scene,
+            &self.settings,
+            &self.progress,
+            &self.previews,
+            None,
+        )
+    }
+
+    /// Runs this process's part of a bake split across processes ([`super::shard`]): `run`
+    /// says which part (prepare, shard I of N, merge) and where the work folder is.
+    /// Previews are not published.
+    ///
+    /// # Errors
+    /// As [`super::bake()`]; [`crate::BakeError::Shard`] when the work folder is incomplete
+    /// or from another preparation; [`crate::BakeError::BadSetting`] for a target error (its
+    /// rounds would need each whole stage's estimate).
+    pub fn run_split(self, run: &ShardRun) -> Result<SplitOutcome> {
+        bake_split(&self.scene, &self.settings, &self.progress, run)
+    }
+
+    /// Starts the bake on a thread of its own named `lightbake`.
+    ///
+    /// # Errors
+    /// [`crate::BakeError::Thread`] when the thread cannot be started.
+    pub fn spawn(self) -> Result<BakeHandle> {
+        self.spawn_then(|output, _, _| Ok(output))
+    }
+
+    /// Starts the bake on a thread of its own, then runs `then(output, &scene, &settings)`
+    /// there (writing the outputs, say).
+    ///
+    /// # Errors
+    /// [`crate::BakeError::Thread`] when the thread cannot be started.
+    pub fn spawn_then<T: Send + 'static>(
+        self,
+        then: impl FnOnce(BakeOutput, &Scene, &BakeSettings) -> Result<T> + Send + 'static,
+    ) -> Result<BakeHandle<T>> {
+        let Self {
+            scene,
+            settings,
+            progress,
+            previews,
+        } = self;
+        let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
+        BakeHandle::start(progress, previews, move || {
+            let output = bake_with(&scene, &settings, &watched, &published, None)?;
+            then(output, &scene, &settings)
+        })
+    }
+}
