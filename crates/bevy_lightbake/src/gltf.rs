@@ -15,7 +15,21 @@ use bevy::gltf::GltfExtras;
 use bevy::prelude::*;
 use lightbake::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
 
+use crate::LightbakeSystems;
 use crate::components::{BakedLight, Lightmapped};
+
+/// glTF scenes: the lightmaps and baked lights a baked glTF names, found when its scene
+/// spawns ([`LightbakeSystems::Gltf`]).
+pub struct GltfScenesPlugin;
+
+impl Plugin for GltfScenesPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(
+            Update,
+            (attach_gltf_lightmaps, mark_baked_gltf_lights).in_set(LightbakeSystems::Gltf),
+        );
+    }
+}
 
 /// A mesh entity already looked up (with or without a lightmap).
 #[derive(Component, Clone, Copy, Debug, Default)]

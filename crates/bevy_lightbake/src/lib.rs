@@ -61,6 +61,15 @@
 //! }
 //! ```
 
+//!
+//! # Organised by feature
+//!
+//! [`LightbakePlugin`] orders the [`LightbakeSystems`] sets and adds one plugin per feature,
+//! as `bevy_pbr`'s light probes do: [`requests::BakeRequestsPlugin`] (bake requests, the
+//! background bake and its status, with progressive previews), [`lightmaps::LightmapsPlugin`]
+//! (lightmaps applied to meshes and kept in step with their images),
+//! [`volumes::VolumesPlugin`] (irradiance volumes) and [`gltf::GltfScenesPlugin`] (baked glTF
+//! scenes).
 // Bevy systems name their data in their signatures: long query types and many parameters are
 // the idiom (Bevy's own crates allow both).
 #![allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -70,10 +79,11 @@ pub mod components;
 pub mod convert;
 pub mod gltf;
 pub mod images;
+pub mod lightmaps;
 mod preview;
+pub mod requests;
 pub mod sample;
 pub mod spawn;
-pub mod systems;
 pub mod volumes;
 
 use bevy::asset::AssetEventSystems;
@@ -118,17 +128,7 @@ pub struct LightbakePlugin;
 
 impl Plugin for LightbakePlugin {
     fn build(&self, app: &mut App) {
-        app.init_resource::<LightbakeConfig>()
-            .init_resource::<BakeStatus>()
-            .init_resource::<ShowLightmaps>()
-            .init_resource::<systems::PendingRequest>()
-            .init_resource::<systems::MemoryPages>()
-            .init_resource::<systems::ResizedImages>()
-            .init_resource::<volumes::SuppressedAmbient>()
-            .add_message::<RequestBake>()
-            .add_message::<CancelBake>()
-            .add_message::<BakeFinished>()
-            .register_type::<Lightbaked>()
+        app.register_type::<Lightbaked>()
             .register_type::<NotBaked>()
             .register_type::<BakeMode>()
             .configure_sets(
@@ -145,33 +145,14 @@ impl Plugin for LightbakePlugin {
                 LightbakeSystems::Lightmaps
                     .after(AssetEventSystems)
                     // Before Bevy decides which meshes need a new pipeline (see
-                    // `systems::sync_lightmaps`).
+                    // `lightmaps::sync_lightmaps`).
                     .before(bevy::pbr::check_entities_needing_specialization::<StandardMaterial>),
             )
-            .add_systems(
-                Update,
-                (
-                    systems::read_requests.in_set(LightbakeSystems::Requests),
-                    (systems::start_bake, systems::poll_bake)
-                        .chain()
-                        .in_set(LightbakeSystems::Bake),
-                    (
-                        gltf::attach_gltf_lightmaps,
-                        gltf::mark_baked_gltf_lights,
-                        volumes::attach_gltf_volumes,
-                    )
-                        .in_set(LightbakeSystems::Gltf),
-                ),
-            )
-            .add_systems(
-                PostUpdate,
-                (
-                    systems::prepare_lightmap_images,
-                    systems::sync_lightmaps,
-                    volumes::sync_volumes,
-                )
-                    .chain()
-                    .in_set(LightbakeSystems::Lightmaps),
-            );
+            .add_plugins((
+                requests::BakeRequestsPlugin,
+                lightmaps::LightmapsPlugin,
+                volumes::VolumesPlugin,
+                gltf::GltfScenesPlugin,
+            ));
     }
 }

@@ -3,6 +3,8 @@
 //! progressive radiosity's ambient term, then the result), and a bake that is cancelled or
 //! fails puts back what the first preview replaced.
 
+use std::collections::HashMap;
+
 use bevy::light::GlobalAmbientLight;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
@@ -10,13 +12,24 @@ use lightbake::bake::Preview;
 
 use crate::components::{BakeStatus, BakedLight, Lightmapped};
 use crate::convert::SceneMapping;
-use crate::systems::{
-    BakeJob, affects_lightmapped, apply_meshes, attach_lightmaps, mark_lights_baked, memory_pages,
+use crate::lightmaps::{
+    affects_lightmapped, apply_meshes, attach_lightmaps, mark_lights_baked, memory_pages,
     set_affects_lightmapped,
 };
 
+/// The previews of one bake: the last shown and what the first replaced.
+#[derive(Default)]
+pub(crate) struct Previewing {
+    /// The last preview shown (its sequence number; 0 before the first).
+    shown: u32,
+    /// What the first preview replaced, put back when the bake is cancelled or fails.
+    restore: Option<Restore>,
+    /// The meshes the first preview split off into assets of their own (by core mesh).
+    meshes: Option<HashMap<usize, Handle<Mesh>>>,
+}
+
 /// What the first preview of a bake replaced.
-pub(crate) struct Restore {
+struct Restore {
     /// Per baked instance (in the mapping's order): its entity's lightmap and mesh before.
     instances: Vec<(Option<Lightmapped>, Option<Mesh3d>)>,
     /// Per baked light (in the mapping's order): its `affects_lightmapped_mesh_diffuse` and
@@ -57,7 +70,7 @@ impl Restore {
 
     /// Puts everything back: the meshes as they were read for the bake, the entities' meshes
     /// and lightmaps, the lights' flags.
-    pub(crate) fn apply(self, world: &mut World, mapping: &SceneMapping) {
+    fn apply(self, world: &mut World, mapping: &SceneMapping) {
         for source in &mapping.meshes {
             if !source.needs_own_asset {
                 let _ = world
@@ -115,20 +128,39 @@ fn all_lights(mapping: &SceneMapping) -> impl Iterator<Item = Entity> + '_ {
         .copied()
 }
 
-/// Shows `preview` of the running bake: the first one applies its layout (the meshes' `UV_1`)
-/// and takes the baked lights off lightmapped meshes, as the finished bake does; each puts
-/// its pages in memory and on the entities.
-pub(crate) fn show_preview(world: &mut World, job: &mut BakeJob, preview: &Preview) {
-    if job.restore.is_none() {
-        job.restore = Some(Restore::record(world, &job.mapping));
-        mark_lights_baked(world, &job.mapping);
+impl Previewing {
+    /// The sequence number of the last preview shown (0 before the first).
+    pub(crate) fn shown(&self) -> u32 {
+        self.shown
     }
-    if job.preview_meshes.is_none() {
-        job.preview_meshes = Some(apply_meshes(world, &preview.layout, &job.mapping));
+
+    /// Shows `preview` of the running bake: the first one applies its layout (the meshes'
+    /// `UV_1`) and takes the baked lights off lightmapped meshes, as the finished bake does;
+    /// each puts its pages in memory and on the entities.
+    pub(crate) fn show(&mut self, world: &mut World, mapping: &SceneMapping, preview: &Preview) {
+        if self.restore.is_none() {
+            self.restore = Some(Restore::record(world, mapping));
+            mark_lights_baked(world, mapping);
+        }
+        if self.meshes.is_none() {
+            self.meshes = Some(apply_meshes(world, &preview.layout, mapping));
+        }
+        let new_handles = self.meshes.clone().unwrap_or_default();
+        let handles = memory_pages(world, &preview.pages);
+        attach_lightmaps(world, &preview.layout, mapping, &new_handles, &handles);
+        self.shown = preview.sequence;
+        world.resource_mut::<BakeStatus>().preview = Some(preview.kind);
     }
-    let new_handles = job.preview_meshes.clone().unwrap_or_default();
-    let handles = memory_pages(world, &preview.pages);
-    attach_lightmaps(world, &preview.layout, &job.mapping, &new_handles, &handles);
-    job.shown = preview.sequence;
-    world.resource_mut::<BakeStatus>().preview = Some(preview.kind);
+
+    /// Puts back what the first preview replaced (a bake cancelled or failed); whether there
+    /// was anything to put back.
+    pub(crate) fn restore(&mut self, world: &mut World, mapping: &SceneMapping) -> bool {
+        match self.restore.take() {
+            Some(restore) => {
+                restore.apply(world, mapping);
+                true
+            }
+            None => false,
+        }
+    }
 }

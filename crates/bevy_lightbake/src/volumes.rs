@@ -14,8 +14,26 @@ use bevy::world_serialization::WorldAssetRoot;
 use lightbake::BakeOutput;
 use lightbake::scene::extras::{self, SceneExtras, VolumeExtras};
 
+use crate::LightbakeSystems;
 use crate::components::{BakedVolume, ShowLightmaps};
 use crate::images::volume_image;
+
+/// Probe volumes: baked volumes of glTF scenes found, and every volume shown or hidden with
+/// the lightmaps (after them, in [`LightbakeSystems::Lightmaps`]).
+pub struct VolumesPlugin;
+
+impl Plugin for VolumesPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<SuppressedAmbient>()
+            .add_systems(Update, attach_gltf_volumes.in_set(LightbakeSystems::Gltf))
+            .add_systems(
+                PostUpdate,
+                sync_volumes
+                    .after(crate::lightmaps::sync_lightmaps)
+                    .in_set(LightbakeSystems::Lightmaps),
+            );
+    }
+}
 
 /// A volume entity spawned by an in-app bake (replaced by the next one).
 #[derive(Component, Clone, Copy, Debug, Default)]

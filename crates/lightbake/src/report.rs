@@ -234,6 +234,26 @@ pub struct Decision {
     pub what: String,
 }
 
+impl Decision {
+    /// `stage` ran, and `what` the bake decided for it.
+    pub fn ran(stage: Stage, what: String) -> Self {
+        Self {
+            stage,
+            ran: true,
+            what,
+        }
+    }
+
+    /// `stage`, planned, did not run after all, for `why`.
+    pub fn skipped(stage: Stage, why: String) -> Self {
+        Self {
+            stage,
+            ran: false,
+            what: why,
+        }
+    }
+}
+
 /// Everything a bake records about itself.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BakeReport {

@@ -457,182 +457,200 @@ impl BakeSettings {
     /// # Errors
     /// [`BakeError::BadSetting`] naming the first field out of range.
     pub fn validate(&self) -> Result<()> {
-        fn bad(name: &'static str, value: impl ToString, message: &str) -> BakeError {
-            BakeError::BadSetting {
-                name,
-                value: value.to_string(),
-                message: message.to_string(),
+        for (name, rule) in self.rules() {
+            if let Some((value, message)) = rule.broken() {
+                return Err(BakeError::BadSetting {
+                    name,
+                    value,
+                    message,
+                });
             }
-        }
-        if let Some(d) = self.texel_density {
-            if !(d.is_finite() && d > 0.0 && d <= 1e9) {
-                return Err(bad(
-                    "texel_density",
-                    d,
-                    "must be in (0, 10⁹] texels per metre (per scene unit)",
-                ));
-            }
-        }
-        if !(1_000..=100_000_000).contains(&self.texel_budget) {
-            return Err(bad(
-                "texel_budget",
-                self.texel_budget,
-                "must be 1000..=100000000 texels",
-            ));
-        }
-        if !(1..=8).contains(&self.denoise_radius) {
-            return Err(bad(
-                "denoise_radius",
-                self.denoise_radius,
-                "must be 1..=8 texels",
-            ));
-        }
-        if !(1..=16).contains(&self.padding) {
-            return Err(bad("padding", self.padding, "must be 1..=16 texels"));
-        }
-        if !(64..=16384).contains(&self.max_page_size) {
-            return Err(bad(
-                "max_page_size",
-                self.max_page_size,
-                "must be 64..=16384 texels",
-            ));
-        }
-        if !(1..=4096).contains(&self.samples_per_texel) {
-            return Err(bad(
-                "samples_per_texel",
-                self.samples_per_texel,
-                "must be 1..=4096",
-            ));
-        }
-        if !(1..=65_536).contains(&self.sky_samples) {
-            return Err(bad("sky_samples", self.sky_samples, "must be 1..=65536"));
-        }
-        if !(1..=65_536).contains(&self.transport_rays) {
-            return Err(bad(
-                "transport_rays",
-                self.transport_rays,
-                "must be 1..=65536",
-            ));
-        }
-        if !(self.cluster_texels.is_power_of_two() && self.cluster_texels <= 256) {
-            return Err(bad(
-                "cluster_texels",
-                self.cluster_texels,
-                "must be a power of two from 1 to 256 texels",
-            ));
-        }
-        if !(1..=65_536).contains(&self.cluster_rays) {
-            return Err(bad("cluster_rays", self.cluster_rays, "must be 1..=65536"));
-        }
-        if !(self.cluster_tolerance > 0.0 && self.cluster_tolerance < 1.0) {
-            return Err(bad(
-                "cluster_tolerance",
-                self.cluster_tolerance,
-                "must be in (0, 1)",
-            ));
-        }
-        if !(self.solver_tolerance > 0.0 && self.solver_tolerance < 1.0) {
-            return Err(bad(
-                "solver_tolerance",
-                self.solver_tolerance,
-                "must be in (0, 1)",
-            ));
-        }
-        if self.max_solver_iterations == 0 || self.stochastic_rays_per_node == 0 {
-            return Err(bad(
-                "max_solver_iterations",
-                self.max_solver_iterations,
-                "solver iterations and stochastic rays must be at least 1",
-            ));
-        }
-        if !(1..=10_000_000).contains(&self.vpl_particles) {
-            return Err(bad(
-                "vpl_particles",
-                self.vpl_particles,
-                "must be 1..=10000000",
-            ));
-        }
-        if let Some(t) = self.vpl_time_budget_s {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(bad(
-                    "vpl_time_budget_s",
-                    t,
-                    "must be a positive number of seconds",
-                ));
-            }
-        }
-        if let Some(t) = self.target_error {
-            if !(t.is_finite() && t > 0.0 && t < 1.0) {
-                return Err(bad(
-                    "target_error",
-                    t,
-                    "must be a relative error between 0 and 1 (0.02 = 2%)",
-                ));
-            }
-        }
-        if let Some(d) = self.vpl_clamp_distance {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(bad(
-                    "vpl_clamp_distance",
-                    d,
-                    "must be a positive distance in metres",
-                ));
-            }
-        }
-        if self.vpl_max_depth > MAX_VPL_DEPTH {
-            return Err(bad(
-                "vpl_max_depth",
-                self.vpl_max_depth,
-                "must be at most 29",
-            ));
-        }
-        if let Some(d) = self.probe_spacing {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(bad(
-                    "probe_spacing",
-                    d,
-                    "must be a positive distance in metres",
-                ));
-            }
-        }
-        if !(1..=65_536).contains(&self.probe_rays) {
-            return Err(bad("probe_rays", self.probe_rays, "must be 1..=65536"));
-        }
-        if !(1_000_000..=1_000_000_000_000_000).contains(&self.max_rays) {
-            return Err(bad("max_rays", self.max_rays, "must be 10⁶..=10¹⁵ rays"));
-        }
-        if self.grid_error_points > 1_000_000 {
-            return Err(bad(
-                "grid_error_points",
-                self.grid_error_points,
-                "must be 0..=1000000 points",
-            ));
-        }
-        if self.verify_points > 100_000 {
-            return Err(bad(
-                "verify_points",
-                self.verify_points,
-                "must be 0..=100000 points",
-            ));
-        }
-        if !(2..=1_048_576).contains(&self.verify_paths) {
-            return Err(bad(
-                "verify_paths",
-                self.verify_paths,
-                "must be 2..=1048576 paths per point",
-            ));
-        }
-        if self.memory_budget_mib == 0 {
-            return Err(bad("memory_budget_mib", 0, "must be at least 1 MiB"));
-        }
-        if !(self.formats.exr || self.formats.hdr || self.formats.ktx2) {
-            return Err(bad(
-                "formats",
-                "none",
-                "at least one HDR format (exr, hdr, ktx2) must be written",
-            ));
         }
         Ok(())
+    }
+
+    /// Every setting with a limit, and its rule: the table [`Self::validate`] checks.
+    fn rules(&self) -> Vec<(&'static str, Rule)> {
+        use Rule::{Count, Fraction, Holds, Positive};
+        let count = |value: u32, min: u64, max: u64, unit| Count {
+            value: value as u64,
+            min,
+            max,
+            unit,
+        };
+        vec![
+            (
+                "texel_density",
+                Holds {
+                    ok: self
+                        .texel_density
+                        .is_none_or(|d| d.is_finite() && d > 0.0 && d <= 1e9),
+                    value: format!("{:?}", self.texel_density),
+                    message: "must be in (0, 10⁹] texels per metre (per scene unit)",
+                },
+            ),
+            (
+                "texel_budget",
+                Count {
+                    value: self.texel_budget,
+                    min: 1_000,
+                    max: 100_000_000,
+                    unit: " texels",
+                },
+            ),
+            (
+                "denoise_radius",
+                count(self.denoise_radius, 1, 8, " texels"),
+            ),
+            ("padding", count(self.padding, 1, 16, " texels")),
+            (
+                "max_page_size",
+                count(self.max_page_size, 64, 16384, " texels"),
+            ),
+            (
+                "samples_per_texel",
+                count(self.samples_per_texel, 1, 4096, ""),
+            ),
+            ("sky_samples", count(self.sky_samples, 1, 65_536, "")),
+            ("transport_rays", count(self.transport_rays, 1, 65_536, "")),
+            (
+                "cluster_texels",
+                Holds {
+                    ok: self.cluster_texels.is_power_of_two() && self.cluster_texels <= 256,
+                    value: self.cluster_texels.to_string(),
+                    message: "must be a power of two from 1 to 256 texels",
+                },
+            ),
+            ("cluster_rays", count(self.cluster_rays, 1, 65_536, "")),
+            ("cluster_tolerance", Fraction(Some(self.cluster_tolerance))),
+            ("solver_tolerance", Fraction(Some(self.solver_tolerance))),
+            (
+                "max_solver_iterations",
+                count(self.max_solver_iterations, 1, u32::MAX as u64, ""),
+            ),
+            (
+                "stochastic_rays_per_node",
+                count(self.stochastic_rays_per_node, 1, u32::MAX as u64, ""),
+            ),
+            (
+                "vpl_particles",
+                count(self.vpl_particles, 1, 10_000_000, ""),
+            ),
+            (
+                "vpl_time_budget_s",
+                Positive(self.vpl_time_budget_s, "a positive number of seconds"),
+            ),
+            ("target_error", Fraction(self.target_error.map(f64::from))),
+            (
+                "vpl_clamp_distance",
+                Positive(
+                    self.vpl_clamp_distance.map(f64::from),
+                    "a positive distance in metres",
+                ),
+            ),
+            (
+                "vpl_max_depth",
+                count(self.vpl_max_depth, 0, MAX_VPL_DEPTH as u64, ""),
+            ),
+            (
+                "probe_spacing",
+                Positive(
+                    self.probe_spacing.map(f64::from),
+                    "a positive distance in metres",
+                ),
+            ),
+            ("probe_rays", count(self.probe_rays, 1, 65_536, "")),
+            (
+                "max_rays",
+                Count {
+                    value: self.max_rays,
+                    min: 1_000_000,
+                    max: 1_000_000_000_000_000,
+                    unit: " rays",
+                },
+            ),
+            (
+                "grid_error_points",
+                count(self.grid_error_points, 0, 1_000_000, " points"),
+            ),
+            (
+                "verify_points",
+                count(self.verify_points, 0, 100_000, " points"),
+            ),
+            (
+                "verify_paths",
+                count(self.verify_paths, 2, 1_048_576, " paths per point"),
+            ),
+            (
+                "memory_budget_mib",
+                Count {
+                    value: self.memory_budget_mib,
+                    min: 1,
+                    max: u64::MAX,
+                    unit: " MiB",
+                },
+            ),
+            (
+                "formats",
+                Holds {
+                    ok: self.formats.exr || self.formats.hdr || self.formats.ktx2,
+                    value: "none".into(),
+                    message: "at least one HDR format (exr, hdr, ktx2) must be written",
+                },
+            ),
+        ]
+    }
+}
+
+/// One setting's rule in [`BakeSettings::validate`]'s table.
+enum Rule {
+    /// A count in `min..=max` (`unit` after the numbers, with its leading space).
+    Count {
+        value: u64,
+        min: u64,
+        max: u64,
+        unit: &'static str,
+    },
+    /// A relative amount in (0, 1), when set.
+    Fraction(Option<f64>),
+    /// A finite positive number, when set (`what` it is, in words).
+    Positive(Option<f64>, &'static str),
+    /// A condition of its own: whether it holds, the value shown and the message.
+    Holds {
+        ok: bool,
+        value: String,
+        message: &'static str,
+    },
+}
+
+impl Rule {
+    /// The value and the message when the rule is broken.
+    fn broken(self) -> Option<(String, String)> {
+        match self {
+            Rule::Count {
+                value,
+                min,
+                max,
+                unit,
+            } => (!(min..=max).contains(&value)).then(|| {
+                let range = if max == u64::MAX || max == u32::MAX as u64 {
+                    format!("at least {min}{unit}")
+                } else {
+                    format!("{min}..={max}{unit}")
+                };
+                (value.to_string(), format!("must be {range}"))
+            }),
+            Rule::Fraction(value) => value
+                .filter(|v| !(v.is_finite() && *v > 0.0 && *v < 1.0))
+                .map(|v| {
+                    let message = "must be a relative amount in (0, 1) (0.02 = 2%)";
+                    (v.to_string(), message.to_string())
+                }),
+            Rule::Positive(value, what) => value
+                .filter(|v| !(v.is_finite() && *v > 0.0))
+                .map(|v| (v.to_string(), format!("must be {what}"))),
+            Rule::Holds { ok, value, message } => (!ok).then(|| (value, message.to_string())),
+        }
     }
 }
 
@@ -653,6 +671,64 @@ mod tests {
         assert!(p.texel_budget < m.texel_budget && m.texel_budget < h.texel_budget);
         assert!(p.samples_per_texel < m.samples_per_texel);
         assert_eq!(BakeSettings::default(), m);
+    }
+
+    /// Every row of the table: the setting just outside its limit is refused by its name,
+    /// and just inside it is accepted.
+    #[test]
+    fn every_limit_is_checked_at_its_edge() {
+        type Edit = fn(&mut BakeSettings, bool);
+        let edges: [(&str, Edit); 12] = [
+            ("texel_budget", |s, out| {
+                s.texel_budget = if out { 999 } else { 1_000 }
+            }),
+            ("denoise_radius", |s, out| {
+                s.denoise_radius = if out { 9 } else { 8 }
+            }),
+            ("padding", |s, out| s.padding = if out { 17 } else { 16 }),
+            ("max_page_size", |s, out| {
+                s.max_page_size = if out { 63 } else { 64 }
+            }),
+            ("cluster_texels", |s, out| {
+                s.cluster_texels = if out { 512 } else { 256 }
+            }),
+            ("cluster_tolerance", |s, out| {
+                s.cluster_tolerance = if out { 1.0 } else { 0.99 }
+            }),
+            ("target_error", |s, out| {
+                s.target_error = Some(if out { 0.0 } else { 0.5 })
+            }),
+            ("vpl_clamp_distance", |s, out| {
+                s.vpl_clamp_distance = Some(if out { f32::INFINITY } else { 1.0 })
+            }),
+            ("vpl_max_depth", |s, out| {
+                s.vpl_max_depth = if out {
+                    MAX_VPL_DEPTH + 1
+                } else {
+                    MAX_VPL_DEPTH
+                }
+            }),
+            ("max_rays", |s, out| {
+                s.max_rays = if out { 999_999 } else { 1_000_000 }
+            }),
+            ("memory_budget_mib", |s, out| {
+                s.memory_budget_mib = if out { 0 } else { 1 }
+            }),
+            ("verify_paths", |s, out| {
+                s.verify_paths = if out { 1 } else { 2 }
+            }),
+        ];
+        for (name, edit) in edges {
+            let mut s = BakeSettings::default();
+            edit(&mut s, false);
+            assert!(s.validate().is_ok(), "{name} at its limit");
+            edit(&mut s, true);
+            match s.validate() {
+                Err(BakeError::BadSetting { name: n, .. }) => assert_eq!(n, name),
+                other => panic!("{name} past its limit: {other:?}"),
+            }
+        }
+        assert_eq!(BakeSettings::default().rules().len(), 27);
     }
 
     #[test]

@@ -292,3 +292,35 @@ fn the_folder_checker_reads_paths_and_finds_circles() {
     graph.insert("b".to_string(), BTreeSet::new());
     assert!(find_cycle(&graph).is_none());
 }
+
+/// The Bevy plugin's modules (one per feature) use each other through `crate::` without a
+/// circle. (Read from the source, so the core's tests need no Bevy.)
+#[test]
+fn the_plugin_modules_use_each_other_without_a_circle() {
+    let plugin = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bevy_lightbake/src");
+    let mut files = Vec::new();
+    rust_files(&plugin, &mut files);
+    let modules: BTreeSet<String> = files
+        .iter()
+        .map(|f| f.file_stem().unwrap().to_string_lossy().into_owned())
+        .filter(|m| m != "lib")
+        .collect();
+    let mut graph = std::collections::BTreeMap::new();
+    for file in &files {
+        let module = file.file_stem().unwrap().to_string_lossy().into_owned();
+        if module == "lib" {
+            continue;
+        }
+        let source = std::fs::read_to_string(file).unwrap();
+        let mut used: BTreeSet<String> = crate_paths(&source)
+            .into_iter()
+            .filter(|m| modules.contains(m) && *m != module)
+            .collect();
+        used.extend(graph.remove(&module).unwrap_or_default());
+        graph.insert(module, used);
+    }
+    assert!(graph.len() > 5, "the plugin's modules were not found");
+    if let Some(cycle) = find_cycle(&graph) {
+        panic!("circle in bevy_lightbake: {}", cycle.join(" → "));
+    }
+}

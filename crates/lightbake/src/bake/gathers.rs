@@ -6,8 +6,7 @@ use std::ops::Range;
 
 use glam::Vec3;
 
-use super::shard::ShardRun;
-use super::stages::{Stages, split};
+use super::stages::{Scope, Stages};
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::error::Result;
@@ -16,16 +15,15 @@ use crate::radiosity::hierarchical::{self, Gather, GatherRays};
 use crate::radiosity::{HitMapper, Nodes, ray_allocation};
 use crate::stage::{Stage, StageRun};
 
-/// A gather over every node (`compute(only)` of the nodes `only` marks), split across the
-/// shards of a split bake by the nodes' patches.
+/// A gather over every node (`compute(only)` of the nodes `only` marks), its nodes in `scope`
+/// by their patches.
 pub(super) fn gather_split(
-    shards: Option<&ShardRun>,
+    scope: Scope<'_>,
     stage: Stage,
     nodes: &Nodes,
     compute: impl FnOnce(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, GatherRays),
 ) -> Result<(Vec<Vec3>, Vec<f32>, GatherRays)> {
-    let (values, rays) = split(
-        shards,
+    let (values, rays) = scope.split(
         stage,
         nodes.len(),
         |i| nodes.patch[i] as usize,
@@ -162,9 +160,9 @@ fn gather_stage(
     stages: &mut Stages<'_>,
 ) -> Result<(Vec<Vec3>, Vec<f32>)> {
     let progress = stages.progress();
-    let shards = stages.shards();
+    let scope = stages.scope();
     let (h, se, visibility) = stages.run(run, nodes.len() as u64, || {
-        let (h, se, traced) = gather_split(shards, run.stage, nodes, |only| {
+        let (h, se, traced) = gather_split(scope, run.stage, nodes, |only| {
             hierarchical::final_gather(ctx, mapper, nodes, b, rays, Gather::Final, only, progress)
         })?;
         Ok((

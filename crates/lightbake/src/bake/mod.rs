@@ -10,7 +10,9 @@
 //! result does not depend on the thread count.
 
 mod estimate;
+mod finish;
 mod finite;
+mod prefix;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
 mod builder;
@@ -26,33 +28,30 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::bvh::RayScene;
-use crate::bvh::workload::{RayRates, calibrate};
+use crate::bvh::workload::RayRates;
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
-use crate::lightmap::contacts::{ContactStats, contact_fit};
-use crate::lightmap::denoise::{DenoiseStats, denoise, denoise_parts};
-use crate::lightmap::seams::find_seams;
-use crate::lightmap::stitch::{StitchStats, stitch};
+use crate::lightmap::contacts::ContactStats;
+use crate::lightmap::denoise::DenoiseStats;
+use crate::lightmap::stitch::StitchStats;
 use crate::lightmap::{Assembly, HALF_MAX, LightmapPage};
 use crate::lights::Emitters;
 use crate::memory;
 use crate::plan::BakePlan;
-use crate::probes::gather::Solution;
-use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats, bake_volume};
-use crate::progress::{Progress, RayKind};
+use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats};
+use crate::progress::Progress;
 use crate::raster::Patches;
 use crate::report::{BakeReport, Decision, Floor, TexelStats};
 use crate::sampling::hash_words;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};
 use crate::stage::Stage;
-use crate::unwrap::{Layout, unwrap_scene};
+use crate::unwrap::Layout;
 pub use builder::{BakeBuilder, SplitOutcome};
-use estimate::{denoised_error, with_grid_error};
+use estimate::with_grid_error;
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
-use shard::Units;
 pub use shard::{Role, ShardRun};
 use stages::Stages;
 
@@ -181,6 +180,18 @@ fn bake_with(
     })
 }
 
+impl Lit {
+    /// Black pages over `layout` (nothing to bake).
+    fn black(layout: &Layout) -> Self {
+        Lit {
+            pages: (layout.pages.iter())
+                .map(|p| LightmapPage::black(p.width, p.height))
+                .collect(),
+            ..Lit::default()
+        }
+    }
+}
+
 /// Values of the valid patches only.
 fn valid<T: Copy>(patches: &Patches, values: &[T]) -> Vec<T> {
     patches
@@ -211,6 +222,8 @@ struct Lit {
     skipped: Vec<(Stage, String)>,
 }
 
+/// A bake on the current rayon pool: the geometry stages ([`prefix`]), the lighting and
+/// finishing passes ([`light_scene`]), then the report.
 fn bake_in_pool(
     scene: &Scene,
     settings: &BakeSettings,
@@ -224,132 +237,25 @@ fn bake_in_pool(
     let mut stages = Stages::new(progress, previews, shards);
     let mut warnings = scene.warnings.clone();
     warnings.extend(notes);
-
-    // Plan, and refuse early when the texel count alone would not fit.
     let mut decisions = Vec::new();
-    let decide = |stage: Stage, ran: bool, what: String| Decision { stage, ran, what };
-    let plan = stages.run(Stage::Plan, 1, || {
-        let plan = BakePlan::new(scene, settings);
-        let note = format!("{} texels/m", crate::plan::density_text(plan.texel_density));
-        Ok((plan, 0, note))
-    })?;
-    memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;
-    plan.check_rays(settings)?;
-
-    let layout = stages.run(Stage::Unwrap, scene.meshes.len() as u64, || {
-        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
-        let note = format!(
-            "{} mesh(es) xatlas, {} kept, {} page(s)",
-            plan.meshes_to_unwrap,
-            plan.meshes_keeping_uv1,
-            layout.pages.len()
-        );
-        Ok((layout, 0, note))
-    })?;
-    // The density that follows the light: a pilot on the first layout, which is then
-    // repacked; the ray scene it traces is the lighting passes' (same triangles).
-    let (layout, early_rays, density) = if plan.runs(Stage::Density) {
-        let (layout, rays, density) = stages.run(Stage::Density, 1, || {
-            let rays = RayScene::build(scene);
-            match crate::density::adapt(scene, settings, &plan, &layout, &rays) {
-                Ok((adapted, report)) => {
-                    let note = report.summary();
-                    let traced = report.rays;
-                    Ok(((adapted, rays, Ok(report)), traced, note))
-                }
-                Err(reason) => Ok(((layout, rays, Err(reason.clone())), 0, reason)),
-            }
-        })?;
-        match density {
-            Ok(report) => {
-                decisions.push(decide(Stage::Density, true, report.summary()));
-                (layout, Some(rays), Some(report))
-            }
-            Err(reason) => {
-                decisions.push(decide(Stage::Density, false, reason));
-                (layout, Some(rays), None)
-            }
-        }
-    } else {
-        (layout, None, None)
-    };
+    let plan = prefix::plan(scene, settings, &mut stages)?;
+    let layout = prefix::unwrap(scene, settings, &plan, &mut stages)?;
+    let (layout, early_rays, density) =
+        prefix::density(scene, settings, &plan, layout, &mut stages, &mut decisions)?;
     warnings.extend(layout.warnings.iter().cloned());
-    let mut estimate = memory::estimate_from_layout(scene, &layout);
-    // The volume's grid, planned here so that a spacing it cannot take is refused before
-    // the lighting passes run.
-    let volume_grid = if plan.runs(Stage::Volume) {
-        let grid = VolumeGrid::plan(scene, &layout, settings, plan.texel_density)?;
-        if grid.is_none() {
-            decisions.push(decide(
-                Stage::Volume,
-                false,
-                "no instance has a lightmap".into(),
-            ));
-        }
-        grid
-    } else {
-        None
-    };
-    if let Some(grid) = &volume_grid {
-        estimate = estimate.with(
-            "irradiance volume",
-            grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
-        );
-        decisions.push(decide(
-            Stage::Volume,
-            true,
-            format!(
-                "irradiance volume for dynamic objects: {} × {} × {} probes {:.3e} m apart ({}), {} rays each",
-                grid.resolution.x,
-                grid.resolution.y,
-                grid.resolution.z,
-                grid.spacing,
-                grid.reason,
-                settings.probe_rays
-            ),
-        ));
-    }
-    if previews.is_enabled() {
-        // The direct light kept per patch (at most one per page texel, 12 bytes) and two
-        // sets of pages alive at once (the preview shown and the one being made, 16 each).
-        estimate = estimate.with("progressive previews", layout.page_texels() * (12 + 2 * 16));
-    }
-    estimate.check(settings.memory_budget_mib)?;
+    let admitted = prefix::admit(scene, settings, &plan, &layout, previews, &mut decisions)?;
     let baked_scene = layout.apply(scene);
-
     let mut lit = if plan.nothing_to_bake {
-        Lit {
-            pages: layout
-                .pages
-                .iter()
-                .map(|p| LightmapPage::black(p.width, p.height))
-                .collect(),
-            ..Lit::default()
-        }
+        Lit::black(&layout)
     } else {
-        let rays = stages.run(Stage::Bvh, 1, || {
-            // The density pilot's ray scene has the same triangles as the unwrapped scene's.
-            let reused = early_rays.is_some();
-            let rays = early_rays.unwrap_or_else(|| RayScene::build(&baked_scene));
-            let (nodes, packets, bytes) = rays.bvh_size();
-            let note = format!(
-                "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB{}",
-                rays.bvh_triangle_count(),
-                bytes as f64 / 1048576.0,
-                if reused {
-                    " (built for the density pilot)"
-                } else {
-                    ""
-                }
-            );
-            Ok((rays, 0, note))
-        })?;
+        let rays = prefix::bvh(&baked_scene, early_rays, &mut stages)?;
+        let lighting = (rays, admitted.volume_grid);
         light_scene(
             &baked_scene,
             &layout,
             settings,
             &plan,
-            (rays, volume_grid),
+            lighting,
             &mut stages,
             &mut warnings,
         )?
@@ -358,18 +264,18 @@ fn bake_in_pool(
     lit.texels.page_texels = layout.page_texels();
     warnings.extend(half_float_warning(&lit.pages));
     if let Some(reason) = lit.indirect_reason.take() {
-        decisions.push(decide(Stage::Indirect, true, reason));
+        decisions.push(Decision::ran(Stage::Indirect, reason));
     }
     for (stage, reason) in lit.skipped.drain(..) {
-        decisions.push(decide(stage, false, reason));
+        decisions.push(Decision::skipped(stage, reason));
     }
     let total_seconds = start.elapsed().as_secs_f64();
-    let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
     stages.preview(PreviewKind::Final, &layout, Vec3::ZERO, || {
         lit.pages.clone()
     });
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
+    let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
         scene: scene.name.clone(),
@@ -388,7 +294,7 @@ fn bake_in_pool(
         texels: lit.texels,
         triangles: scene.instanced_triangle_count(),
         threads,
-        memory: estimate,
+        memory: admitted.estimate,
         warnings,
         error: lit.error,
         floor,
@@ -423,7 +329,7 @@ fn half_float_warning(pages: &[LightmapPage]) -> Option<String> {
 
 /// Everything after the unwrap and the BVH for a scene with something to bake, given its ray
 /// scene and the volume's grid: the texel patches, the lighting passes, the floor
-/// calibration and the pages.
+/// calibration, the pages and the finishing passes on them, and the volume.
 fn light_scene(
     scene: &Scene,
     layout: &Layout,
@@ -434,51 +340,8 @@ fn light_scene(
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
     let mut lit = Lit::default();
-    let reader = stages.shards().filter(|run| run.reads_patches());
-    let patches = match reader {
-        // A shard or the merge of a split bake reads prepare's patches.
-        Some(run) => stages.run(Stage::Patches, 1, || {
-            let p = run.read_prepared(layout, rays.triangles.len(), scene.instances.len())?;
-            let note = format!(
-                "{} texel patches, read from the work folder",
-                p.patches.len()
-            );
-            Ok((p, 0, note))
-        })?,
-        None => {
-            let mut patches = stages.run(Stage::Raster, 1, || {
-                let p = Patches::build(scene, layout, &rays);
-                let note = format!("{} texel patches", p.patches.len());
-                Ok((p, 0, note))
-            })?;
-            stages.run(Stage::Validity, patches.patches.len() as u64, || {
-                patches.fix_validity(scene, layout, &rays);
-                let note = format!(
-                    "{} moved ({} seen only in part), {} hidden, {} visible but unlit",
-                    patches.moved, patches.rescued, patches.invalid, patches.visible_unlit
-                );
-                Ok(((), patches.rays, note))
-            })?;
-            stages.annotate(RayKind::Shadow, None);
-            if let Some(run) = stages.shards() {
-                // Prepare writes the patches and the work units here, and stops.
-                let units = Units::plan(&patches, layout, settings, scene.lights.len(), plan.sky);
-                run.prepared(units, &patches)?;
-            }
-            patches
-        }
-    };
-    lit.texels.patches = patches.patches.len();
-    lit.texels.moved = patches.moved;
-    lit.texels.partly_hidden = patches.rescued;
-    lit.texels.invalid = patches.invalid;
-    lit.texels.visible_unlit = patches.visible_unlit;
-    if patches.visible_unlit > 0 {
-        warnings.push(format!(
-            "{} texels were judged hidden (inside or behind geometry), yet a second look found part of them open: they are filled from their chart, not lit",
-            patches.visible_unlit
-        ));
-    }
+    let patches = finish::texel_patches(scene, layout, settings, plan, &rays, stages)?;
+    lit.count_texels(&patches, warnings);
     let emitters = Emitters::collect(scene, &rays);
     warnings.extend(emitter_warnings(&emitters, &rays, scene));
     let ctx = BakeContext {
@@ -490,96 +353,17 @@ fn light_scene(
         plan,
     };
     let mut light = passes::lighting(&ctx, &emitters, stages, warnings)?;
-    stages.shard_stops()?;
-    lit.radiosity = light.radiosity;
-    lit.vpl = light.vpl;
-    lit.indirect_reason = light.indirect_reason;
-    if !light.errors.is_empty() {
-        let value = rms_luminance(&valid(&patches, &light.irradiance));
-        lit.error = Some(ErrorEstimate::combine(&light.errors, value));
-    }
-    // The rates the floor is measured at: a short calibration on the same pool.
-    lit.rates = stages.run(Stage::Calibrate, 1, || {
-        let r = calibrate(
-            &rays,
-            &calibration_origins(&patches, settings.seed),
-            CALIBRATION_RAYS,
-            settings.seed,
-        );
-        let note = format!(
-            "BVH rates for the floor: {:.2} Mrays/s closest, {:.2} shadow",
-            r.closest_per_second / 1e6,
-            r.shadow_per_second / 1e6
-        );
-        Ok((r, 0, note))
-    })?;
-    let mut irradiance = light.irradiance;
+    stages.scope().stop_after_split()?;
+    let mut irradiance = std::mem::take(&mut light.irradiance);
+    lit.take_lighting(&mut light, &patches, &irradiance);
+    lit.rates = finish::calibrate_floor(&rays, &patches, settings, stages)?;
     if let Some((indirect, _)) = light.indirect.as_mut() {
         finite::patches("indirect", scene, &patches, indirect)?;
     }
     finite::patches("lighting", scene, &patches, &mut irradiance)?;
     let mut assembly = Assembly::new(layout, &patches, &irradiance);
     if plan.runs(Stage::Denoise) {
-        let covers = light.indirect.is_some() || !plan.runs(Stage::Indirect);
-        if covers {
-            let (st, error) = stages.run(Stage::Denoise, 1, || {
-                let radius = settings.denoise_radius;
-                let (st, error) = match &light.indirect {
-                    // Direct and indirect light apart, each with its own noise (scaled as the
-                    // sum is to the bake's estimate).
-                    Some((indirect, indirect_noise)) => {
-                        let total: Vec<f32> = light
-                            .texel_error
-                            .iter()
-                            .zip(indirect_noise)
-                            .map(|(d, i)| d.hypot(*i))
-                            .collect();
-                        let scale = calibration(&patches, &total, lit.error.as_ref(), light.coarse_bias);
-                        let scaled = |n: &[f32]| n.iter().map(|&v| v * scale).collect::<Vec<f32>>();
-                        let direct: Vec<Vec3> =
-                            irradiance.iter().zip(indirect).map(|(t, i)| *t - *i).collect();
-                        let (a, st, error) = denoise_parts(
-                            layout,
-                            &patches,
-                            [
-                                (&direct, &scaled(&light.texel_error)),
-                                (indirect, &scaled(indirect_noise)),
-                            ],
-                            radius,
-                        );
-                        assembly = a;
-                        (st, error)
-                    }
-                    None => {
-                        let noise = &light.texel_error;
-                        let scale = calibration(&patches, noise, lit.error.as_ref(), light.coarse_bias);
-                        let noise: Vec<f32> = noise.iter().map(|&v| v * scale).collect();
-                        denoise(&mut assembly, &patches, &noise, radius)
-                    }
-                };
-                let note = format!(
-                    "radius {} texels, {} texels, mean strength {:.2}; noise {:.3} → {:.3} lux RMS, bias added {:.3} lux RMS{}",
-                    st.radius,
-                    st.texels,
-                    st.mean_strength,
-                    st.noise_before,
-                    st.noise_after,
-                    st.bias,
-                    if light.indirect.is_some() { "; direct and indirect light filtered apart" } else { "" }
-                );
-                Ok(((st, error), 0, note))
-            })?;
-            if let Some(e) = &lit.error {
-                lit.error = Some(denoised_error(&patches, &error, e, light.coarse_bias));
-            }
-            finite::pages("denoise", scene, &patches, &mut assembly.pages)?;
-            lit.denoise = Some(st);
-        } else {
-            lit.skipped.push((
-                Stage::Denoise,
-                "the indirect pass gives no per-texel noise estimate (only the hierarchical solve's gathers do)".to_string(),
-            ));
-        }
+        finish::denoise_pages(&ctx, &light, &irradiance, &mut assembly, &mut lit, stages)?;
     }
     if plan.runs(Stage::GridError) && !light.direct.is_empty() {
         let value = (lit.error.as_ref().map(|e| e.value_rms))
@@ -591,138 +375,59 @@ fn light_scene(
     drop(irradiance);
     assembly.fill_hidden(&patches);
     if plan.runs(Stage::ContactFit) {
-        let st = stages.run(Stage::ContactFit, 1, || {
-            let st = contact_fit(&mut assembly, scene, layout, &patches, &rays);
-            let note = if st.texels == 0 {
-                "no texel next to geometry shows light of the wrong side".to_string()
-            } else {
-                format!(
-                    "{} texels next to geometry ({} samples cut), {} values fitted ({} capped), {} CG iterations",
-                    st.texels, st.cut_samples, st.unknowns, st.capped, st.iterations
-                )
-            };
-            Ok((st, st.rays, note))
-        })?;
-        stages.annotate(RayKind::Shadow, None);
-        finite::pages("contact fit", scene, &patches, &mut assembly.pages)?;
-        lit.contact = Some(st);
+        lit.contact = Some(finish::contact_fit_pages(&ctx, &mut assembly, stages)?);
     }
-    stages.run(Stage::Dilate, 1, || {
-        assembly.dilate(settings.padding + 2);
-        let st = assembly.stats;
-        lit.texels.filled = st.filled;
-        lit.texels.dilated = st.dilated;
-        lit.texels.unfilled = st.unfilled;
-        let note = format!("{} filled, {} padding texels", st.filled, st.dilated);
-        Ok(((), 0, note))
-    })?;
-    finite::pages("dilate", scene, &patches, &mut assembly.pages)?;
+    finish::dilate_pages(&ctx, &mut assembly, &mut lit, stages)?;
     if plan.runs(Stage::Stitch) {
-        let st = stages.run(Stage::Stitch, 1, || {
-            let seams = find_seams(scene, layout);
-            let st = stitch(&mut assembly, &patches, &seams, &rays);
-            let note = if seams.is_empty() {
-                "no seams: no smooth surface is split between charts (chart borders lie on hard edges)"
-                    .to_string()
-            } else {
-                format!(
-                    "{} seam edges, jump {:.2}% mean / {:.2}% max before, {:.2}% / {:.2}% after ({} values capped)",
-                    st.before.seams,
-                    100.0 * st.before.mean,
-                    100.0 * st.before.max,
-                    100.0 * st.after.mean,
-                    100.0 * st.after.max,
-                    st.capped
-                )
-            };
-            Ok((st, 0, note))
-        })?;
-        finite::pages("stitch", scene, &patches, &mut assembly.pages)?;
-        lit.seams = Some(st);
+        lit.seams = Some(finish::stitch_pages(&ctx, &mut assembly, stages)?);
     }
     lit.pages = assembly.pages;
     if let Some(grid) = volume_grid {
-        lit.volume = Some(volume_stage(
-            scene, layout, settings, grid, &rays, &emitters, &lit.pages, stages,
-        )?);
-        if lit.volume.as_ref().is_some_and(|v| v.1.unfilled > 0) {
+        let volume = finish::volume_stage(&ctx, grid, &emitters, &lit.pages, stages)?;
+        if volume.1.unfilled > 0 {
             warnings.push(
                 "every probe of the irradiance volume is inside geometry: the volume is black"
                     .to_string(),
             );
         }
+        lit.volume = Some(volume);
     }
     Ok(lit)
 }
 
-/// The irradiance volume stage ([`crate::probes`]): every probe of `grid` gathered from the
-/// finished `pages`.
-#[allow(clippy::too_many_arguments)]
-fn volume_stage(
-    scene: &Scene,
-    layout: &Layout,
-    settings: &BakeSettings,
-    grid: VolumeGrid,
-    rays: &RayScene,
-    emitters: &Emitters,
-    pages: &[LightmapPage],
-    stages: &mut Stages<'_>,
-) -> Result<(IrradianceVolume, VolumeStats)> {
-    let solution = Solution {
-        scene,
-        layout,
-        pages,
-        rays,
-        emitters,
-    };
-    let progress = stages.progress();
-    let volume = stages.run(Stage::Volume, grid.len() as u64, || {
-        let (volume, st) = bake_volume(&solution, grid, settings.probe_rays, settings.seed, progress);
-        let note = format!(
-            "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
-            st.resolution[0],
-            st.resolution[1],
-            st.resolution[2],
-            st.spacing,
-            st.moved,
-            st.filled,
-            100.0 * st.relative_standard_error
-        );
-        let rays = st.rays;
-        Ok(((volume, st), rays, note))
-    })?;
-    let mut volume = volume;
-    finite::probes(&mut volume.0.voxels)?;
-    Ok(volume)
-}
-
-/// The factor that scales the per-patch noise so its RMS over the valid patches matches the
-/// sampling stages' own estimate (`estimate`, less the hierarchical solve's coarse bias
-/// `coarse_bias`, relative): the per-texel figures give the shape, the stage estimates
-/// (independent re-gathers for radiosity) the scale.
-fn calibration(
-    patches: &Patches,
-    noise: &[f32],
-    estimate: Option<&ErrorEstimate>,
-    coarse_bias: Option<f64>,
-) -> f32 {
-    let Some(e) = estimate else {
-        return 1.0;
-    };
-    let bias = coarse_bias.unwrap_or(0.0) * e.value_rms;
-    let target = (e.rms * e.rms - bias * bias).max(0.0).sqrt();
-    let own = rms_of(&valid(patches, noise));
-    if own > 0.0 {
-        (target / own) as f32
-    } else {
-        1.0
+impl Lit {
+    /// The texel counts of `patches` (and the warning about texels judged hidden that were
+    /// partly open).
+    fn count_texels(&mut self, patches: &Patches, warnings: &mut Vec<String>) {
+        self.texels.patches = patches.patches.len();
+        self.texels.moved = patches.moved;
+        self.texels.partly_hidden = patches.rescued;
+        self.texels.invalid = patches.invalid;
+        self.texels.visible_unlit = patches.visible_unlit;
+        if patches.visible_unlit > 0 {
+            warnings.push(format!(
+                "{} texels were judged hidden (inside or behind geometry), yet a second look found part of them open: they are filled from their chart, not lit",
+                patches.visible_unlit
+            ));
+        }
     }
-}
 
-/// RMS of `values`.
-fn rms_of(values: &[f32]) -> f64 {
-    let n = values.len().max(1) as f64;
-    (values.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / n).sqrt()
+    /// The lighting passes' reports and their combined error estimate (relative to the RMS
+    /// of `irradiance` over the valid patches).
+    fn take_lighting(
+        &mut self,
+        light: &mut passes::Lighting,
+        patches: &Patches,
+        irradiance: &[Vec3],
+    ) {
+        self.radiosity = light.radiosity.take();
+        self.vpl = light.vpl.take();
+        self.indirect_reason = light.indirect_reason.take();
+        if !light.errors.is_empty() {
+            let value = rms_luminance(&valid(patches, irradiance));
+            self.error = Some(ErrorEstimate::combine(&light.errors, value));
+        }
+    }
 }
 
 /// Points the calibration's rays start from: the points of valid texel patches picked at

@@ -6,7 +6,7 @@
 use glam::Vec3;
 
 use super::gathers::{FinalGather, correction_rays, final_gather, gather_note, gather_split};
-use super::stages::{Stages, scaled, split, until_target};
+use super::stages::{Stages, scaled, until_target};
 use super::{direct_pass_runs, valid};
 use crate::context::BakeContext;
 use crate::direct::{DirectResult, direct_light_of, error_method};
@@ -24,7 +24,7 @@ use crate::stage::{Stage, StageRun};
 use crate::vpl::{VplReport, instant_radiosity};
 
 /// What the lighting passes produced.
-pub(super) struct Light {
+pub(super) struct Lighting {
     /// Irradiance per patch, lux: direct plus indirect.
     pub(super) irradiance: Vec<Vec3>,
     /// The sampling stages' error estimates.
@@ -52,7 +52,7 @@ pub(super) fn lighting(
     emitters: &Emitters,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<Light> {
+) -> Result<Lighting> {
     let settings = ctx.settings;
     let direct_runs = direct_pass_runs(settings.method);
     let indirect_runs = ctx.plan.runs(Stage::Indirect);
@@ -60,7 +60,7 @@ pub(super) fn lighting(
     let share = settings
         .target_error
         .map(|t| t as f64 / (sampling_stages.max(1) as f64).sqrt());
-    let mut light = Light {
+    let mut light = Lighting {
         irradiance: vec![Vec3::ZERO; ctx.patches.patches.len()],
         errors: Vec::new(),
         texel_error: vec![0.0; ctx.patches.patches.len()],
@@ -95,7 +95,7 @@ pub(super) fn lighting(
     }
     if !(indirect_runs && settings.method == Method::Radiosity) {
         // No split stage follows (instant radiosity and direct-only bakes): a shard stops.
-        stages.shard_stops()?;
+        stages.scope().stop_after_split()?;
     }
     if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
         let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
@@ -154,7 +154,7 @@ fn direct(
         // A variance needs samples to spread: the pilot takes at least 4.
         pilot.samples_per_texel = pilot.samples_per_texel.max(4);
     }
-    let shards = stages.shards();
+    let scope = stages.scope();
     let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
     let rounds = stages.run(Stage::Direct, patches.patches.len() as u64, || {
         let mut rays = 0;
@@ -177,8 +177,7 @@ fn direct(
                 };
                 // Split across the shards of a split bake (the rounds of a target error are
                 // refused there).
-                let (values, split_rays) = split(
-                    shards,
+                let (values, split_rays) = scope.split(
                     Stage::Direct,
                     patches.patches.len(),
                     |p| p,
@@ -488,7 +487,7 @@ fn radiosity_round(
         return hierarchical_round(ctx, nodes, direct, plan, round, stages);
     }
     // The matrix solvers' stages are not split: a shard stops, the merge runs them.
-    stages.shard_stops()?;
+    stages.scope().stop_after_split()?;
     let source = radiosity::source(nodes, direct);
     let transport = if plan.choice.needs_matrix() {
         Some(stages.run(at(Stage::Transport), nodes.len() as u64, || {
@@ -600,13 +599,13 @@ fn hierarchical_round(
         round,
         stages,
     )?;
-    let shards = stages.shards();
+    let scope = stages.scope();
     let coarse_per_node = coarse.clusters.prolong(cell_indirect);
     let missed = hierarchical::missed_exitance(nodes, &gathered, &coarse_per_node);
     drop(coarse_per_node);
     let correction_rays = correction_rays(s.transport_rays);
     let correction = stages.run(at(Stage::Correction), nodes.len() as u64, || {
-        let (d, se, rays) = gather_split(shards, Stage::Correction, nodes, |only| {
+        let (d, se, rays) = gather_split(scope, Stage::Correction, nodes, |only| {
             hierarchical::final_gather(
                 ctx,
                 &mapper,
@@ -629,7 +628,7 @@ fn hierarchical_round(
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
     // The last split stage: a shard process stops here (the rest is the merge's).
-    stages.shard_stops()?;
+    stages.scope().stop_after_split()?;
     // The light the coarse level misses is largest next to geometry (a corner darkens
     // within a few texels, inside a cell of one value), and reaches there through two more
     // reflections: near geometry the correction's own reflection is gathered too.

@@ -15,18 +15,56 @@ use crate::settings::BakeSettings;
 use crate::stage::{Stage, StageRun};
 use crate::unwrap::Layout;
 
-/// A split stage (see [`ShardRun::split`]) in a bake that may not be split (`shards` none:
-/// `compute` of every item).
-pub(super) fn split<T: Record>(
-    shards: Option<&ShardRun>,
-    stage: Stage,
-    items: usize,
-    patch: impl Fn(usize) -> usize,
-    compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
-) -> Result<(Vec<T>, [u64; 2])> {
-    match shards {
-        Some(run) => run.split(stage, items, patch, compute),
-        None => Ok(compute(None)),
+/// Where a stage's work units run: the one seam between a pass and the process it runs in.
+/// A pass says what it computes for the items a mask marks (`compute(only)`, `None`: every
+/// item); the scope says which items this process computes and where the rest come from.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Scope<'a> {
+    /// Every item, in this process.
+    All,
+    /// One process of a split bake: its shard's items (by their patches' work units), the
+    /// rest read from the other shards' parts ([`ShardRun::split`]); prepare and the shards
+    /// stop where their part ends ([`Scope::stop_after_split`]).
+    Split(&'a ShardRun),
+}
+
+impl<'a> Scope<'a> {
+    /// The values of stage `stage`'s `items` items (item `i` belongs to patch `patch(i)`),
+    /// and the (closest, any-hit) rays this process traced for them.
+    ///
+    /// # Errors
+    /// What the split bake's protocol returns ([`ShardRun::split`]).
+    pub(super) fn split<T: Record>(
+        self,
+        stage: Stage,
+        items: usize,
+        patch: impl Fn(usize) -> usize,
+        compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+    ) -> Result<(Vec<T>, [u64; 2])> {
+        match self {
+            Scope::All => Ok(compute(None)),
+            Scope::Split(run) => run.split(stage, items, patch, compute),
+        }
+    }
+
+    /// Ends a shard's process here when what follows is the merge's (nothing for a bake in
+    /// one process; see [`ShardRun::shard_stops`]).
+    ///
+    /// # Errors
+    /// The stop of a shard that did its part.
+    pub(super) fn stop_after_split(self) -> Result<()> {
+        match self {
+            Scope::All => Ok(()),
+            Scope::Split(run) => run.shard_stops(),
+        }
+    }
+
+    /// The split bake this process is part of, if any.
+    pub(super) fn split_bake(self) -> Option<&'a ShardRun> {
+        match self {
+            Scope::All => None,
+            Scope::Split(run) => Some(run),
+        }
     }
 }
 
@@ -57,14 +95,9 @@ impl<'p> Stages<'p> {
         }
     }
 
-    /// The split bake this process is part of, if any.
-    pub(super) fn shards(&self) -> Option<&'p ShardRun> {
-        self.shards
-    }
-
-    /// Stops a shard process here: what follows is the merge's ([`ShardRun::shard_stops`]).
-    pub(super) fn shard_stops(&self) -> Result<()> {
-        self.shards.map_or(Ok(()), ShardRun::shard_stops)
+    /// Where the stages' work units run ([`Scope`]).
+    pub(super) fn scope(&self) -> Scope<'p> {
+        self.shards.map_or(Scope::All, Scope::Split)
     }
 
     /// Whether the bake publishes previews (and has a direct-light preview to build on).

@@ -38,6 +38,7 @@ use serde::Serialize;
 
 use super::{Assembly, TexelState};
 use crate::color::luminance;
+use crate::error_estimate::ErrorEstimate;
 use crate::raster::{Patch, Patches};
 use crate::unwrap::Layout;
 
@@ -186,6 +187,39 @@ pub fn denoise_parts(
 
 /// Each patch's noise (lux) as the RMS of the noise of the texels around it that the filter
 /// could mix (valid, same instance and chart, facing the same way: the guides of
+/// The denoiser's calibration: the factor that scales the per-patch noise so its RMS over the valid patches matches the
+/// sampling stages' own estimate (`estimate`, less the hierarchical solve's coarse bias
+/// `coarse_bias`, relative): the per-texel figures give the shape, the stage estimates
+/// (independent re-gathers for radiosity) the scale.
+pub fn noise_scale(
+    patches: &Patches,
+    noise: &[f32],
+    estimate: Option<&ErrorEstimate>,
+    coarse_bias: Option<f64>,
+) -> f32 {
+    let Some(e) = estimate else {
+        return 1.0;
+    };
+    let bias = coarse_bias.unwrap_or(0.0) * e.value_rms;
+    let target = (e.rms * e.rms - bias * bias).max(0.0).sqrt();
+    let valid: Vec<f32> = (patches.patches.iter().zip(noise))
+        .filter(|(p, _)| p.is_valid())
+        .map(|(_, n)| *n)
+        .collect();
+    let own = rms_of(&valid);
+    if own > 0.0 {
+        (target / own) as f32
+    } else {
+        1.0
+    }
+}
+
+/// RMS of `values`.
+fn rms_of(values: &[f32]) -> f64 {
+    let n = values.len().max(1) as f64;
+    (values.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 /// [`filter_one`] without the luminance term), weighted as the filter weighs distance.
 fn smooth_variance(a: &Assembly, patches: &Patches, noise: &[f32], radius: u32) -> Vec<f32> {
     patches

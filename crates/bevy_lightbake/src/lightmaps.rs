@@ -1,9 +1,8 @@
-//! The plugin's systems: take bake requests, run the core baker in the background, carry its
-//! results back into the world, and keep Bevy's `Lightmap` components in step with their
-//! images.
+//! Lightmaps applied to the world: meshes get the unwrap's `UV_1`, baked mesh entities get
+//! their pages as Bevy's `Lightmap`, baked lights stop lighting lightmapped meshes, and the
+//! `Lightmap` components are kept in step with their images ([`LightbakeSystems::Lightmaps`]).
 
 use std::collections::{HashMap, HashSet};
-use std::time::Instant;
 
 use bevy::asset::AssetId;
 use bevy::diagnostic::FrameCount;
@@ -11,50 +10,29 @@ use bevy::light::GlobalAmbientLight;
 use bevy::mesh::{Indices, MeshAccessError};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use lightbake::bake::{PreviewKind, PreviewSlot};
-use lightbake::{
-    BakeError, BakeHandle, BakeOutput, BakeSettings, Layout, MeshUnwrap, Scene, UvOrigin,
-};
+use lightbake::{Layout, MeshUnwrap, UvOrigin};
 
-use crate::components::{
-    BakeFinished, BakeOutcome, BakePhase, BakeStatus, BakedLight, CancelBake, LightbakeConfig,
-    Lightmapped, RequestBake, ShowLightmaps,
-};
-use crate::convert::{SceneMapping, extract_scene};
+use crate::LightbakeSystems;
+use crate::components::{BakedLight, LightbakeConfig, Lightmapped, ShowLightmaps};
+use crate::convert::SceneMapping;
 use crate::images::{is_ready, narrow_to_half, page_image};
-use crate::preview::{Restore, show_preview};
-use crate::volumes::spawn_bake_volumes;
 
-/// A bake request waiting for the running bake (if any) to stop.
-#[derive(Resource, Default)]
-pub(crate) struct PendingRequest(Option<RequestBake>);
+/// Applying lightmaps: prepares page images and keeps `Lightmap` components in step
+/// (`PostUpdate`, [`LightbakeSystems::Lightmaps`]).
+pub struct LightmapsPlugin;
 
-/// What the bake task hands back.
-struct Finished {
-    output: BakeOutput,
-    /// Asset paths of the page images written, when files were written.
-    page_paths: Option<Vec<String>>,
-    /// Asset paths of the irradiance volumes written, when files were written.
-    volume_paths: Option<Vec<String>>,
-}
-
-/// The running bake.
-///
-/// It runs on a thread of its own ([`BakeHandle`], with its own rayon pool of
-/// `settings.threads` workers), not on Bevy's `AsyncComputeTaskPool`: Bevy compiles render
-/// pipelines on that pool, which has a single thread on a 2-core machine, and a bake holding
-/// it stalls the first frames waiting for pipelines. The frame loop only polls the handle.
-#[derive(Resource)]
-pub(crate) struct BakeJob {
-    handle: BakeHandle<Finished>,
-    started: Instant,
-    pub(crate) mapping: SceneMapping,
-    /// The last preview shown (its sequence number; 0 before the first).
-    pub(crate) shown: u32,
-    /// What the first preview replaced, put back when the bake is cancelled or fails.
-    pub(crate) restore: Option<Restore>,
-    /// The meshes the first preview split off into assets of their own (by core mesh).
-    pub(crate) preview_meshes: Option<HashMap<usize, Handle<Mesh>>>,
+impl Plugin for LightmapsPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<ShowLightmaps>()
+            .init_resource::<MemoryPages>()
+            .init_resource::<ResizedImages>()
+            .add_systems(
+                PostUpdate,
+                (prepare_lightmap_images, sync_lightmaps)
+                    .chain()
+                    .in_set(LightbakeSystems::Lightmaps),
+            );
+    }
 }
 
 /// In-memory page images of earlier bakes, reused so a re-bake of the same size updates the
@@ -69,197 +47,6 @@ pub(crate) struct ResizedImages(HashSet<AssetId<Image>>);
 /// A `Lightmap` removed to be re-inserted: not before this frame.
 #[derive(Component, Clone, Copy, Debug)]
 pub(crate) struct ReinsertAfter(u32);
-
-/// Takes [`RequestBake`] and [`CancelBake`] messages. A request while a bake runs cancels
-/// that bake; the new one starts when it has stopped.
-pub(crate) fn read_requests(
-    mut requests: MessageReader<RequestBake>,
-    mut cancels: MessageReader<CancelBake>,
-    mut pending: ResMut<PendingRequest>,
-    job: Option<Res<BakeJob>>,
-) {
-    if let Some(r) = requests.read().last() {
-        pending.0 = Some(r.clone());
-        if let Some(job) = &job {
-            job.handle.cancel();
-        }
-    }
-    if cancels.read().count() > 0 {
-        pending.0 = None;
-        if let Some(job) = &job {
-            job.handle.cancel();
-        }
-    }
-}
-
-/// Starts the pending bake when none is running: converts the marked world into a core
-/// scene here (cheap), then bakes and writes files on the bake thread (see [`BakeJob`]).
-pub(crate) fn start_bake(world: &mut World) {
-    if world.contains_resource::<BakeJob>() {
-        return;
-    }
-    let Some(request) = world.resource_mut::<PendingRequest>().0.take() else {
-        return;
-    };
-    let started = Instant::now();
-    let config = world.resource::<LightbakeConfig>().clone();
-    let mut settings = request.settings.unwrap_or_else(|| config.settings.clone());
-    // The sky is read from the ambient light as the game set it, not as a shown volume
-    // turned it down (`volumes::sync_volumes` turns it down again).
-    crate::volumes::restore_ambient(world);
-    let (scene, mapping) = match extract_scene(world, "bevy world", config.sky, &mut settings) {
-        Ok(x) => x,
-        Err(message) => return fail(world, started, message),
-    };
-    for w in &scene.warnings {
-        warn!("lightbake: {w}");
-    }
-    let out_dir = config
-        .write_files
-        .then(|| config.assets_folder.join(&config.output_dir));
-    let output_dir = config.output_dir.clone();
-    // The check against the path tracer, when the settings ask for it
-    // (`BakeSettings::verify_points`), runs on the bake thread before the files are written,
-    // so `report.json` and the report the app sees hold it.
-    let then = move |mut output, scene: &Scene, settings: &BakeSettings| {
-        lightbake::analysis::verify::verify(scene, &mut output);
-        write_files(output, scene, settings, out_dir.as_deref(), &output_dir)
-    };
-    let previews = if config.previews {
-        PreviewSlot::enabled()
-    } else {
-        PreviewSlot::default()
-    };
-    let spawned = lightbake::BakeBuilder::new(scene)
-        .settings(settings)
-        .previews(std::sync::Arc::new(previews))
-        .spawn_then(then);
-    let handle = match spawned {
-        Ok(h) => h,
-        Err(e) => return fail(world, started, e.to_string()),
-    };
-    world.insert_resource(BakeJob {
-        handle,
-        started,
-        mapping,
-        shown: 0,
-        restore: None,
-        preview_meshes: None,
-    });
-    let mut status = world.resource_mut::<BakeStatus>();
-    status.phase = BakePhase::Running;
-    status.stage = None;
-    status.stage_index = 0;
-    status.fraction = 0.0;
-    status.error_estimate = None;
-    status.finished_stages.clear();
-    status.elapsed_seconds = 0.0;
-    status.preview = None;
-}
-
-/// After the bake, on its thread: (optionally) write the outputs atomically into the assets
-/// folder.
-fn write_files(
-    output: BakeOutput,
-    scene: &Scene,
-    settings: &BakeSettings,
-    out_dir: Option<&std::path::Path>,
-    output_dir: &str,
-) -> Result<Finished, BakeError> {
-    let (page_paths, volume_paths) = match out_dir {
-        Some(dir) => {
-            lightbake::write_outputs(dir, &output, scene, None, settings)?;
-            let pages = lightbake::output::page_files(&output, settings);
-            let volumes = lightbake::output::volumes(&output);
-            (
-                Some(
-                    pages
-                        .iter()
-                        .map(|p| format!("{output_dir}/{}", p.primary().unwrap_or_default()))
-                        .collect(),
-                ),
-                Some(
-                    volumes
-                        .iter()
-                        .map(|v| format!("{output_dir}/{}", v.image))
-                        .collect(),
-                ),
-            )
-        }
-        None => (None, None),
-    };
-    Ok(Finished {
-        output,
-        page_paths,
-        volume_paths,
-    })
-}
-
-fn fail(world: &mut World, started: Instant, message: String) {
-    error!("lightbake: {message}");
-    world.resource_mut::<BakeStatus>().phase = BakePhase::Failed(message.clone());
-    world.write_message(BakeFinished {
-        outcome: BakeOutcome::Failed(message),
-        seconds: started.elapsed().as_secs_f64(),
-        lightmapped: 0,
-    });
-}
-
-/// Copies the running bake's progress into [`BakeStatus`] and, when it has finished, applies
-/// its results.
-pub(crate) fn poll_bake(world: &mut World) {
-    let Some(mut job) = world.remove_resource::<BakeJob>() else {
-        return;
-    };
-    let snap = job.handle.snapshot();
-    {
-        let mut status = world.resource_mut::<BakeStatus>();
-        status.stage = snap.stage;
-        status.stage_index = snap.stage_index;
-        status.fraction = snap.fraction();
-        status.error_estimate = snap.error_estimate;
-        status.finished_stages = snap.finished;
-        status.elapsed_seconds = job.started.elapsed().as_secs_f32();
-    }
-    let Some(result) = job.handle.try_join() else {
-        if let Some(preview) = job.handle.preview()
-            && preview.sequence > job.shown
-            && preview.kind != PreviewKind::Final
-        {
-            show_preview(world, &mut job, &preview);
-        }
-        world.insert_resource(job);
-        return;
-    };
-    let seconds = job.started.elapsed().as_secs_f64();
-    if result.is_err()
-        && let Some(restore) = job.restore.take()
-    {
-        restore.apply(world, &job.mapping);
-        world.resource_mut::<BakeStatus>().preview = None;
-    }
-    match result {
-        Ok(finished) => {
-            let lightmapped = apply_bake(world, finished, &job.mapping);
-            info!("lightbake: baked {lightmapped} mesh(es) in {seconds:.2} s");
-            world.write_message(BakeFinished {
-                outcome: BakeOutcome::Baked,
-                seconds,
-                lightmapped,
-            });
-        }
-        Err(BakeError::Cancelled) => {
-            info!("lightbake: bake cancelled after {seconds:.2} s");
-            world.resource_mut::<BakeStatus>().phase = BakePhase::Cancelled;
-            world.write_message(BakeFinished {
-                outcome: BakeOutcome::Cancelled,
-                seconds,
-                lightmapped: 0,
-            });
-        }
-        Err(e) => fail(world, job.started, e.to_string()),
-    }
-}
 
 /// `original` with the unwrap's vertex split applied to every attribute, its triangle list
 /// replaced and `UV_1` set.
@@ -278,40 +65,6 @@ pub fn apply_unwrap(original: &Mesh, unwrap: &MeshUnwrap) -> Result<Mesh, MeshAc
     mesh.try_insert_attribute(Mesh::ATTRIBUTE_UV_1, uv1)?;
     mesh.try_insert_indices(Indices::U32(unwrap.indices.clone()))?;
     Ok(mesh)
-}
-
-/// Puts a finished bake into the world: meshes get `UV_1`, baked mesh entities get
-/// [`Lightmapped`], baked lights stop lighting lightmapped meshes. Returns how many mesh
-/// entities got a lightmap.
-fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> usize {
-    let Finished {
-        output,
-        page_paths,
-        volume_paths,
-    } = finished;
-    let new_handles = apply_meshes(world, &output.layout, mapping);
-    let handles = match page_paths.as_deref() {
-        Some(paths) => file_pages(world, paths, &output.pages),
-        None => memory_pages(world, &output.pages),
-    };
-    let lightmapped = attach_lightmaps(world, &output.layout, mapping, &new_handles, &handles);
-    mark_lights_baked(world, mapping);
-    spawn_bake_volumes(
-        world,
-        &output,
-        volume_paths.as_deref(),
-        mapping.sky_from_ambient,
-    );
-    for w in &output.report.warnings {
-        warn!("lightbake: {w}");
-    }
-    let mut status = world.resource_mut::<BakeStatus>();
-    status.phase = BakePhase::Done;
-    status.completed += 1;
-    status.fraction = 1.0;
-    status.preview = Some(PreviewKind::Final);
-    status.last_report = Some(Box::new(output.report));
-    lightmapped
 }
 
 /// Meshes get the unwrap's `UV_1` (and vertex split), in place or as a new asset; returns the

@@ -1,0 +1,180 @@
+//! The geometry stages every bake starts with, each one stage: the plan (refused early when
+//! the texel count or the rays alone are over budget), the unwrap, the density that follows
+//! the light, the memory admission (with the irradiance volume's grid), and the BVH.
+
+use super::preview::PreviewSlot;
+use super::stages::Stages;
+use crate::bvh::RayScene;
+use crate::density::DensityReport;
+use crate::error::Result;
+use crate::memory::{self, MemoryEstimate};
+use crate::plan::BakePlan;
+use crate::probes::VolumeGrid;
+use crate::report::Decision;
+use crate::scene::Scene;
+use crate::settings::BakeSettings;
+use crate::stage::Stage;
+use crate::unwrap::{Layout, unwrap_scene};
+
+/// The plan (stage `plan`), refused when the texels alone would not fit the memory budget or
+/// the rays the ray budget.
+pub(super) fn plan(
+    scene: &Scene,
+    settings: &BakeSettings,
+    stages: &mut Stages<'_>,
+) -> Result<BakePlan> {
+    let plan = stages.run(Stage::Plan, 1, || {
+        let plan = BakePlan::new(scene, settings);
+        let note = format!("{} texels/m", crate::plan::density_text(plan.texel_density));
+        Ok((plan, 0, note))
+    })?;
+    memory::estimate_from_area(scene, plan.texel_density).check(settings.memory_budget_mib)?;
+    plan.check_rays(settings)?;
+    Ok(plan)
+}
+
+/// Lightmap UVs packed into pages at the plan's density (stage `unwrap`).
+pub(super) fn unwrap(
+    scene: &Scene,
+    settings: &BakeSettings,
+    plan: &BakePlan,
+    stages: &mut Stages<'_>,
+) -> Result<Layout> {
+    stages.run(Stage::Unwrap, scene.meshes.len() as u64, || {
+        let layout = unwrap_scene(scene, settings, plan.texel_density)?;
+        let note = format!(
+            "{} mesh(es) xatlas, {} kept, {} page(s)",
+            plan.meshes_to_unwrap,
+            plan.meshes_keeping_uv1,
+            layout.pages.len()
+        );
+        Ok((layout, 0, note))
+    })
+}
+
+/// The density that follows the light (stage `density`, when the plan runs it): a pilot on
+/// the first layout, which is then repacked. Returns the layout, the ray scene the pilot
+/// traced (the lighting passes' own: the same triangles) and the density report; what was
+/// decided goes in `decisions`.
+pub(super) fn density(
+    scene: &Scene,
+    settings: &BakeSettings,
+    plan: &BakePlan,
+    layout: Layout,
+    stages: &mut Stages<'_>,
+    decisions: &mut Vec<Decision>,
+) -> Result<(Layout, Option<RayScene>, Option<DensityReport>)> {
+    if !plan.runs(Stage::Density) {
+        return Ok((layout, None, None));
+    }
+    let (layout, rays, density) = stages.run(Stage::Density, 1, || {
+        let rays = RayScene::build(scene);
+        match crate::density::adapt(scene, settings, plan, &layout, &rays) {
+            Ok((adapted, report)) => {
+                let note = report.summary();
+                let traced = report.rays;
+                Ok(((adapted, rays, Ok(report)), traced, note))
+            }
+            Err(reason) => Ok(((layout, rays, Err(reason.clone())), 0, reason)),
+        }
+    })?;
+    Ok(match density {
+        Ok(report) => {
+            decisions.push(Decision::ran(Stage::Density, report.summary()));
+            (layout, Some(rays), Some(report))
+        }
+        Err(reason) => {
+            decisions.push(Decision::skipped(Stage::Density, reason));
+            (layout, Some(rays), None)
+        }
+    })
+}
+
+/// What the memory admission found.
+pub(super) struct Admitted {
+    /// The estimate the bake was admitted with.
+    pub(super) estimate: MemoryEstimate,
+    /// The irradiance volume's grid, when one is baked.
+    pub(super) volume_grid: Option<VolumeGrid>,
+}
+
+/// The memory the bake will take with `layout` (the volume's grid planned here, so that a
+/// spacing it cannot take is refused before the lighting passes run; previews kept), checked
+/// against the budget.
+pub(super) fn admit(
+    scene: &Scene,
+    settings: &BakeSettings,
+    plan: &BakePlan,
+    layout: &Layout,
+    previews: &PreviewSlot,
+    decisions: &mut Vec<Decision>,
+) -> Result<Admitted> {
+    let mut estimate = memory::estimate_from_layout(scene, layout);
+    let volume_grid = if plan.runs(Stage::Volume) {
+        VolumeGrid::plan(scene, layout, settings, plan.texel_density)?
+    } else {
+        None
+    };
+    match &volume_grid {
+        Some(grid) => {
+            estimate = estimate.with(
+                "irradiance volume",
+                grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
+            );
+            decisions.push(Decision::ran(
+                Stage::Volume,
+                format!(
+                    "irradiance volume for dynamic objects: {} × {} × {} probes {:.3e} m apart ({}), {} rays each",
+                    grid.resolution.x,
+                    grid.resolution.y,
+                    grid.resolution.z,
+                    grid.spacing,
+                    grid.reason,
+                    settings.probe_rays
+                ),
+            ));
+        }
+        None if plan.runs(Stage::Volume) => {
+            decisions.push(Decision::skipped(
+                Stage::Volume,
+                "no instance has a lightmap".into(),
+            ));
+        }
+        None => {}
+    }
+    if previews.is_enabled() {
+        // The direct light kept per patch (at most one per page texel, 12 bytes) and two
+        // sets of pages alive at once (the preview shown and the one being made, 16 each).
+        estimate = estimate.with("progressive previews", layout.page_texels() * (12 + 2 * 16));
+    }
+    estimate.check(settings.memory_budget_mib)?;
+    Ok(Admitted {
+        estimate,
+        volume_grid,
+    })
+}
+
+/// The BVH of `baked_scene` (stage `bvh`): the density pilot's (`early`, the same triangles)
+/// when it built one.
+pub(super) fn bvh(
+    baked_scene: &Scene,
+    early: Option<RayScene>,
+    stages: &mut Stages<'_>,
+) -> Result<RayScene> {
+    stages.run(Stage::Bvh, 1, || {
+        let reused = early.is_some();
+        let rays = early.unwrap_or_else(|| RayScene::build(baked_scene));
+        let (nodes, packets, bytes) = rays.bvh_size();
+        let note = format!(
+            "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB{}",
+            rays.bvh_triangle_count(),
+            bytes as f64 / 1048576.0,
+            if reused {
+                " (built for the density pilot)"
+            } else {
+                ""
+            }
+        );
+        Ok((rays, 0, note))
+    })
+}
