@@ -50,10 +50,13 @@ impl CapturedFrame {
     /// Writes a PNG.
     ///
     /// # Errors
-    /// When the file cannot be written.
-    pub fn save_png(&self, path: &std::path::Path) -> Result<(), String> {
+    /// [`SaveError`] naming the folder or file that cannot be written.
+    pub fn save_png(&self, path: &std::path::Path) -> Result<(), SaveError> {
         if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir).map_err(|source| SaveError::Folder {
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
         image::save_buffer(
             path,
@@ -62,8 +65,32 @@ impl CapturedFrame {
             self.height,
             image::ExtendedColorType::Rgba8,
         )
-        .map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|source| SaveError::Png {
+            path: path.to_path_buf(),
+            source,
+        })
     }
+}
+
+/// Why a captured frame could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum SaveError {
+    /// The folder could not be made.
+    #[error("{}: {source}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The PNG could not be encoded or written.
+    #[error("{}: {source}", path.display())]
+    Png {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: image::ImageError,
+    },
 }
 
 /// Drives a capture. Insert with [`FrameCapture::new`], render a camera into
@@ -265,7 +292,7 @@ fn settle_capture(
         if let Some(path) = c.save_to.clone()
             && let Err(e) = frame.save_png(&path)
         {
-            c.failed = Some(e);
+            c.failed = Some(e.to_string());
         }
         c.frame = Some(frame);
     } else if c.readbacks >= c.max_readbacks {

@@ -23,7 +23,7 @@ use bevy::asset::AssetId;
 use bevy::image::{ImageAddressMode, ImageSampler};
 use bevy::light::RectLight;
 use bevy::light::{GlobalAmbientLight, SunDisk};
-use bevy::mesh::{Indices, PrimitiveTopology, UvChannel, VertexAttributeValues};
+use bevy::mesh::{Indices, MeshAccessError, PrimitiveTopology, UvChannel, VertexAttributeValues};
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use lightbake::scene::{
@@ -83,6 +83,69 @@ fn vec3(v: Vec3) -> lightbake::glam::Vec3 {
     lightbake::glam::Vec3::from_array(v.to_array())
 }
 
+/// Why part of the world cannot be baked; each names the entity, mesh or texture (`label`).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ConvertError {
+    /// A mesh that is not a triangle list.
+    #[error("{label}: the mesh is a {topology}; only triangle lists can be baked")]
+    NotTriangles {
+        /// The entity or mesh.
+        label: String,
+        /// Its primitive topology.
+        topology: String,
+    },
+    /// Mesh data that lives only on the GPU.
+    #[error(
+        "{label}: mesh data is not readable on the CPU ({reason}); keep RenderAssetUsages::MAIN_WORLD on baked meshes"
+    )]
+    NotOnCpu {
+        /// The entity or mesh.
+        label: String,
+        /// Bevy's reason.
+        reason: String,
+    },
+    /// A vertex attribute in a format the baker does not read.
+    #[error("{label}: {attribute} are {found}; expected {expected}")]
+    AttributeFormat {
+        /// The entity or mesh.
+        label: String,
+        /// The attribute, in words (`positions`, `UV_0 coordinates`, ...).
+        attribute: &'static str,
+        /// Its format.
+        found: &'static str,
+        /// The format the baker reads.
+        expected: &'static str,
+    },
+    /// A mesh without positions.
+    #[error("{label}: the mesh has no positions")]
+    NoPositions {
+        /// The entity or mesh.
+        label: String,
+    },
+    /// A baked entity whose mesh asset is not loaded yet.
+    #[error("{label}: its mesh is not loaded yet; bake once it is")]
+    MeshNotLoaded {
+        /// The entity.
+        label: String,
+    },
+    /// A texture in a format the baker does not read.
+    #[error(
+        "{label}: texture format {format} is not read by the baker (8-bit RGBA only); its mean colour is taken as white"
+    )]
+    TextureFormat {
+        /// The material's texture.
+        label: String,
+        /// Its format.
+        format: String,
+    },
+    /// A texture whose pixels are not on the CPU.
+    #[error("{label}: texture pixels are not on the CPU")]
+    TextureNotOnCpu {
+        /// The material's texture.
+        label: String,
+    },
+}
+
 /// The name used in messages: the entity's `Name`, else its id.
 pub fn entity_label(entity: Entity, name: Option<&Name>) -> String {
     name.map_or_else(|| format!("entity {entity}"), |n| n.as_str().to_string())
@@ -91,21 +154,27 @@ pub fn entity_label(entity: Entity, name: Option<&Name>) -> String {
 /// Reads a Bevy mesh as a core mesh (no material yet).
 ///
 /// # Errors
-/// A message naming `label` when the mesh cannot be baked (not a triangle list, no
+/// A [`ConvertError`] naming `label` when the mesh cannot be baked (not a triangle list, no
 /// positions, attribute formats the baker does not read, data only on the GPU).
-pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, String> {
+pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, ConvertError> {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(format!(
-            "{label}: the mesh is a {:?}; only triangle lists can be baked",
-            mesh.primitive_topology()
-        ));
+        return Err(ConvertError::NotTriangles {
+            label: label.to_string(),
+            topology: format!("{:?}", mesh.primitive_topology()),
+        });
     }
-    let unreadable = |e| {
-        format!(
-            "{label}: mesh data is not readable on the CPU ({e}); keep RenderAssetUsages::MAIN_WORLD on baked meshes"
-        )
+    let unreadable = |e: MeshAccessError| ConvertError::NotOnCpu {
+        label: label.to_string(),
+        reason: e.to_string(),
     };
-    let float3 = |attr, what: &str| -> Result<Option<Vec<lightbake::glam::Vec3>>, String> {
+    let format =
+        |attribute, found: &VertexAttributeValues, expected| ConvertError::AttributeFormat {
+            label: label.to_string(),
+            attribute,
+            found: found.enum_variant_name(),
+            expected,
+        };
+    let float3 = |attr, what| -> Result<Option<Vec<lightbake::glam::Vec3>>, ConvertError> {
         match mesh.try_attribute_option(attr).map_err(unreadable)? {
             None => Ok(None),
             Some(VertexAttributeValues::Float32x3(v)) => Ok(Some(
@@ -113,13 +182,10 @@ pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, String> {
                     .map(|p| lightbake::glam::Vec3::from_array(*p))
                     .collect(),
             )),
-            Some(other) => Err(format!(
-                "{label}: {what} are {:?}; expected Float32x3",
-                other.enum_variant_name()
-            )),
+            Some(other) => Err(format(what, other, "Float32x3")),
         }
     };
-    let float2 = |attr, what: &str| -> Result<Option<Vec<lightbake::glam::Vec2>>, String> {
+    let float2 = |attr, what| -> Result<Option<Vec<lightbake::glam::Vec2>>, ConvertError> {
         match mesh.try_attribute_option(attr).map_err(unreadable)? {
             None => Ok(None),
             Some(VertexAttributeValues::Float32x2(v)) => Ok(Some(
@@ -127,14 +193,14 @@ pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, String> {
                     .map(|p| lightbake::glam::Vec2::from_array(*p))
                     .collect(),
             )),
-            Some(other) => Err(format!(
-                "{label}: {what} are {:?}; expected Float32x2",
-                other.enum_variant_name()
-            )),
+            Some(other) => Err(format(what, other, "Float32x2")),
         }
     };
-    let positions = float3(Mesh::ATTRIBUTE_POSITION, "positions")?
-        .ok_or_else(|| format!("{label}: the mesh has no positions"))?;
+    let positions = float3(Mesh::ATTRIBUTE_POSITION, "positions")?.ok_or_else(|| {
+        ConvertError::NoPositions {
+            label: label.to_string(),
+        }
+    })?;
     let normals = float3(Mesh::ATTRIBUTE_NORMAL, "normals")?;
     let uv0 = float2(Mesh::ATTRIBUTE_UV_0, "UV_0 coordinates")?;
     let uv1 = float2(Mesh::ATTRIBUTE_UV_1, "UV_1 coordinates")?;
@@ -162,21 +228,25 @@ pub fn core_mesh(mesh: &Mesh, label: &str) -> Result<CoreMesh, String> {
 /// A Bevy image as a core texture (8-bit RGBA only).
 ///
 /// # Errors
-/// A message when the format is not 8-bit RGBA or the pixels are not on the CPU.
-pub fn core_texture(image: &Image, label: &str) -> Result<CoreTexture, String> {
+/// [`ConvertError::TextureFormat`] when the format is not 8-bit RGBA,
+/// [`ConvertError::TextureNotOnCpu`] when the pixels are not on the CPU.
+pub fn core_texture(image: &Image, label: &str) -> Result<CoreTexture, ConvertError> {
     let format = image.texture_descriptor.format;
     if !matches!(
         format,
         TextureFormat::Rgba8UnormSrgb | TextureFormat::Rgba8Unorm
     ) {
-        return Err(format!(
-            "{label}: texture format {format:?} is not read by the baker (8-bit RGBA only); its mean colour is taken as white"
-        ));
+        return Err(ConvertError::TextureFormat {
+            label: label.to_string(),
+            format: format!("{format:?}"),
+        });
     }
     let data = image
         .data
         .as_ref()
-        .ok_or_else(|| format!("{label}: texture pixels are not on the CPU"))?;
+        .ok_or_else(|| ConvertError::TextureNotOnCpu {
+            label: label.to_string(),
+        })?;
     let wrap = |m: ImageAddressMode| match m {
         ImageAddressMode::Repeat => Wrap::Repeat,
         ImageAddressMode::MirrorRepeat => Wrap::MirroredRepeat,
@@ -229,7 +299,7 @@ impl Materials {
                     Some(scene.textures.len() - 1)
                 }
                 Err(e) => {
-                    scene.warnings.push(e);
+                    scene.warnings.push(e.to_string());
                     None
                 }
             }
@@ -310,13 +380,13 @@ impl Materials {
 /// and written into `settings.texel_density`, so every entity's own density holds.
 ///
 /// # Errors
-/// A message naming the entity whose mesh cannot be read.
+/// A [`ConvertError`] naming the entity whose mesh cannot be read.
 pub fn extract_scene(
     world: &mut World,
     name: &str,
     sky: SkySource,
     settings: &mut lightbake::BakeSettings,
-) -> Result<(Scene, SceneMapping), String> {
+) -> Result<(Scene, SceneMapping), ConvertError> {
     let mut scene = Scene {
         name: name.to_string(),
         ..Scene::default()
@@ -358,7 +428,7 @@ fn extract_instances(
     world: &mut World,
     scene: &mut Scene,
     mapping: &mut SceneMapping,
-) -> Result<Vec<(usize, f32)>, String> {
+) -> Result<Vec<(usize, f32)>, ConvertError> {
     let mut own = Vec::new();
     let mut query = world.query::<(
         Entity,
@@ -393,9 +463,11 @@ fn extract_instances(
         let mesh_index = match core_meshes.get(&key) {
             Some(&m) => m,
             None => {
-                let mesh = meshes.get(&mesh_handle).ok_or_else(|| {
-                    format!("{label}: its mesh is not loaded yet; bake once it is")
-                })?;
+                let mesh = meshes
+                    .get(&mesh_handle)
+                    .ok_or_else(|| ConvertError::MeshNotLoaded {
+                        label: label.clone(),
+                    })?;
                 if mesh.has_morph_targets() {
                     scene.warnings.push(format!(
                         "{label}: morph targets are ignored; the mesh is baked in its rest pose"

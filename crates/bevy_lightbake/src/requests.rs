@@ -110,7 +110,7 @@ pub(crate) fn start_bake(world: &mut World) {
     crate::volumes::restore_ambient(world);
     let (scene, mapping) = match extract_scene(world, "bevy world", config.sky, &mut settings) {
         Ok(x) => x,
-        Err(message) => return fail(world, started, message),
+        Err(e) => return fail(world, started, e.to_string()),
     };
     for w in &scene.warnings {
         warn!("lightbake: {w}");
