@@ -49,19 +49,6 @@ pub enum RayKind {
 }
 
 impl StageStats {
-    /// A stage's counters before it has done anything.
-    pub fn new(run: impl Into<StageRun>) -> Self {
-        Self {
-            run: run.into(),
-            seconds: 0.0,
-            rays: 0,
-            ray_kind: RayKind::None,
-            shadow_rays: 0,
-            error: None,
-            note: String::new(),
-        }
-    }
-
     /// (closest-hit, any-hit) rays, for the ray-tracing floor.
     pub fn rays_by_kind(&self) -> (u64, u64) {
         match self.ray_kind {

@@ -118,9 +118,22 @@ impl fmt::Display for Stage {
 }
 
 /// A name that is not a stage's.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("'{0}' is not a stage (stages: plan, unwrap, density, ..., write)")]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct UnknownStage(pub String);
+
+impl fmt::Display for UnknownStage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
+        write!(
+            f,
+            "'{}' is not a stage (stages: {})",
+            self.0,
+            names.join(", ")
+        )
+    }
+}
+
+impl std::error::Error for UnknownStage {}
 
 impl FromStr for Stage {
     type Err = UnknownStage;
