@@ -9,13 +9,15 @@ use lightbake::atomic::StagedFiles;
 pub(super) fn run(args: ConvergenceArgs) -> Result<(), CliError> {
     let mut settings = BakeSettings::medium();
     settings.threads = args.threads;
-    settings.light_convention = args.light_convention;
     if let Some(d) = args.texel_density {
         settings.texel_density = Some(d);
         settings.texel_density_from_scene = false;
     }
     settings.validate()?;
-    let imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))?;
+    let imported = import_gltf_with(
+        &args.scene,
+        &import_options(&settings, args.light_convention, &args.allow_read),
+    )?;
     let size = if args.quick {
         StudySize::Quick
     } else {

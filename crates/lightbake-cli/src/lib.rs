@@ -338,9 +338,13 @@ struct ConvergenceArgs {
 
 /// How a command line's scene is read: its light convention, the folders it may read from
 /// and the memory budget.
-fn import_options(settings: &BakeSettings, allow_read: &[PathBuf]) -> ImportOptions {
+fn import_options(
+    settings: &BakeSettings,
+    light_convention: LightConvention,
+    allow_read: &[PathBuf],
+) -> ImportOptions {
     ImportOptions {
-        light_convention: settings.light_convention,
+        light_convention,
         allow_read: allow_read.to_vec(),
         memory_budget_bytes: settings.memory_budget_mib.saturating_mul(1 << 20),
         ..ImportOptions::default()
@@ -421,7 +425,6 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.verify_points = v;
     }
     set(&mut s.verify_paths, args.verify_paths);
-    s.light_convention = args.light_convention;
     s
 }
 
@@ -475,7 +478,8 @@ fn parse_on_off(s: &str) -> Result<bool, String> {
 fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), CliError> {
     let settings = settings_from(args);
     settings.validate()?;
-    let mut imported = import_gltf_with(&args.scene, &import_options(&settings, &args.allow_read))?;
+    let options = import_options(&settings, args.light_convention, &args.allow_read);
+    let mut imported = import_gltf_with(&args.scene, &options)?;
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }

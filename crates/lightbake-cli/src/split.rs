@@ -8,8 +8,9 @@
 //! ```
 //!
 //! `prepare` writes `WORK/work.json` (the bake's settings as `BakeSettings` serialises them,
-//! the sky and light modes the flags set, the folders the scene may read from, the scene's
-//! path and a hash of the document, its buffers and its images), `WORK/patches.bin` (the texel patches) and
+//! the light convention, the sky and light modes the flags set, the folders the scene may
+//! read from, the scene's path and a hash of the document, its buffers and its images),
+//! `WORK/patches.bin` (the texel patches) and
 //! `WORK/units.json` (the work units); each shard and the merge read the scene again (from
 //! `--scene`, else that absolute path, else the same place relative to the work folder) and
 //! check the hash. A shard's index comes from `--index`, else `JOB_COMPLETION_INDEX`
@@ -20,7 +21,7 @@ use std::time::Duration;
 
 use lightbake::bake::shard::{Role, ShardRun};
 use lightbake::scene::LightBake;
-use lightbake::{BakeBuilder, BakeSettings, SplitOutcome};
+use lightbake::{BakeBuilder, BakeSettings, LightConvention, SplitOutcome};
 use serde::{Deserialize, Serialize};
 
 use super::{Args, CliError, import_options, load, write_and_print};
@@ -29,7 +30,7 @@ use super::{Args, CliError, import_options, load, write_and_print};
 const WORK_FILE: &str = "work.json";
 
 /// `work.json`'s format tag.
-const WORK_FORMAT: &str = "lightbake-work-3";
+const WORK_FORMAT: &str = "lightbake-work-4";
 
 /// `bake shard WORK`: compute one shard's part of every split stage.
 #[derive(Debug, clap::Args)]
@@ -105,6 +106,8 @@ struct Work {
     scene_from_work: Option<PathBuf>,
     /// The bake's settings (the shards and the merge set only their own thread count).
     settings: BakeSettings,
+    /// How the glTF's punctual lights are read (`--light-convention`).
+    light_convention: LightConvention,
     /// The sky luminance `--sky` set, nits.
     sky: Option<[f32; 3]>,
     /// The lights (by index in the scene) baked indirect only.
@@ -130,6 +133,7 @@ pub(super) fn prepare(args: Args) -> Result<(), CliError> {
         scene,
         scene_from_work,
         settings: settings.clone(),
+        light_convention: args.light_convention,
         sky: args.sky,
         indirect_only: (imported.scene.lights.iter().enumerate())
             .filter(|(_, l)| l.bake == LightBake::IndirectOnly)
@@ -192,10 +196,9 @@ fn reload(
     scene: Option<&Path>,
 ) -> Result<(BakeSettings, lightbake::ImportedScene), CliError> {
     let path = work_dir.join(WORK_FILE);
-    let text = lightbake::scene::resources::read_regular_file(&path, 1 << 20).map_err(|e| {
+    let text = lightbake::scene::read_regular_file(&path, 1 << 20).map_err(|e| {
         format!(
-            "{}: {e} (run `bake prepare SCENE -o {}` first)",
-            path.display(),
+            "{e} (run `bake prepare SCENE -o {}` first)",
             work_dir.display()
         )
     })?;
@@ -213,8 +216,10 @@ fn reload(
     let mut settings = work.settings;
     settings.threads = threads;
     settings.validate()?;
-    let mut imported =
-        lightbake::import_gltf_with(&scene, &import_options(&settings, &work.allow_read))?;
+    let mut imported = lightbake::import_gltf_with(
+        &scene,
+        &import_options(&settings, work.light_convention, &work.allow_read),
+    )?;
     if let Some(sky) = work.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }

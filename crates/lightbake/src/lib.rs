@@ -45,6 +45,7 @@
 //! | 7 | `memory` | memory planning before allocating |
 //! | 7 | `density` | texel density that follows the light: the direct-light pilot and each chart's scale |
 //! | 7 | `context` | what every lighting pass reads |
+//! | 7 | `runner` | how a pass runs its stages and where their work units run (the driver implements it) |
 //! | 8 | `direct` | direct light at every texel |
 //! | 9 | `solve` | the matrix F and the linear solvers (pure linear algebra) |
 //! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, hierarchical radiosity, the radiosity pass |
@@ -87,7 +88,9 @@ pub mod settings;
 pub mod stage;
 // 2–7. The scene and what the lighting passes stand on.
 pub mod scene;
-internal!(unwrap, bvh, raster, lights, plan, memory, density, context);
+internal!(
+    unwrap, bvh, raster, lights, plan, memory, density, context, runner
+);
 // 8–11. The lighting passes.
 internal!(direct, solve, radiosity, vpl);
 // 12–17. Results, the driver, writing, analysis.

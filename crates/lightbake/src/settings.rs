@@ -356,8 +356,6 @@ pub struct BakeSettings {
     pub verify_paths: u32,
     /// Which files to write.
     pub formats: OutputFormats,
-    /// How glTF punctual lights are read. Default [`LightConvention::GltfSpec`].
-    pub light_convention: LightConvention,
 }
 
 impl Default for BakeSettings {
@@ -433,7 +431,6 @@ impl BakeSettings {
             verify_points: 0,
             verify_paths: 4096,
             formats: OutputFormats::default(),
-            light_convention: LightConvention::GltfSpec,
         }
     }
 

@@ -14,6 +14,7 @@ use crate::lightmap::grid_error::grid_error;
 use crate::lights::Emitters;
 use crate::progress::RayKind;
 use crate::raster::Patches;
+use crate::runner::StageRunner;
 use crate::stage::Stage;
 
 /// The bake's error estimate after the denoiser: its per-texel errors (noise and the bias it

@@ -25,6 +25,7 @@ use crate::probes::gather::Solution;
 use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats, bake_volume};
 use crate::progress::RayKind;
 use crate::raster::Patches;
+use crate::runner::StageRunner;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::stage::Stage;

@@ -16,7 +16,6 @@ mod prefix;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
 mod builder;
-mod gathers;
 mod handle;
 mod passes;
 pub mod preview;
@@ -43,6 +42,7 @@ use crate::probes::{IrradianceVolume, VolumeGrid, VolumeStats};
 use crate::progress::Progress;
 use crate::raster::Patches;
 use crate::report::{BakeReport, Decision, Floor, TexelStats};
+use crate::runner::{StageRunner, WorkScope};
 use crate::sampling::hash_words;
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Method};

@@ -5,7 +5,6 @@
 
 use glam::Vec3;
 
-use super::gathers::{FinalGather, correction_rays, final_gather, gather_note, gather_split};
 use super::stages::{Stages, scaled, until_target};
 use super::{direct_pass_runs, valid};
 use crate::context::BakeContext;
@@ -14,10 +13,9 @@ use crate::error::Result;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
 use crate::lights::Emitters;
 use crate::progress::RayKind;
-use crate::radiosity::error_estimate::HierarchicalFields;
-use crate::radiosity::hierarchical::{self, Coarse, CoarseReport, Gather};
-use crate::radiosity::{self, HitMapper, Nodes, RadiosityReport};
-use crate::raster::Patch;
+use crate::radiosity::hierarchical::CoarseReport;
+use crate::radiosity::{self, Nodes, RadiosityReport, hierarchical_solve};
+use crate::runner::{StageRunner, WorkScope};
 use crate::settings::{MAX_VPL_DEPTH, Method, SolverChoice};
 use crate::solve::{Solution, Transport};
 use crate::stage::{Stage, StageRun};
@@ -484,7 +482,15 @@ fn radiosity_round(
     let at = |stage: Stage| StageRun { stage, round };
     let plan = radiosity::plan_solver(ctx, nodes)?;
     if plan.choice == SolverChoice::Hierarchical {
-        return hierarchical_round(ctx, nodes, direct, plan, round, stages);
+        let r = hierarchical_solve::solve_round(ctx, nodes, direct, round, stages)?;
+        return Ok(Solved {
+            plan,
+            transport: None,
+            solution: r.solution,
+            error: r.error,
+            coarse: Some((r.coarse, r.bias)),
+            node_error: Some(r.node_error),
+        });
     }
     // The matrix solvers' stages are not split: a shard stops, the merge runs them.
     stages.scope().stop_after_split()?;
@@ -541,183 +547,5 @@ fn radiosity_round(
         error,
         coarse: None,
         node_error: None,
-    })
-}
-
-/// One round of the hierarchical solve ([`hierarchical`]): the coarse level, the final
-/// gather, its correction and the error estimate, each a stage.
-fn hierarchical_round(
-    ctx: &BakeContext<'_>,
-    nodes: &Nodes,
-    direct: &[Vec3],
-    plan: radiosity::SolverPlan,
-    round: u32,
-    stages: &mut Stages<'_>,
-) -> Result<Solved> {
-    let at = |stage: Stage| StageRun { stage, round };
-    let s = ctx.settings;
-    let progress = stages.progress();
-    let mapper = HitMapper::new(*ctx, nodes, s.basis);
-    // The plan admitted the coarse matrix at its per-node cap.
-    let options = radiosity::hierarchy_options(ctx, nodes, u64::MAX);
-    let coarse = stages.run(at(Stage::CoarseSolve), 0, || {
-        let c = hierarchical::coarse_solve(ctx, &mapper, nodes, direct, &options, progress);
-        let r = &c.report;
-        let note = format!(
-            "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
-            r.cells,
-            r.rounds,
-            r.matrix_entries,
-            r.matrix_bytes as f64 / 1048576.0,
-            100.0 * r.missed_detail,
-            r.stop_reason,
-            c.solution.stop_reason
-        );
-        let rays = r.rays;
-        Ok((c, rays, note))
-    })?;
-    let cell_indirect = &coarse.solution.indirect;
-    if stages.previewing() {
-        // The preview of the coarse level: each node the reflected light of its cell.
-        let per_node = coarse.clusters.prolong(cell_indirect);
-        let per_patch = radiosity::per_patch(nodes, &per_node, ctx.patches.patches.len());
-        stages.preview_indirect(ctx, &per_patch, coarse.ambient);
-    }
-    let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
-    let FinalGather {
-        light: gathered,
-        error: mut node_error,
-        rays: gather_rays,
-        words: gather_words,
-    } = final_gather(
-        ctx,
-        &mapper,
-        nodes,
-        &b,
-        direct,
-        &coarse.clusters.of_node,
-        round,
-        stages,
-    )?;
-    let scope = stages.scope();
-    let coarse_per_node = coarse.clusters.prolong(cell_indirect);
-    let missed = hierarchical::missed_exitance(nodes, &gathered, &coarse_per_node);
-    drop(coarse_per_node);
-    let correction_rays = correction_rays(s.transport_rays);
-    let correction = stages.run(at(Stage::Correction), nodes.len() as u64, || {
-        let (d, se, rays) = gather_split(scope, Stage::Correction, nodes, |only| {
-            hierarchical::final_gather(
-                ctx,
-                &mapper,
-                nodes,
-                &missed,
-                &|_: usize| 0..correction_rays,
-                Gather::Correction,
-                only,
-                progress,
-            )
-        })?;
-        let note = gather_note(format!("{correction_rays} rays/node"), rays);
-        Ok((
-            (d, se, rays.visibility),
-            rays.closest + rays.visibility,
-            note,
-        ))
-    })?;
-    let (mut correction, correction_error, visibility) = correction;
-    stages.annotate(RayKind::Closest, None);
-    stages.shadow_rays(visibility);
-    // The last split stage: a shard process stops here (the rest is the merge's).
-    stages.scope().stop_after_split()?;
-    // The light the coarse level misses is largest next to geometry (a corner darkens
-    // within a few texels, inside a cell of one value), and reaches there through two more
-    // reflections: near geometry the correction's own reflection is gathered too.
-    let near: Vec<bool> = (0..nodes.len())
-        .map(|i| ctx.patches.patches[nodes.patch[i] as usize].flags & Patch::NEAR_GEOMETRY != 0)
-        .collect();
-    let near_count = near.iter().filter(|&&n| n).count() as u64;
-    let reflected: Vec<Vec3> = (0..nodes.len())
-        .map(|i| nodes.albedo[i] * correction[i])
-        .collect();
-    let reflection = stages.run(at(Stage::Reflection), near_count, || {
-        let (d, _, rays) = hierarchical::final_gather(
-            ctx,
-            &mapper,
-            nodes,
-            &reflected,
-            &|_: usize| 0..correction_rays,
-            Gather::Reflection,
-            Some(&near),
-            progress,
-        );
-        let note = format!(
-            "{near_count} nodes near geometry, {}",
-            gather_note(format!("{correction_rays} rays/node"), rays)
-        );
-        Ok(((d, rays.visibility), rays.closest + rays.visibility, note))
-    })?;
-    let (reflection, visibility) = reflection;
-    stages.annotate(RayKind::Closest, None);
-    stages.shadow_rays(visibility);
-    drop(reflected);
-    for ((c, d), (e, ce)) in correction
-        .iter_mut()
-        .zip(&reflection)
-        .zip(node_error.iter_mut().zip(&correction_error))
-    {
-        *c += *d;
-        *e = e.hypot(*ce);
-    }
-    let (indirect, clamped) = hierarchical::corrected(&gathered, &correction);
-    let (error, bias) = stages.run(at(Stage::ErrorEstimate), 1, || {
-        let (e, bias, rays) = radiosity::hierarchical_error(
-            ctx,
-            &mapper,
-            nodes,
-            &HierarchicalFields {
-                exitance: &b,
-                gathered: &gathered,
-                missed: &missed,
-                correction: &correction,
-                gather_rays: gather_rays.as_deref(),
-            },
-            direct,
-            s.transport_rays,
-            correction_rays,
-        );
-        let note = format!(
-            "{:.2}% ({:.2}% the coarse level's bias) from {}",
-            100.0 * e.relative_rms,
-            100.0 * bias,
-            e.method
-        );
-        Ok(((e, bias), rays, note))
-    })?;
-    stages.annotate(RayKind::Closest, Some(error.clone()));
-    let Coarse {
-        solution: c,
-        report,
-        ..
-    } = coarse;
-    let solution = Solution {
-        solver: "hierarchical",
-        b,
-        indirect,
-        history: c.history,
-        converged: c.converged,
-        iterations: c.iterations,
-        rays: 0,
-        stop_reason: format!(
-            "coarse level of {} cells ({}): {}; final gather of {gather_words}, correction of {correction_rays} ({clamped} node(s) held at zero)",
-            report.cells, c.solver, c.stop_reason
-        ),
-    };
-    Ok(Solved {
-        plan,
-        transport: None,
-        solution,
-        error,
-        coarse: Some((report, bias)),
-        node_error: Some(node_error),
     })
 }

@@ -11,6 +11,7 @@ use crate::memory::{self, MemoryEstimate};
 use crate::plan::BakePlan;
 use crate::probes::VolumeGrid;
 use crate::report::Decision;
+use crate::runner::StageRunner;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::stage::Stage;

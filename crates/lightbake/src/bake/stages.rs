@@ -5,12 +5,13 @@
 use std::time::Instant;
 
 use super::preview::{self, PreviewKind, PreviewSlot};
-use super::shard::{Record, ShardRun};
+use super::shard::ShardRun;
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::ErrorEstimate;
 use crate::lightmap::LightmapPage;
 use crate::progress::{Progress, RayKind, StageStats};
+use crate::runner::{Record, StageRunner, WorkScope};
 use crate::settings::BakeSettings;
 use crate::stage::{Stage, StageRun};
 use crate::unwrap::Layout;
@@ -28,13 +29,8 @@ pub(super) enum Scope<'a> {
     Split(&'a ShardRun),
 }
 
-impl<'a> Scope<'a> {
-    /// The values of stage `stage`'s `items` items (item `i` belongs to patch `patch(i)`),
-    /// and the (closest, any-hit) rays this process traced for them.
-    ///
-    /// # Errors
-    /// What the split bake's protocol returns ([`ShardRun::split`]).
-    pub(super) fn split<T: Record>(
+impl WorkScope for Scope<'_> {
+    fn split<T: Record>(
         self,
         stage: Stage,
         items: usize,
@@ -47,18 +43,16 @@ impl<'a> Scope<'a> {
         }
     }
 
-    /// Ends a shard's process here when what follows is the merge's (nothing for a bake in
-    /// one process; see [`ShardRun::shard_stops`]).
-    ///
-    /// # Errors
-    /// The stop of a shard that did its part.
-    pub(super) fn stop_after_split(self) -> Result<()> {
+    /// See [`ShardRun::shard_stops`].
+    fn stop_after_split(self) -> Result<()> {
         match self {
             Scope::All => Ok(()),
             Scope::Split(run) => run.shard_stops(),
         }
     }
+}
 
+impl<'a> Scope<'a> {
     /// The split bake this process is part of, if any.
     pub(super) fn split_bake(self) -> Option<&'a ShardRun> {
         match self {
@@ -95,16 +89,6 @@ impl<'p> Stages<'p> {
         }
     }
 
-    /// Where the stages' work units run ([`Scope`]).
-    pub(super) fn scope(&self) -> Scope<'p> {
-        self.shards.map_or(Scope::All, Scope::Split)
-    }
-
-    /// Whether the bake publishes previews (and has a direct-light preview to build on).
-    pub(super) fn previewing(&self) -> bool {
-        self.previews.is_enabled() && self.preview_direct.is_some()
-    }
-
     /// The direct-light preview of `direct` (lux per patch, without the direct light of
     /// lights baked indirect only), kept for [`Self::preview_indirect`].
     pub(super) fn preview_direct(&mut self, ctx: &BakeContext<'_>, direct: Vec<glam::Vec3>) {
@@ -116,9 +100,37 @@ impl<'p> Stages<'p> {
         self.preview_direct = Some(direct);
     }
 
+    /// Publishes a preview of `kind` when the bake's watcher asked for previews: `pages`
+    /// makes them (only then) over `layout`, with the ambient term `ambient` included.
+    pub(super) fn preview(
+        &self,
+        kind: PreviewKind,
+        layout: &Layout,
+        ambient: glam::Vec3,
+        pages: impl FnOnce() -> Vec<LightmapPage>,
+    ) {
+        if self.previews.is_enabled() && !self.progress.is_cancelled() {
+            self.previews.publish(kind, layout, pages(), ambient);
+        }
+    }
+}
+
+impl<'p> StageRunner<'p> for Stages<'p> {
+    type Scope = Scope<'p>;
+
+    /// Where the stages' work units run ([`Scope`]).
+    fn scope(&self) -> Scope<'p> {
+        self.shards.map_or(Scope::All, Scope::Split)
+    }
+
+    /// Whether the bake publishes previews (and has a direct-light preview to build on).
+    fn previewing(&self) -> bool {
+        self.previews.is_enabled() && self.preview_direct.is_some()
+    }
+
     /// The indirect preview: the direct light of [`Self::preview_direct`] plus `indirect`
     /// (lux per patch) and the ambient term `ambient` (lux) on every texel.
-    pub(super) fn preview_indirect(
+    fn preview_indirect(
         &self,
         ctx: &BakeContext<'_>,
         indirect: &[glam::Vec3],
@@ -138,22 +150,8 @@ impl<'p> Stages<'p> {
         self.preview(PreviewKind::Indirect, ctx.layout, ambient, pages);
     }
 
-    /// Publishes a preview of `kind` when the bake's watcher asked for previews: `pages`
-    /// makes them (only then) over `layout`, with the ambient term `ambient` included.
-    pub(super) fn preview(
-        &self,
-        kind: PreviewKind,
-        layout: &Layout,
-        ambient: glam::Vec3,
-        pages: impl FnOnce() -> Vec<LightmapPage>,
-    ) {
-        if self.previews.is_enabled() && !self.progress.is_cancelled() {
-            self.previews.publish(kind, layout, pages(), ambient);
-        }
-    }
-
     /// The progress the stages report to.
-    pub(super) fn progress(&self) -> &'p Progress {
+    fn progress(&self) -> &'p Progress {
         self.progress
     }
 
@@ -161,7 +159,7 @@ impl<'p> Stages<'p> {
     ///
     /// # Errors
     /// What `f` returns, or [`BakeError::Cancelled`] when the bake was cancelled meanwhile.
-    pub(super) fn run<T>(
+    fn run<T>(
         &mut self,
         run: impl Into<StageRun>,
         total: u64,
@@ -194,7 +192,7 @@ impl<'p> Stages<'p> {
 
     /// Sets how many of the last stage's rays were any-hit visibility tests (of a stage of
     /// closest-hit rays).
-    pub(super) fn shadow_rays(&mut self, rays: u64) {
+    fn shadow_rays(&mut self, rays: u64) {
         let index = self.list.len().saturating_sub(1);
         if let Some(last) = self.list.last_mut() {
             last.shadow_rays = rays;
@@ -203,7 +201,7 @@ impl<'p> Stages<'p> {
     }
 
     /// Sets the last stage's ray kind and error estimate (and publishes the estimate).
-    pub(super) fn annotate(&mut self, kind: RayKind, error: Option<ErrorEstimate>) {
+    fn annotate(&mut self, kind: RayKind, error: Option<ErrorEstimate>) {
         let index = self.list.len().saturating_sub(1);
         if let Some(last) = self.list.last_mut() {
             if last.rays > 0 {

@@ -31,7 +31,9 @@ pub use denoise::DenoiseStats;
 pub use seams::SeamJumps;
 pub use stitch::StitchStats;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
+
+use crate::raster::bilinear_corners;
 
 /// Largest finite half-float value: every output format, and Bevy's `Rgba16Float` images,
 /// clamp texels to it.
@@ -41,19 +43,11 @@ pub const HALF_MAX: f32 = 65504.0;
 /// (texel centres at (i + ½)/W, Bevy's and the GPU's convention), clamped at the edges:
 /// ((x, y), weight) in the order top-left, top-right, bottom-left, bottom-right.
 pub fn bilinear_taps(width: u32, height: u32, u: f32, v: f32) -> [((u32, u32), f32); 4] {
-    let x = u * width as f32 - 0.5;
-    let y = v * height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let clamp = |i: f32, n: u32| (i.max(0.0) as u32).min(n - 1);
-    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
-    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
-    [
-        ((xa, ya), (1.0 - fx) * (1.0 - fy)),
-        ((xb, ya), fx * (1.0 - fy)),
-        ((xa, yb), (1.0 - fx) * fy),
-        ((xb, yb), fx * fy),
-    ]
+    let corners = bilinear_corners(Vec2::new(u * width as f32, v * height as f32));
+    corners.map(|(x, y, w)| {
+        let clamp = |i: i64, n: u32| i.clamp(0, i64::from(n) - 1) as u32;
+        ((clamp(x, width), clamp(y, height)), w)
+    })
 }
 
 /// One atlas page of lightmap texels.

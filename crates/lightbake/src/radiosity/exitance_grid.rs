@@ -17,6 +17,7 @@ use glam::{Vec2, Vec3};
 
 use super::hit_mapper::HitMapper;
 use crate::bvh::Hit;
+use crate::raster::bilinear_corners;
 use crate::settings::Basis;
 
 /// No owner: the texel has no node.
@@ -144,16 +145,7 @@ impl<'a> ExitanceGrid<'a> {
         let [rx, ry, rw, rh] = tri.rect.map(i64::from);
         let uv = tri.uv[0] * (1.0 - hit.u - hit.v) + tri.uv[1] * hit.u + tri.uv[2] * hit.v;
         let q = uv * Vec2::new(rw as f32, rh as f32);
-        let (x, y) = (q.x - 0.5, q.y - 0.5);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let corners = [
-            (x0, y0, (1.0 - fx) * (1.0 - fy)),
-            (x0 + 1, y0, fx * (1.0 - fy)),
-            (x0, y0 + 1, (1.0 - fx) * fy),
-            (x0 + 1, y0 + 1, fx * fy),
-        ];
+        let corners = bilinear_corners(q);
         let page = &self.pages[tri.page as usize];
         let page_w = self.widths[tri.page as usize];
         let mut found = [(Vec3::ZERO, 0.0f32); 4];

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use super::nodes::Nodes;
 use crate::bvh::Hit;
 use crate::context::BakeContext;
-use crate::raster::Surface;
+use crate::raster::{Surface, bilinear_corners};
 use crate::settings::Basis;
 use crate::unwrap::InstanceRect;
 
@@ -347,16 +347,7 @@ impl<'a> HitMapper<'a> {
         out: &mut [(u32, f32); 4],
     ) -> usize {
         if self.basis == Basis::Linear {
-            let (x, y) = (q.x - 0.5, q.y - 0.5);
-            let (x0, y0) = (x.floor(), y.floor());
-            let (fx, fy) = (x - x0, y - y0);
-            let (x0, y0) = (x0 as i64, y0 as i64);
-            let corners = [
-                (x0, y0, (1.0 - fx) * (1.0 - fy)),
-                (x0 + 1, y0, fx * (1.0 - fy)),
-                (x0, y0 + 1, (1.0 - fx) * fy),
-                (x0 + 1, y0 + 1, fx * fy),
-            ];
+            let corners = bilinear_corners(q);
             // Plain loops over a fixed array: this runs for every ray end and start point.
             let mut found = [(0u32, 0f32, false); 4];
             let mut m = 0;

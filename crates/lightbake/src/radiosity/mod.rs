@@ -26,6 +26,7 @@
 //! | [`clusters`] | texel clusters: cuts through a quadtree per chart |
 //! | [`coarse`] | the clusters' form factors and the refinement oracle |
 //! | [`hierarchical`] | the coarse solve, its refinement and the per-texel final gather |
+//! | [`hierarchical_solve`] | one round of the hierarchical solve as stages: coarse level, final gather, correction, reflection, error |
 //! | [`ray_allocation`] | the final gather's rays per node, by each node's noise in a pilot |
 //! | [`error_estimate`] | the pass's estimate of its own error |
 //!
@@ -38,6 +39,7 @@ pub mod error_estimate;
 pub mod exitance_grid;
 pub mod hemicube;
 pub mod hierarchical;
+pub mod hierarchical_solve;
 pub mod hit_mapper;
 pub mod monte_carlo;
 pub mod nodes;

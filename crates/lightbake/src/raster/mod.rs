@@ -27,6 +27,24 @@ use crate::unwrap::Layout;
 pub use footprint::Footprint;
 pub use rasterize::{MeshRaster, rasterize_mesh};
 pub use surface::{Surface, SurfaceFrame, SurfacePoint};
+/// The four texel centres around texel-space point `q` (texel (i, j) has its centre at
+/// (i + ½, j + ½), the GPU's convention) with their bilinear weights, unclamped:
+/// (column, row, weight) in the order top-left, top-right, bottom-left, bottom-right. The
+/// weights sum to 1; corners outside the grid are the caller's to drop or clamp.
+#[inline]
+pub fn bilinear_corners(q: Vec2) -> [(i64, i64, f32); 4] {
+    let (x, y) = (q.x - 0.5, q.y - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    [
+        (x0, y0, (1.0 - fx) * (1.0 - fy)),
+        (x0 + 1, y0, fx * (1.0 - fy)),
+        (x0, y0 + 1, (1.0 - fx) * fy),
+        (x0 + 1, y0 + 1, fx * fy),
+    ]
+}
+
 /// A lightmap texel treated as a surface patch.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {

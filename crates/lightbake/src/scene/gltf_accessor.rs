@@ -13,12 +13,8 @@ pub struct Dense {
     pub bytes: Vec<u8>,
     /// Bytes per element.
     pub element_size: usize,
-    /// Number of elements.
-    pub count: usize,
     /// Component type.
     pub data_type: DataType,
-    /// Element shape.
-    pub dimensions: Dimensions,
     /// Integer components map to [0, 1] / [−1, 1].
     pub normalized: bool,
 }
@@ -194,9 +190,7 @@ pub fn read_dense<B: std::ops::Deref<Target = [u8]>>(
     Ok(Dense {
         bytes,
         element_size,
-        count,
         data_type: accessor.data_type(),
-        dimensions: dims,
         normalized: accessor.normalized(),
     })
 }

@@ -25,15 +25,12 @@ pub const MAX_COORDINATE: f32 = 1e9;
 
 mod closest;
 pub mod extras;
-pub mod glb;
-pub mod gltf_accessor;
-pub mod gltf_data;
+internal!(glb, gltf_accessor, gltf_data, resources);
 pub mod gltf_import;
 pub mod gltf_write;
 mod light;
 mod material;
 mod mesh;
-pub mod resources;
 #[cfg(any(test, feature = "testscenes"))]
 pub mod testscenes;
 mod texture;
@@ -43,6 +40,19 @@ pub use light::{Light, LightBake, LightKind};
 pub use material::{Material, TexCoords, TextureRef};
 pub use mesh::{CREASE_DEGREES, GltfPrimitiveRef, Mesh};
 pub use texture::{Texture, Wrap};
+
+/// Reads a regular file of at most `limit` bytes the way the import reads a scene's files:
+/// without following a final link, without blocking on a FIFO, and refusing anything but a
+/// regular file before reading it.
+///
+/// # Errors
+/// [`BakeError::Read`] naming the file and why it cannot be read.
+pub fn read_regular_file(path: &std::path::Path, limit: u64) -> Result<Vec<u8>> {
+    resources::read_regular_file(path, limit).map_err(|why| BakeError::Read {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(why),
+    })
+}
 
 /// A mesh placed in the world.
 #[derive(Clone, Debug, PartialEq)]

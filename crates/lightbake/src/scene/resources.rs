@@ -70,11 +70,6 @@ impl ReadPolicy {
         Ok(Self { base, roots })
     }
 
-    /// The folders files may be read from (canonical; the scene's first).
-    pub fn roots(&self) -> &[PathBuf] {
-        &self.roots
-    }
-
     /// Where `uri` points, checked against the rule (the file is not opened).
     ///
     /// # Errors
