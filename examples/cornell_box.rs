@@ -47,7 +47,7 @@ fn main() -> AppExit {
     {
         let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
         config.assets_folder = assets;
-        config.settings.texel_density = Some(128.0);
+        config.settings.layout.texel_density = Some(128.0);
     }
     let target = screenshot
         .clone()

@@ -47,9 +47,9 @@ fn main() -> AppExit {
     {
         let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
         config.assets_folder = assets;
-        config.settings.texel_density = Some(128.0);
-        config.settings.irradiance_volume = true;
-        config.settings.probe_spacing = Some(0.04);
+        config.settings.layout.texel_density = Some(128.0);
+        config.settings.volume.enabled = true;
+        config.settings.volume.probe_spacing = Some(0.04);
     }
     let target = screenshot
         .clone()

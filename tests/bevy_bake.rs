@@ -27,12 +27,13 @@ const TIMEOUT: Duration = Duration::from_secs(600);
 
 /// Preview quality at 64 texels/m: a few seconds per bake in a test build.
 fn settings(method: Method) -> BakeSettings {
-    BakeSettings {
-        texel_density: Some(64.0),
-        texel_density_from_scene: false,
-        method,
-        threads: 1,
-        ..BakeSettings::preview()
+    {
+        let mut s = BakeSettings::preview();
+        s.layout.texel_density = Some(64.0);
+        s.layout.texel_density_from_scene = false;
+        s.method = method;
+        s.threads = 1;
+        s
     }
 }
 
@@ -187,9 +188,10 @@ fn in_app_bake_gives_uvs_lightmaps_shadows_and_bleeding_and_matches_the_cli() {
         fresh.world_mut(),
         "cornell",
         SkySource::GlobalAmbient,
-        &mut BakeSettings {
-            texel_density: Some(64.0),
-            ..BakeSettings::default()
+        &mut {
+            let mut s = BakeSettings::default();
+            s.layout.texel_density = Some(64.0);
+            s
         },
     )
     .unwrap();
@@ -293,15 +295,11 @@ fn baked_lights_stop_lighting_lightmapped_meshes_and_unit_conversion_round_trips
     let original = cornell_box(CornellLight::Point);
     spawn_scene(fresh.world_mut(), &original);
     fresh.update();
-    let (back, mapping) = extract_scene(
-        fresh.world_mut(),
-        "x",
-        SkySource::GlobalAmbient,
-        &mut BakeSettings {
-            texel_density: Some(64.0),
-            ..BakeSettings::default()
-        },
-    )
+    let (back, mapping) = extract_scene(fresh.world_mut(), "x", SkySource::GlobalAmbient, &mut {
+        let mut s = BakeSettings::default();
+        s.layout.texel_density = Some(64.0);
+        s
+    })
     .unwrap();
     assert_eq!(back.instances.len(), original.instances.len());
     assert_eq!(mapping.instances.len(), original.instances.len());
@@ -338,10 +336,13 @@ fn baked_lights_stop_lighting_lightmapped_meshes_and_unit_conversion_round_trips
         .entity_mut(floor)
         .insert(Lightbaked::with_density(200.0));
     let mut auto = BakeSettings::default();
-    assert_eq!(auto.texel_density, None);
+    assert_eq!(auto.layout.texel_density, None);
     let (scene, _) =
         extract_scene(fresh.world_mut(), "x", SkySource::GlobalAmbient, &mut auto).unwrap();
-    let base = auto.texel_density.expect("the base density is fixed");
+    let base = auto
+        .layout
+        .texel_density
+        .expect("the base density is fixed");
     assert!(base > 0.0);
     for inst in &scene.instances {
         let want = if inst.name == "floor" {
@@ -486,9 +487,10 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
     // and the plugin re-inserts every `Lightmap` (Bevy ignores an image that changes size
     // under an existing one).
     let mut removed = 0;
-    app.world_mut().resource_mut::<LightbakeConfig>().settings = BakeSettings {
-        texel_density: Some(128.0),
-        ..settings(Method::Direct)
+    app.world_mut().resource_mut::<LightbakeConfig>().settings = {
+        let mut s = settings(Method::Direct);
+        s.layout.texel_density = Some(128.0);
+        s
     };
     app.world_mut().write_message(RequestBake::default());
     run_until(&mut app, "the re-bake", TIMEOUT, |w| {

@@ -106,12 +106,13 @@ fn previews_show_direct_then_indirect_light_then_the_result_brightening() {
 fn a_bake_cancelled_after_its_first_preview_puts_the_previous_lightmaps_back() {
     let dir = tempfile::tempdir().unwrap();
     let mut app = headless_app(&dir.path().join("assets"), false);
-    let quick = BakeSettings {
-        texel_density: Some(48.0),
-        texel_density_from_scene: false,
-        method: Method::Direct,
-        threads: 1,
-        ..BakeSettings::preview()
+    let quick = {
+        let mut s = BakeSettings::preview();
+        s.layout.texel_density = Some(48.0);
+        s.layout.texel_density_from_scene = false;
+        s.method = Method::Direct;
+        s.threads = 1;
+        s
     };
     app.world_mut().resource_mut::<LightbakeConfig>().settings = quick;
     spawn_scene(app.world_mut(), &cornell_box(CornellLight::Point));
@@ -138,10 +139,11 @@ fn a_bake_cancelled_after_its_first_preview_puts_the_previous_lightmaps_back() {
 
     // A long bake at another density: cancelled once its first preview shows.
     world.write_message(RequestBake {
-        settings: Some(BakeSettings {
-            texel_density: Some(200.0),
-            threads: 1,
-            ..BakeSettings::high()
+        settings: Some({
+            let mut s = BakeSettings::high();
+            s.layout.texel_density = Some(200.0);
+            s.threads = 1;
+            s
         }),
     });
     run_until(&mut app, "the first preview", TIMEOUT, |w| {
@@ -176,13 +178,14 @@ fn an_in_app_bake_spawns_its_irradiance_volume_and_keeps_indirect_only_lights_re
     let dir = tempfile::tempdir().unwrap();
     let assets = dir.path().join("assets");
     let mut app = headless_app(&assets, false);
-    app.world_mut().resource_mut::<LightbakeConfig>().settings = BakeSettings {
-        texel_density: Some(48.0),
-        texel_density_from_scene: false,
-        irradiance_volume: true,
-        probe_rays: 64,
-        threads: 1,
-        ..BakeSettings::preview()
+    app.world_mut().resource_mut::<LightbakeConfig>().settings = {
+        let mut s = BakeSettings::preview();
+        s.layout.texel_density = Some(48.0);
+        s.layout.texel_density_from_scene = false;
+        s.volume.enabled = true;
+        s.volume.probe_rays = 64;
+        s.threads = 1;
+        s
     };
     spawn_scene(app.world_mut(), &cornell_box(CornellLight::Point));
     // A sky through the box's open front, from the ambient light.
@@ -284,15 +287,11 @@ fn rect_lights_bake_as_area_lights_indirect_only_by_default() {
     ));
     spawn_scene(world, &cornell_box(CornellLight::Area));
     app.update();
-    let (scene, mapping) = extract_scene(
-        app.world_mut(),
-        "x",
-        SkySource::None,
-        &mut BakeSettings {
-            texel_density: Some(32.0),
-            ..BakeSettings::default()
-        },
-    )
+    let (scene, mapping) = extract_scene(app.world_mut(), "x", SkySource::None, &mut {
+        let mut s = BakeSettings::default();
+        s.layout.texel_density = Some(32.0);
+        s
+    })
     .unwrap();
     let panel = scene.lights.iter().find(|l| l.name == "panel").unwrap();
     let LightKind::Rect {

@@ -32,6 +32,7 @@ fn rendered_cornell_box_shows_the_bake() {
     app.world_mut()
         .resource_mut::<LightbakeConfig>()
         .settings
+        .layout
         .texel_density = Some(128.0);
 
     let world = app.world_mut();

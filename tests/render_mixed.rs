@@ -78,6 +78,7 @@ fn a_mixed_bake_renders_like_a_full_bake() {
     app.world_mut()
         .resource_mut::<LightbakeConfig>()
         .settings
+        .layout
         .texel_density = Some(128.0);
     let world = app.world_mut();
     let entities = spawn_scene(world, &scene);

@@ -42,7 +42,7 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
         .insert_resource(ClearColor(Color::BLACK));
     {
         let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
-        config.settings.texel_density = Some(64.0);
+        config.settings.layout.texel_density = Some(64.0);
         config.settings.method = lightbake::settings::Method::Direct;
     }
 

@@ -147,12 +147,13 @@ fn a_dynamic_plate_lit_by_the_volume_matches_the_lightmapped_floor() {
     let spots = [Vec2::new(-0.15, 0.15), Vec2::new(0.16, -0.16)];
     let results = plates_against_floor(
         &cornell,
-        BakeSettings {
-            texel_density: Some(128.0),
-            irradiance_volume: true,
-            probe_spacing: Some(0.04),
-            probe_rays: 1024,
-            ..BakeSettings::medium()
+        {
+            let mut s = BakeSettings::medium();
+            s.layout.texel_density = Some(128.0);
+            s.volume.enabled = true;
+            s.volume.probe_spacing = Some(0.04);
+            s.volume.probe_rays = 1024;
+            s
         },
         &spots,
         0.06,
@@ -189,11 +190,12 @@ fn a_dynamic_plate_lit_by_the_volume_matches_the_lightmapped_floor() {
     }
     let results = plates_against_floor(
         &room,
-        BakeSettings {
-            irradiance_volume: true,
-            probe_spacing: Some(0.25),
-            probe_rays: 512,
-            ..BakeSettings::medium()
+        {
+            let mut s = BakeSettings::medium();
+            s.volume.enabled = true;
+            s.volume.probe_spacing = Some(0.25);
+            s.volume.probe_rays = 512;
+            s
         },
         &spots,
         0.3,

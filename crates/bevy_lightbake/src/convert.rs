@@ -377,7 +377,7 @@ impl Materials {
 /// An entity's own density ([`Lightbaked::texel_density`], texels per metre) becomes its
 /// instance's `texel_density_scale` against the bake's density. When `settings` choose the
 /// density from their texel budget, that density is fixed here first (over the whole scene)
-/// and written into `settings.texel_density`, so every entity's own density holds.
+/// and written into `settings.layout.texel_density`, so every entity's own density holds.
 ///
 /// # Errors
 /// A [`ConvertError`] naming the entity whose mesh cannot be read.
@@ -411,9 +411,10 @@ pub fn extract_scene(
     };
     if !own.is_empty() {
         let base = settings
+            .layout
             .texel_density
             .unwrap_or_else(|| lightbake::chosen_texel_density(&scene, settings).0);
-        settings.texel_density = Some(base);
+        settings.layout.texel_density = Some(base);
         for (i, d) in own {
             scene.instances[i].texel_density_scale = d / base;
         }

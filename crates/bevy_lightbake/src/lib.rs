@@ -20,7 +20,7 @@
 //! * A glTF baked by the `bake` command gets its lightmaps as soon as its scene spawns, and
 //!   its irradiance volumes (`bake --irradiance-volume`) as `LightProbe` + `IrradianceVolume`
 //!   entities under the scene's root.
-//! * With `LightbakeConfig::settings.irradiance_volume` an in-app bake also spawns an
+//! * With `LightbakeConfig::settings.volume.enabled` an in-app bake also spawns an
 //!   irradiance volume, so moving meshes (without [`Lightbaked`]) get the baked indirect light
 //!   (see [`volumes`]).
 //! * While a bake runs the lightmaps show its progress ([`LightbakeConfig::previews`]): the

@@ -120,7 +120,7 @@ pub(crate) fn start_bake(world: &mut World) {
         .then(|| config.assets_folder.join(&config.output_dir));
     let output_dir = config.output_dir.clone();
     // The check against the path tracer, when the settings ask for it
-    // (`BakeSettings::verify_points`), runs on the bake thread before the files are written,
+    // (`settings.checks.verify_points`), runs on the bake thread before the files are written,
     // so `report.json` and the report the app sees hold it.
     let then = move |mut output, scene: &Scene, settings: &BakeSettings| {
         lightbake::analysis::verify::verify(scene, &mut output);

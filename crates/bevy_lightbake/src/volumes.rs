@@ -1,5 +1,5 @@
 //! Irradiance volumes for dynamic objects: `LightProbe` + `IrradianceVolume` entities spawned
-//! from an in-app bake (when `LightbakeConfig::settings.irradiance_volume` is set) and from
+//! from an in-app bake (when `LightbakeConfig::settings.volume.enabled` is set) and from
 //! the scene extras of a glTF baked by `bake --irradiance-volume`
 //! (`extras.lightbake.irradiance_volumes`, image paths relative to the glTF file). The voxel
 //! images are loaded through the `AssetServer`, so the file watcher reloads them when the

@@ -10,8 +10,8 @@ pub(super) fn run(args: ConvergenceArgs) -> Result<(), CliError> {
     let mut settings = BakeSettings::medium();
     settings.threads = args.threads;
     if let Some(d) = args.texel_density {
-        settings.texel_density = Some(d);
-        settings.texel_density_from_scene = false;
+        settings.layout.texel_density = Some(d);
+        settings.layout.texel_density_from_scene = false;
     }
     settings.validate()?;
     let imported = import_gltf_with(

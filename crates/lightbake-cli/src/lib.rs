@@ -361,56 +361,62 @@ fn settings_from(args: &Args) -> BakeSettings {
         }
     };
     s.method = args.method;
-    s.solver = args.solver;
-    s.basis = args.basis;
-    set(&mut s.transport_rays, args.transport_rays);
-    set(&mut s.cluster_texels, args.cluster_texels);
-    set(&mut s.cluster_rays, args.cluster_rays);
+    s.radiosity.solver = args.solver;
+    s.radiosity.basis = args.basis;
+    set(&mut s.radiosity.transport_rays, args.transport_rays);
+    set(&mut s.radiosity.cluster_texels, args.cluster_texels);
+    set(&mut s.radiosity.cluster_rays, args.cluster_rays);
     if let Some(v) = args.cluster_tolerance {
-        s.cluster_tolerance = v;
+        s.radiosity.cluster_tolerance = v;
     }
     if let Some(v) = args.transport_budget {
-        s.transport_budget_mib = v;
+        s.radiosity.transport_budget_mib = v;
     }
     if let Some(v) = args.tolerance {
-        s.solver_tolerance = v;
+        s.radiosity.solver_tolerance = v;
     }
-    set(&mut s.max_solver_iterations, args.max_solver_iterations);
-    set(&mut s.stochastic_rays_per_node, args.stochastic_rays);
-    set(&mut s.vpl_particles, args.vpl_particles);
-    s.vpl_time_budget_s = args.vpl_time_budget;
-    s.vpl_sequence = args.vpl_sequence;
-    s.vpl_clamp_distance = args.vpl_clamp;
-    s.vpl_bias_compensation = args.bias_compensation;
-    set(&mut s.vpl_compensation_rays, args.vpl_compensation_rays);
-    set(&mut s.vpl_max_depth, args.vpl_max_depth);
-    s.texel_density = args.texel_density;
-    // An explicit density wins over the scene's hint anyway; the report says so too.
-    s.texel_density_from_scene = args.texel_density.is_none() && !args.ignore_scene_density;
-    s.adaptive_density = !args.uniform_density;
-    if let Some(v) = args.texel_budget {
-        s.texel_budget = v;
-    }
-    set(&mut s.samples_per_texel, args.samples);
-    set(&mut s.sky_samples, args.sky_samples);
     set(
-        &mut s.max_closed_form_emitters,
+        &mut s.radiosity.max_solver_iterations,
+        args.max_solver_iterations,
+    );
+    set(
+        &mut s.radiosity.stochastic_rays_per_node,
+        args.stochastic_rays,
+    );
+    set(&mut s.vpl.particles, args.vpl_particles);
+    s.vpl.time_budget_s = args.vpl_time_budget;
+    s.vpl.sequence = args.vpl_sequence;
+    s.vpl.clamp_distance = args.vpl_clamp;
+    s.vpl.bias_compensation = args.bias_compensation;
+    set(&mut s.vpl.compensation_rays, args.vpl_compensation_rays);
+    set(&mut s.vpl.max_depth, args.vpl_max_depth);
+    s.layout.texel_density = args.texel_density;
+    // An explicit density wins over the scene's hint anyway; the report says so too.
+    s.layout.texel_density_from_scene = args.texel_density.is_none() && !args.ignore_scene_density;
+    s.layout.adaptive_density = !args.uniform_density;
+    if let Some(v) = args.texel_budget {
+        s.layout.texel_budget = v;
+    }
+    set(&mut s.direct.samples_per_texel, args.samples);
+    set(&mut s.direct.sky_samples, args.sky_samples);
+    set(
+        &mut s.direct.max_closed_form_emitters,
         args.max_closed_form_emitters,
     );
-    set(&mut s.padding, args.padding);
-    set(&mut s.max_page_size, args.max_page_size);
+    set(&mut s.layout.padding, args.padding);
+    set(&mut s.layout.max_page_size, args.max_page_size);
     s.formats = OutputFormats::of(&args.format, !args.no_preview);
-    s.reunwrap = args.reunwrap;
-    s.contact_fit = !args.no_contact_fit;
-    s.stitch_seams = !args.no_stitch;
-    s.adaptive_gather = !args.even_gather;
+    s.layout.reunwrap = args.reunwrap;
+    s.finish.contact_fit = !args.no_contact_fit;
+    s.finish.stitch_seams = !args.no_stitch;
+    s.radiosity.adaptive_gather = !args.even_gather;
     if let Some(v) = args.denoise {
-        s.denoise = v;
+        s.finish.denoise = v;
     }
-    set(&mut s.denoise_radius, args.denoise_radius);
-    s.irradiance_volume = args.irradiance_volume;
-    s.probe_spacing = args.probe_spacing;
-    set(&mut s.probe_rays, args.probe_rays);
+    set(&mut s.finish.denoise_radius, args.denoise_radius);
+    s.volume.enabled = args.irradiance_volume;
+    s.volume.probe_spacing = args.probe_spacing;
+    set(&mut s.volume.probe_rays, args.probe_rays);
     s.threads = args.threads;
     s.seed = args.seed;
     if let Some(v) = args.memory_budget {
@@ -420,11 +426,11 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.max_rays = v;
     }
     s.target_error = args.target_error;
-    set(&mut s.grid_error_points, args.grid_error_points);
+    set(&mut s.checks.grid_error_points, args.grid_error_points);
     if let Some(v) = args.verify {
-        s.verify_points = v;
+        s.checks.verify_points = v;
     }
-    set(&mut s.verify_paths, args.verify_paths);
+    set(&mut s.checks.verify_paths, args.verify_paths);
     s
 }
 
@@ -517,18 +523,18 @@ fn run(args: Args) -> Result<(), CliError> {
 }
 
 /// Checks a bake against the path tracer when the settings ask for it
-/// ([`BakeSettings::verify_points`]), writes its outputs into `dir` and prints its table,
-/// counts, check and files.
+/// (`BakeSettings::checks.verify_points`), writes its outputs into `dir` and prints its
+/// table, counts, check and files.
 fn write_and_print(
     dir: &std::path::Path,
     output: &mut lightbake::BakeOutput,
     imported: &lightbake::ImportedScene,
     settings: &BakeSettings,
 ) -> Result<(), CliError> {
-    if settings.verify_points > 0 {
+    if settings.checks.verify_points > 0 {
         println!(
             "verifying at {} points with the path tracer ({} paths each)",
-            settings.verify_points, settings.verify_paths
+            settings.checks.verify_points, settings.checks.verify_paths
         );
         lightbake::analysis::verify::verify(&imported.scene, output);
     }
@@ -725,9 +731,33 @@ mod tests {
         ])
         .unwrap();
         let args = cli.bake.expect("the bare form is a bake");
-        let json = |s: &BakeSettings| match serde_json::to_value(s).unwrap() {
-            serde_json::Value::Object(m) => m,
-            _ => unreachable!("settings serialise as an object"),
+        // Every leaf of the settings, by its path (`direct.samples_per_texel`); the output
+        // formats count as one.
+        fn leaves(
+            path: &str,
+            v: serde_json::Value,
+            out: &mut std::collections::BTreeMap<String, serde_json::Value>,
+        ) {
+            match v {
+                serde_json::Value::Object(m) if path != "formats" => {
+                    for (k, v) in m {
+                        let p = if path.is_empty() {
+                            k
+                        } else {
+                            format!("{path}.{k}")
+                        };
+                        leaves(&p, v, out);
+                    }
+                }
+                v => {
+                    out.insert(path.to_string(), v);
+                }
+            }
+        }
+        let json = |s: &BakeSettings| {
+            let mut out = std::collections::BTreeMap::new();
+            leaves("", serde_json::to_value(s).unwrap(), &mut out);
+            out
         };
         let preset = json(&BakeSettings::medium());
         let set = json(&settings_from(&args));
@@ -735,6 +765,10 @@ mod tests {
             assert_ne!(&set[field], value, "no flag changes `{field}`");
         }
         assert_eq!(preset.len(), set.len());
+        assert!(
+            preset.contains_key("direct.samples_per_texel"),
+            "{preset:?}"
+        );
     }
 
     #[test]

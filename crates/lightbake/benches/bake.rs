@@ -89,7 +89,7 @@ fn stages(c: &mut Criterion) {
     let direct = lightbake::direct::direct_irradiance(&prepared.ctx());
     let mut vpl_settings = settings.clone();
     vpl_settings.method = Method::Hybrid;
-    vpl_settings.vpl_particles = 256;
+    vpl_settings.vpl.particles = 256;
     let vpl_ctx = BakeContext {
         settings: &vpl_settings,
         ..ctx
@@ -105,19 +105,26 @@ fn stages(c: &mut Criterion) {
             ))
         })
     });
-    let nodes = Nodes::new(&ctx, settings.basis);
+    let nodes = Nodes::new(&ctx, settings.radiosity.basis);
     // The re-gather reads a full-matrix solution (`auto` would take the hierarchical solve,
     // which runs as stages of its own).
-    let krylov = BakeSettings {
-        solver: SolverChoice::Krylov,
-        ..settings.clone()
+    let krylov = {
+        let mut s = settings.clone();
+        s.radiosity.solver = SolverChoice::Krylov;
+        s
     };
     let matrix_ctx = BakeContext {
         settings: &krylov,
         ..ctx
     };
     let (irr, _) = {
-        let t = monte_carlo::build(&matrix_ctx, &nodes, 32, settings.basis, &Progress::new());
+        let t = monte_carlo::build(
+            &matrix_ctx,
+            &nodes,
+            32,
+            settings.radiosity.basis,
+            &Progress::new(),
+        );
         let plan = radiosity::plan_solver(&matrix_ctx, &nodes).expect("plan");
         let source = radiosity::source(&nodes, &direct);
         let s = radiosity::solve_system(
@@ -138,7 +145,7 @@ fn stages(c: &mut Criterion) {
                 &irr.b,
                 &irr.indirect,
                 &direct,
-                settings.transport_rays,
+                settings.radiosity.transport_rays,
             ))
         })
     });
@@ -167,7 +174,7 @@ fn volumes(c: &mut Criterion) {
         let (_, stats) = bake_volume(
             &solution,
             grid.clone(),
-            settings.probe_rays,
+            settings.volume.probe_rays,
             0,
             &Progress::new(),
         );
@@ -177,7 +184,7 @@ fn volumes(c: &mut Criterion) {
                 black_box(bake_volume(
                     &solution,
                     grid.clone(),
-                    settings.probe_rays,
+                    settings.volume.probe_rays,
                     0,
                     &Progress::new(),
                 ))

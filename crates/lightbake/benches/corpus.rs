@@ -65,7 +65,7 @@ fn run_case(name: &str, quality: Quality) {
     let measured = score(&points, &out);
     // The bake's own check (`--verify 1024`): points a viewer can see, with its uncertainty.
     let mut out = out;
-    out.report.settings.verify_points = 1024;
+    out.report.settings.checks.verify_points = 1024;
     verify(&scene, &mut out);
     let v = out.report.verification.as_ref().expect("a verification");
     let radiosity = out.report.radiosity.as_ref();

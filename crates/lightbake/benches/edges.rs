@@ -58,11 +58,12 @@ fn run_case(name: &str, quality: Quality) {
     let score = edge_score(&points, &out);
     // The same bake without the finishing stages: the unwrap is the same, so the points
     // (and the path tracer's values at them) carry over.
-    let bare = BakeSettings {
-        contact_fit: false,
-        stitch_seams: false,
-        denoise: false,
-        ..settings
+    let bare = {
+        let mut s = settings;
+        s.finish.contact_fit = false;
+        s.finish.stitch_seams = false;
+        s.finish.denoise = false;
+        s
     };
     let out_bare = lightbake::bake(&scene, &bare, &Progress::new()).expect("bake");
     let score_bare = edge_score(&points, &out_bare);

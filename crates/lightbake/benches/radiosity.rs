@@ -35,8 +35,8 @@ struct Case {
 fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
     let mut settings = BakeSettings::medium();
     if let Some(d) = density {
-        settings.texel_density = Some(d);
-        settings.texel_density_from_scene = false;
+        settings.layout.texel_density = Some(d);
+        settings.layout.texel_density_from_scene = false;
     }
     let prep = Prepared::new(scene, &settings).expect("prepare");
     let ctx = prep.ctx();
@@ -47,7 +47,7 @@ fn case(name: &str, scene: &Scene, density: Option<f32>) -> Case {
     let transport = monte_carlo::build(
         &ctx,
         &nodes,
-        settings.transport_rays,
+        settings.radiosity.transport_rays,
         Basis::Linear,
         &Progress::new(),
     );

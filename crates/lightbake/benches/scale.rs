@@ -85,8 +85,8 @@ fn texel_case(scene: &str, budget: f64) {
         _ => cornell_box(CornellLight::Area),
     };
     let mut s = BakeSettings::medium();
-    s.texel_budget = budget as u64;
-    s.texel_density_from_scene = false;
+    s.layout.texel_budget = budget as u64;
+    s.layout.texel_density_from_scene = false;
     s.formats.png_preview = false;
     // A 16 M-texel bake plans about 6 GiB; the budget is this machine's, not the default.
     s.memory_budget_mib = 20_000;
@@ -140,8 +140,8 @@ fn texel_case(scene: &str, budget: f64) {
 fn triangle_case(n: f64) {
     let scene = dense_with_uv1(n as u32);
     let mut s = BakeSettings::preview();
-    s.texel_density = Some(96.0);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(96.0);
+    s.layout.texel_density_from_scene = false;
     s.formats.png_preview = false;
     let start = Instant::now();
     let out = lightbake::bake(&scene, &s, &Progress::new()).expect("bake");

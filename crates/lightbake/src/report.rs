@@ -312,7 +312,8 @@ pub struct BakeReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub floor: Option<Floor>,
     /// The bake checked against the path tracer at surface points
-    /// ([`BakeSettings::verify_points`]; filled in by `lightbake::analysis::verify`).
+    /// ([`CheckSettings::verify_points`](crate::settings::CheckSettings::verify_points);
+    /// filled in by `lightbake::analysis::verify`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub verification: Option<Verification>,
     /// Repairs, compromises and clamps.

@@ -60,10 +60,11 @@ fn floor_scene() -> Scene {
 #[test]
 fn every_stage_sees_the_albedo_of_the_texture_coordinate_set_the_material_names() {
     let scene = floor_scene();
-    let settings = BakeSettings {
-        texel_density: Some(8.0),
-        texel_density_from_scene: false,
-        ..BakeSettings::preview()
+    let settings = {
+        let mut s = BakeSettings::preview();
+        s.layout.texel_density = Some(8.0);
+        s.layout.texel_density_from_scene = false;
+        s
     };
     let prep = Prepared::new(&scene, &settings).unwrap();
     let ctx = prep.ctx();

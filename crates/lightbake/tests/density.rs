@@ -59,7 +59,7 @@ fn texels_of(p: &Prepared, mesh: usize) -> f64 {
 /// At most 1 000 texels over 17 m² (14 cm texels): the near lamp's light bends within one.
 fn coarse() -> BakeSettings {
     let mut settings = BakeSettings::preview();
-    settings.texel_budget = 1_000;
+    settings.layout.texel_budget = 1_000;
     settings
 }
 
@@ -68,7 +68,7 @@ fn the_floor_under_the_near_lamp_gets_the_texels_within_the_same_budget() {
     let scene = near_and_far_lamps();
     let mut settings = coarse();
     let adaptive = Prepared::new(&scene, &settings).unwrap();
-    settings.adaptive_density = false;
+    settings.layout.adaptive_density = false;
     let uniform = Prepared::new(&scene, &settings).unwrap();
     assert!(
         adaptive.plan.runs(Stage::Density),
@@ -159,7 +159,7 @@ fn the_density_does_not_depend_on_the_thread_count() {
 fn the_plan_says_why_the_density_stays_put() {
     let scene = near_and_far_lamps();
     let mut settings = BakeSettings::preview();
-    settings.texel_density = Some(8.0);
+    settings.layout.texel_density = Some(8.0);
     let p = Prepared::new(&scene, &settings).unwrap();
     assert!(!p.plan.runs(Stage::Density));
     assert!(
@@ -167,7 +167,7 @@ fn the_plan_says_why_the_density_stays_put() {
         "{}",
         p.plan.describe()
     );
-    settings.texel_density = None;
+    settings.layout.texel_density = None;
     let mut hinted = scene.clone();
     hinted.texel_density_hint = Some(8.0);
     let p = Prepared::new(&hinted, &settings).unwrap();
@@ -203,7 +203,7 @@ fn on_a_real_level_the_same_texels_give_a_smaller_error() {
         .scene;
     let mut settings = BakeSettings::preview();
     let adaptive = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
-    settings.adaptive_density = false;
+    settings.layout.adaptive_density = false;
     let uniform = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
     let density = adaptive
         .report

@@ -12,8 +12,8 @@ use lightbake::settings::{BakeSettings, LightConvention};
 
 fn settings(threads: usize, density: f32) -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
     s.threads = threads;
     s.formats.ktx2 = true;
     s
@@ -68,8 +68,8 @@ fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
     let scene = cornell_box(CornellLight::Area);
     let base = {
         let mut s = BakeSettings::preview();
-        s.texel_density = Some(24.0);
-        s.texel_density_from_scene = false;
+        s.layout.texel_density = Some(24.0);
+        s.layout.texel_density_from_scene = false;
         s
     };
     let mut cases: Vec<(String, BakeSettings)> = Vec::new();
@@ -82,32 +82,26 @@ fn every_method_and_solver_gives_the_same_bits_on_1_and_2_threads() {
             },
         ));
     }
-    cases.push((
-        "hybrid, bias compensation".into(),
-        BakeSettings {
-            method: Method::Hybrid,
-            vpl_bias_compensation: true,
-            ..base.clone()
-        },
-    ));
+    cases.push(("hybrid, bias compensation".into(), {
+        let mut s = base.clone();
+        s.method = Method::Hybrid;
+        s.vpl.bias_compensation = true;
+        s
+    }));
     for solver in common::ALL_SOLVERS {
-        cases.push((
-            format!("radiosity {}", solver.name()),
-            BakeSettings {
-                method: Method::Radiosity,
-                solver,
-                ..base.clone()
-            },
-        ));
+        cases.push((format!("radiosity {}", solver.name()), {
+            let mut s = base.clone();
+            s.method = Method::Radiosity;
+            s.radiosity.solver = solver;
+            s
+        }));
     }
-    cases.push((
-        "radiosity, constant basis".into(),
-        BakeSettings {
-            method: Method::Radiosity,
-            basis: Basis::Constant,
-            ..base.clone()
-        },
-    ));
+    cases.push(("radiosity, constant basis".into(), {
+        let mut s = base.clone();
+        s.method = Method::Radiosity;
+        s.radiosity.basis = Basis::Constant;
+        s
+    }));
     cases.push((
         "radiosity, target error 5%".into(),
         BakeSettings {

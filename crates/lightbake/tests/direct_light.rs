@@ -400,7 +400,7 @@ fn small_area_light_matches_closed_form_rectangle_form_factor() {
 
     // Power sampling (many emitters): the RMS error over the plane is within 2%.
     let mut st = settings(16.0, 256);
-    st.max_closed_form_emitters = 0;
+    st.direct.max_closed_form_emitters = 0;
     let out = bake(&s, &st);
     let samples = texels(&out, floor);
     let rms = (samples

@@ -44,13 +44,11 @@ fn contacts_of_the_contact_room_do_not_leak() {
     let fit = out.report.contact_fit.expect("the contact fit ran");
     assert!(fit.unknowns > 0, "{fit:?}");
     // The fit leaves the metric no worse than without it.
-    let unfitted = bake(
-        &scene,
-        &BakeSettings {
-            contact_fit: false,
-            ..preview
-        },
-    );
+    let unfitted = bake(&scene, &{
+        let mut s = preview;
+        s.finish.contact_fit = false;
+        s
+    });
     let without = edge_score(&points, &unfitted);
     println!("without the fit: {:?}", without.contact);
     assert!(score.contact.relative_rms <= without.contact.relative_rms * 1.02);
@@ -66,9 +64,10 @@ fn seams_agree_after_the_stitch() {
     assert!(seams.before.seams > 10, "{seams:?}");
     assert!(seams.after.mean < 0.25 * seams.before.mean, "{seams:?}");
     assert!(seams.after.max < seams.before.max, "{seams:?}");
-    let off = BakeSettings {
-        stitch_seams: false,
-        ..settings
+    let off = {
+        let mut s = settings;
+        s.finish.stitch_seams = false;
+        s
     };
     let (on, off) = scored(&scene, &off, 1024);
     println!("stitch on:  {:?}\nstitch off: {:?}", on.seam, off.seam);

@@ -19,10 +19,10 @@ use lightbake::{Stage, StageRun};
 /// Cornell box (area light) settings at a low density: about 1 800 texels.
 fn settings(method: Method) -> BakeSettings {
     let mut s = BakeSettings::medium();
-    s.texel_density = Some(24.0);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(24.0);
+    s.layout.texel_density_from_scene = false;
     s.method = method;
-    s.grid_error_points = 0;
+    s.checks.grid_error_points = 0;
     s
 }
 
@@ -30,12 +30,12 @@ fn settings(method: Method) -> BakeSettings {
 fn reference(scene: &Scene, method: Method) -> lightbake::BakeOutput {
     let mut s = settings(method);
     s.seed = 99;
-    s.samples_per_texel = 1024;
-    s.transport_rays = 2048;
-    s.solver = SolverChoice::Krylov;
-    s.solver_tolerance = 1e-7;
+    s.direct.samples_per_texel = 1024;
+    s.radiosity.transport_rays = 2048;
+    s.radiosity.solver = SolverChoice::Krylov;
+    s.radiosity.solver_tolerance = 1e-7;
     // Converged, not filtered.
-    s.denoise = false;
+    s.finish.denoise = false;
     bake(scene, &s)
 }
 
@@ -47,19 +47,19 @@ fn estimates_track_the_measured_error() {
     let mut cases = Vec::new();
     for spp in [2u32, 8] {
         let mut s = settings(Method::Direct);
-        s.samples_per_texel = spp;
+        s.direct.samples_per_texel = spp;
         cases.push((format!("direct {spp} spp"), s, &direct_ref));
     }
     for rays in [16u32, 64] {
         let mut s = settings(Method::Radiosity);
-        s.samples_per_texel = 64;
-        s.transport_rays = rays;
+        s.direct.samples_per_texel = 64;
+        s.radiosity.transport_rays = rays;
         cases.push((format!("radiosity {rays} rays"), s, &full_ref));
     }
     for n in [128u32, 1024] {
         let mut s = settings(Method::Hybrid);
-        s.samples_per_texel = 64;
-        s.vpl_particles = n;
+        s.direct.samples_per_texel = 64;
+        s.vpl.particles = n;
         cases.push((format!("hybrid {n} particles"), s, &full_ref));
     }
     for (name, s, reference) in cases {
@@ -93,12 +93,12 @@ fn direct_estimate_tracks_the_sunlit_room() {
     let scene = lightbake::scene::testscenes::sunlit_room();
     let mk = |spp: u32, seed: u32| {
         let mut s = BakeSettings::medium();
-        s.texel_density = Some(4.0);
-        s.texel_density_from_scene = false;
+        s.layout.texel_density = Some(4.0);
+        s.layout.texel_density_from_scene = false;
         s.method = Method::Direct;
-        s.samples_per_texel = spp;
+        s.direct.samples_per_texel = spp;
         s.seed = seed;
-        s.grid_error_points = 0;
+        s.checks.grid_error_points = 0;
         s
     };
     let reference = bake(&scene, &mk(2048, 99));
@@ -123,24 +123,24 @@ fn radiosity_estimates_track_the_measured_error() {
     let cornell = cornell_box(CornellLight::Area);
     let low = |density: f32, seed: u32| {
         let mut s = BakeSettings::medium();
-        s.texel_density = Some(density);
-        s.texel_density_from_scene = false;
+        s.layout.texel_density = Some(density);
+        s.layout.texel_density_from_scene = false;
         s.seed = seed;
-        s.grid_error_points = 0;
+        s.checks.grid_error_points = 0;
         s
     };
     let reference = |scene: &Scene, density: f32| {
         let mut s = low(density, 99);
-        s.samples_per_texel = 1024;
-        s.transport_rays = 2048;
-        s.solver = SolverChoice::Krylov;
-        s.solver_tolerance = 1e-7;
+        s.direct.samples_per_texel = 1024;
+        s.radiosity.transport_rays = 2048;
+        s.radiosity.solver = SolverChoice::Krylov;
+        s.radiosity.solver_tolerance = 1e-7;
         bake(scene, &s)
     };
     let mut sj = low(24.0, 1);
-    sj.samples_per_texel = 256;
-    sj.solver = SolverChoice::StochasticJacobi;
-    sj.solver_tolerance = 0.01;
+    sj.direct.samples_per_texel = 256;
+    sj.radiosity.solver = SolverChoice::StochasticJacobi;
+    sj.radiosity.solver_tolerance = 0.01;
     for (name, scene, run, density) in [
         ("sunlit room, 128 rays", &sunlit, low(4.0, 1), 4.0),
         ("Cornell box, stochastic Jacobi", &cornell, sj, 24.0),
@@ -161,8 +161,8 @@ fn a_target_error_is_reached_by_raising_sample_counts() {
     let full_ref = reference(&scene, Method::Radiosity);
     let mut s = settings(Method::Radiosity);
     // A deliberately poor pilot.
-    s.samples_per_texel = 2;
-    s.transport_rays = 8;
+    s.direct.samples_per_texel = 2;
+    s.radiosity.transport_rays = 8;
     let plain = bake(&scene, &s);
     let plain_error = plain.report.error.as_ref().unwrap().relative_rms;
     let target = 0.03;
@@ -200,7 +200,7 @@ fn a_target_error_is_reached_by_raising_sample_counts() {
 fn an_unreachable_target_says_so() {
     let scene = cornell_box(CornellLight::Area);
     let mut s = settings(Method::Direct);
-    s.samples_per_texel = 1;
+    s.direct.samples_per_texel = 1;
     s.target_error = Some(1e-6);
     let out = bake(&scene, &s);
     assert!(

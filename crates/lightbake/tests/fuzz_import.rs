@@ -108,8 +108,8 @@ fn apply(json: &mut Value, e: &Edit) {
 
 fn settings() -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = Some(8.0);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(8.0);
+    s.layout.texel_density_from_scene = false;
     s.memory_budget_mib = 256;
     s
 }

@@ -179,8 +179,8 @@ proptest! {
     fn furnished_rooms_bake_to_finite_lightmaps_and_reports(c in case()) {
         let (scene, light) = scene(&c);
         let mut settings = if c.medium { BakeSettings::medium() } else { BakeSettings::preview() };
-        settings.texel_density = Some(c.density);
-        settings.texel_density_from_scene = false;
+        settings.layout.texel_density = Some(c.density);
+        settings.layout.texel_density_from_scene = false;
         let out = bake(&scene, &settings);
         for (k, page) in out.pages.iter().enumerate() {
             let bad = page.texels.iter().filter(|t| !t.is_finite()).count();

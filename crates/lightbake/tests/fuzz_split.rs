@@ -23,8 +23,8 @@ fn prepared() -> &'static (Prepared, Vec<u8>) {
     static P: OnceLock<(Prepared, Vec<u8>)> = OnceLock::new();
     P.get_or_init(|| {
         let mut s = BakeSettings::preview();
-        s.texel_density = Some(8.0);
-        s.texel_density_from_scene = false;
+        s.layout.texel_density = Some(8.0);
+        s.layout.texel_density_from_scene = false;
         let p = Prepared::new(&cornell_box(CornellLight::Area), &s).unwrap();
         let bytes = p.patches.to_bytes();
         (p, bytes)

@@ -29,8 +29,8 @@ fn write_cornell(dir: &Path, light: CornellLight) -> PathBuf {
 
 fn fast_settings() -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.texel_density = Some(64.0);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(64.0);
+    s.layout.texel_density_from_scene = false;
     s
 }
 

@@ -73,11 +73,12 @@ fn box_in_the_sun() -> Scene {
 }
 
 fn settings(density: f32) -> BakeSettings {
-    BakeSettings {
-        texel_density: Some(density),
-        texel_density_from_scene: false,
-        adaptive_density: false,
-        ..BakeSettings::preview()
+    {
+        let mut s = BakeSettings::preview();
+        s.layout.texel_density = Some(density);
+        s.layout.texel_density_from_scene = false;
+        s.layout.adaptive_density = false;
+        s
     }
 }
 
@@ -155,9 +156,9 @@ fn on_the_teapots_the_estimate_meets_the_measured_error_once_the_grid_is_checked
     let scene = common::corpus_scene("assimp/teapots.gltf");
     let ratio = |grid_points: u32| {
         let mut settings = BakeSettings::medium();
-        settings.grid_error_points = grid_points;
-        settings.verify_points = 2048;
-        settings.verify_paths = 1024;
+        settings.checks.grid_error_points = grid_points;
+        settings.checks.verify_points = 2048;
+        settings.checks.verify_paths = 1024;
         let mut out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
         lightbake::analysis::verify::verify(&scene, &mut out);
         let v = out.report.verification.clone().unwrap();

@@ -17,15 +17,15 @@ use lightbake::settings::{BakeSettings, SolverChoice};
 /// The medium preset at `density` texels/m with `solver`.
 fn settings(density: f32, solver: SolverChoice) -> BakeSettings {
     let mut s = BakeSettings::medium();
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
-    s.solver = solver;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
+    s.radiosity.solver = solver;
     // The solves compared as they are: the denoiser would filter the hierarchical solve's
     // noise (it has a per-texel estimate) and not the full matrix's.
-    s.denoise = false;
+    s.finish.denoise = false;
     // The final gather with the rays of the full matrix's rows at every node
     // (`adaptive_gather_has_less_noise_than_even_rays` checks the adaptive one).
-    s.adaptive_gather = false;
+    s.radiosity.adaptive_gather = false;
     s
 }
 
@@ -115,8 +115,8 @@ fn the_error_estimate_sees_a_coarse_level_that_is_too_coarse() {
     let scene = cornell_box(CornellLight::Area);
     let (full, refined) = both(&scene, 128.0, |_| {});
     let (_, coarse) = both(&scene, 128.0, |s| {
-        s.cluster_texels = 256;
-        s.cluster_tolerance = 0.99;
+        s.radiosity.cluster_texels = 256;
+        s.radiosity.cluster_tolerance = 0.99;
     });
     let refined_diff = relative_rms_error(&refined.pages, &full.pages);
     let coarse_diff = relative_rms_error(&coarse.pages, &full.pages);
@@ -141,8 +141,8 @@ fn the_error_estimate_sees_a_coarse_level_that_is_too_coarse() {
 fn refinement_splits_cells_until_the_missed_detail_is_within_the_tolerance() {
     let scene = sunlit_room();
     let mut s = settings(24.0, SolverChoice::Hierarchical);
-    s.cluster_texels = 16;
-    s.cluster_tolerance = 0.004;
+    s.radiosity.cluster_texels = 16;
+    s.radiosity.cluster_tolerance = 0.004;
     let out = common::bake(&scene, &s);
     let coarse = out.report.radiosity.unwrap().coarse.unwrap();
     println!("{coarse:?}");
@@ -235,7 +235,7 @@ fn coarse_cells_do_not_carry_light_under_a_wall() {
         bake: lightbake::scene::LightBake::Full,
     });
     let mut s = settings(16.0, SolverChoice::Hierarchical);
-    s.cluster_texels = 64;
+    s.radiosity.cluster_texels = 64;
     let out = common::bake(&scene, &s);
     let coarse = out
         .report
@@ -285,8 +285,8 @@ fn adaptive_gather_has_less_noise_than_even_rays() {
     let scene = cornell_box(CornellLight::Area);
     let bake = |adaptive: bool, seed: u32| {
         let mut s = settings(64.0, SolverChoice::Hierarchical);
-        s.adaptive_gather = adaptive;
-        s.samples_per_texel = 256;
+        s.radiosity.adaptive_gather = adaptive;
+        s.direct.samples_per_texel = 256;
         s.seed = seed;
         common::bake(&scene, &s)
     };

@@ -18,11 +18,12 @@ use lightbake::settings::BakeSettings;
 mod common;
 
 fn volume_settings(spacing: Option<f32>, rays: u32) -> BakeSettings {
-    BakeSettings {
-        irradiance_volume: true,
-        probe_spacing: spacing,
-        probe_rays: rays,
-        ..BakeSettings::preview()
+    {
+        let mut s = BakeSettings::preview();
+        s.volume.enabled = true;
+        s.volume.probe_spacing = spacing;
+        s.volume.probe_rays = rays;
+        s
     }
 }
 
@@ -242,7 +243,7 @@ fn an_explicit_spacing_beyond_the_probe_limit_is_refused_by_name() {
     settings.method = lightbake::settings::Method::Direct;
     let err = lightbake::bake(&scene, &settings, &lightbake::Progress::new()).unwrap_err();
     assert!(err.to_string().contains("probe_spacing"), "{err}");
-    settings.probe_spacing = Some(-1.0);
+    settings.volume.probe_spacing = Some(-1.0);
     assert!(
         settings
             .validate()

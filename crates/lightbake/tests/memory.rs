@@ -24,8 +24,8 @@ fn child(case: &str) {
         _ => cornell_box(CornellLight::Area),
     };
     let mut s = BakeSettings::preview();
-    s.texel_density_from_scene = false;
-    s.texel_budget = 1 << 20;
+    s.layout.texel_density_from_scene = false;
+    s.layout.texel_budget = 1 << 20;
     let out = lightbake::bake(&scene, &s, &Progress::new()).unwrap();
     let radiosity = out.report.radiosity.as_ref().unwrap();
     let planned = out.report.memory.total

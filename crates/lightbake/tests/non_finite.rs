@@ -17,12 +17,12 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 /// irradiance volume: every checked stage runs.
 fn settings() -> BakeSettings {
     let mut s = BakeSettings::medium();
-    s.texel_density = Some(16.0);
-    s.texel_density_from_scene = false;
-    s.solver = SolverChoice::Hierarchical;
-    s.irradiance_volume = true;
-    s.probe_spacing = Some(0.1);
-    s.probe_rays = 32;
+    s.layout.texel_density = Some(16.0);
+    s.layout.texel_density_from_scene = false;
+    s.radiosity.solver = SolverChoice::Hierarchical;
+    s.volume.enabled = true;
+    s.volume.probe_spacing = Some(0.1);
+    s.volume.probe_rays = 32;
     s
 }
 
@@ -67,8 +67,8 @@ fn the_writer_refuses_a_page_holding_a_nan_and_writes_nothing() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let scene = cornell_box(CornellLight::Area);
     let mut s = BakeSettings::preview();
-    s.texel_density = Some(8.0);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(8.0);
+    s.layout.texel_density_from_scene = false;
     let mut out = lightbake::bake(&scene, &s, &Progress::new()).unwrap();
     out.pages[0].texels[7] = glam::Vec3::new(f32::INFINITY, 0.0, 0.0);
     let dir = tempfile::tempdir().unwrap();

@@ -122,8 +122,8 @@ fn a_failed_write_leaves_the_previous_outputs() {
     // A second bake with different settings whose writing fails half way (the report cannot be
     // written because a directory sits where the file would go).
     let mut settings2 = BakeSettings::preview();
-    settings2.texel_density = Some(30.0);
-    settings2.texel_density_from_scene = false;
+    settings2.layout.texel_density = Some(30.0);
+    settings2.layout.texel_density_from_scene = false;
     let second = common::bake(&imported.scene, &settings2);
     std::fs::remove_file(out_dir.join("report.json")).unwrap();
     std::fs::create_dir(out_dir.join("report.json")).unwrap();

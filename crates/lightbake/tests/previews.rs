@@ -91,9 +91,9 @@ fn hierarchical_previews_brighten_towards_the_final_bake() {
 fn matrix_solve_previews_carry_the_ambient_term_of_its_residual() {
     let scene = cornell_box(CornellLight::Point);
     let mut settings = BakeSettings::preview();
-    settings.texel_density = Some(48.0);
-    settings.texel_density_from_scene = false;
-    settings.solver = SolverChoice::Jacobi;
+    settings.layout.texel_density = Some(48.0);
+    settings.layout.texel_density_from_scene = false;
+    settings.radiosity.solver = SolverChoice::Jacobi;
     let (seen, converged) = previews_of(&scene, &settings);
     check_brightening("cornell_box_point, Jacobi", &seen, converged);
     assert!(
@@ -103,7 +103,7 @@ fn matrix_solve_previews_carry_the_ambient_term_of_its_residual() {
     // Stopped after two sweeps, the solve leaves energy undistributed; the preview's
     // ambient term stands in for it and brings the preview closer to the converged bake than
     // the truncated bake itself is.
-    settings.max_solver_iterations = 2;
+    settings.radiosity.max_solver_iterations = 2;
     let (seen, truncated) = previews_of(&scene, &settings);
     println!("two sweeps: {seen:?}, truncated final {truncated:.4}, converged {converged:.4}");
     assert!(seen[1].4 > 0.0, "no ambient term: {seen:?}");

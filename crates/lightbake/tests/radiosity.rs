@@ -37,9 +37,9 @@ fn furnace_gives_e_over_one_minus_rho_for_every_solver() {
                 continue;
             }
             let mut settings = radiosity_settings(8.0, solver);
-            settings.solver_tolerance = 2e-3;
+            settings.radiosity.solver_tolerance = 2e-3;
             // Stochastic Jacobi shoots about N₀/(1 − ρ) rays in all: fewer per node when stiff.
-            settings.stochastic_rays_per_node = if rho >= 0.99 { 256 } else { 1024 };
+            settings.radiosity.stochastic_rays_per_node = if rho >= 0.99 { 256 } else { 1024 };
             let out = common::bake(&scene, &settings);
             let expected = luminance / (1.0 - rho);
             let values: Vec<f32> = common::texels(&out, 0).iter().map(|t| t.value.x).collect();
@@ -389,8 +389,8 @@ fn energy_is_conserved() {
         bake: lightbake::scene::LightBake::Full,
     });
     let mut settings = radiosity_settings(32.0, SolverChoice::GaussSeidel);
-    settings.transport_rays = 256;
-    settings.samples_per_texel = 16;
+    settings.radiosity.transport_rays = 256;
+    settings.direct.samples_per_texel = 16;
     let prep = Prepared::new(&scene, &settings).unwrap();
     let ctx = prep.ctx();
     let nodes = Nodes::new(&ctx, Basis::Linear);
@@ -402,7 +402,7 @@ fn energy_is_conserved() {
     let transport = monte_carlo::build(
         &ctx,
         &nodes,
-        settings.transport_rays,
+        settings.radiosity.transport_rays,
         Basis::Linear,
         &Progress::new(),
     );

@@ -24,7 +24,7 @@ fn transport_over_budget_goes_hierarchical_or_is_refused() {
         .transport_estimate_bytes as f64
         / 1048576.0;
     assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");
-    settings.transport_budget_mib = (matrix_mib / 2.0).ceil() as u64;
+    settings.radiosity.transport_budget_mib = (matrix_mib / 2.0).ceil() as u64;
     let out = common::bake(&scene, &settings);
     let report = out.report.radiosity.as_ref().unwrap();
     assert_eq!(report.solver, "hierarchical", "{}", report.solver_reason);
@@ -35,12 +35,12 @@ fn transport_over_budget_goes_hierarchical_or_is_refused() {
             .iter()
             .any(|d| d.stage == Stage::Indirect && d.what.contains("hierarchical"))
     );
-    settings.solver = SolverChoice::GaussSeidel;
+    settings.radiosity.solver = SolverChoice::GaussSeidel;
     assert_over_budget(&scene, &settings, "gauss-seidel");
     assert_over_budget(&scene, &settings, "--solver hierarchical");
     // A budget that cannot hold even the hierarchical solve's vectors is refused as well.
-    settings.solver = SolverChoice::Auto;
-    settings.transport_budget_mib = 0;
+    settings.radiosity.solver = SolverChoice::Auto;
+    settings.radiosity.transport_budget_mib = 0;
     assert_over_budget(&scene, &settings, "hierarchical solve");
 }
 
@@ -93,10 +93,10 @@ fn transport_budget_counts_the_solvers_working_memory() {
     );
     let matrix_mib = report.transport_estimate_bytes.div_ceil(1 << 20);
     assert!(matrix_mib >= 4, "the test needs a matrix of a few MiB");
-    settings.solver = SolverChoice::Shooting;
-    settings.transport_budget_mib = matrix_mib + 1;
+    settings.radiosity.solver = SolverChoice::Shooting;
+    settings.radiosity.transport_budget_mib = matrix_mib + 1;
     assert_over_budget(&scene, &settings, "beside it");
-    settings.transport_budget_mib = 2 * matrix_mib + 2;
+    settings.radiosity.transport_budget_mib = 2 * matrix_mib + 2;
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
 }
 
@@ -110,12 +110,12 @@ fn memory_budget_also_bounds_the_transport() {
     let rest_mib = out.report.memory.mib();
     let matrix_mib = report.transport_estimate_bytes as f64 / 1048576.0;
     assert!(matrix_mib >= 4.0, "the test needs a matrix of a few MiB");
-    settings.transport_budget_mib = 1 << 20;
+    settings.radiosity.transport_budget_mib = 1 << 20;
     settings.memory_budget_mib = (rest_mib + 0.5 * matrix_mib).ceil() as u64;
     let out = common::bake(&scene, &settings);
     let report = out.report.radiosity.as_ref().unwrap();
     assert_eq!(report.solver, "hierarchical", "{}", report.solver_reason);
-    settings.solver = SolverChoice::Jacobi;
+    settings.radiosity.solver = SolverChoice::Jacobi;
     assert_over_budget(&scene, &settings, "memory budget");
     settings.memory_budget_mib = (rest_mib + 3.0 * matrix_mib).ceil() as u64;
     assert!(lightbake::bake(&scene, &settings, &Progress::new()).is_ok());
@@ -130,7 +130,7 @@ fn the_convergence_study_fits_its_density_to_the_memory_budget() {
     use lightbake::analysis::study::{StudySize, run_study};
     let scene = cornell_box(CornellLight::Area);
     let mut base = BakeSettings::medium();
-    base.texel_density_from_scene = false;
+    base.layout.texel_density_from_scene = false;
     base.memory_budget_mib = 160;
     let mut rows = 0;
     let study = run_study(&scene, &base, StudySize::Quick, |_| rows += 1).unwrap();

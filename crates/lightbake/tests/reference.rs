@@ -12,8 +12,8 @@ use lightbake::settings::BakeSettings;
 
 fn prepared(scene: &lightbake::Scene, density: f32) -> Prepared {
     let mut s = BakeSettings::medium();
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
     Prepared::new(scene, &s).unwrap()
 }
 

@@ -31,12 +31,13 @@ fn the_same_scene_at_1_mm_1_m_and_10_km_gives_the_same_lightmap() {
     // The area-lit Cornell box: emitted luminance does not depend on scale, so neither does
     // the irradiance anywhere. No density is given: the texel budget chooses one from the
     // scene's area, so the layout is the same at every scale.
-    let auto = BakeSettings {
-        method: Method::Radiosity,
-        texel_density: None,
-        texel_density_from_scene: false,
-        texel_budget: 2_500,
-        ..BakeSettings::medium()
+    let auto = {
+        let mut s = BakeSettings::medium();
+        s.method = Method::Radiosity;
+        s.layout.texel_density = None;
+        s.layout.texel_density_from_scene = false;
+        s.layout.texel_budget = 2_500;
+        s
     };
     let base = cornell_box(CornellLight::Area);
     let reference = bake(&base, &auto);
@@ -228,7 +229,7 @@ fn ten_million_vpls_sum_exactly_into_each_texel() {
         true,
     );
     let mut s = settings(Method::Vpl, 4.0);
-    s.padding = 1;
+    s.layout.padding = 1;
     let prep = Prepared::new(&scene, &s).unwrap();
     let ctx = prep.ctx();
     let n = 10_000_000u32;
@@ -388,7 +389,7 @@ fn the_dark_side_of_a_thin_single_sided_wall_stays_dark() {
                 continue;
             }
             let mut s = settings(method, density);
-            s.solver = solver;
+            s.radiosity.solver = solver;
             let out = bake(&scene, &s);
             assert!(all_finite(&out), "{method:?}: non-finite texels");
             let texels = common::texels(&out, 0);
@@ -438,10 +439,10 @@ fn vpls_in_a_sharp_wedge() {
         let (mut means, mut near_means, mut rmss) = (Vec::new(), Vec::new(), Vec::new());
         for seed in [0u32, 1] {
             let mut s = settings(Method::Hybrid, 24.0);
-            s.vpl_bias_compensation = true;
-            s.vpl_max_depth = depth;
-            s.vpl_particles = particles;
-            s.samples_per_texel = 128;
+            s.vpl.bias_compensation = true;
+            s.vpl.max_depth = depth;
+            s.vpl.particles = particles;
+            s.direct.samples_per_texel = 128;
             s.seed = seed;
             let out = bake(&scene, &s);
             assert!(all_finite(&out));
@@ -506,10 +507,10 @@ fn a_solver_that_cannot_converge_at_albedo_0_999_says_so() {
         SolverChoice::StochasticJacobi,
     ] {
         let mut s = settings(Method::Radiosity, 8.0);
-        s.solver = solver;
-        s.max_solver_iterations = 300;
-        s.solver_tolerance = 2e-3;
-        s.stochastic_rays_per_node = 64;
+        s.radiosity.solver = solver;
+        s.radiosity.max_solver_iterations = 300;
+        s.radiosity.solver_tolerance = 2e-3;
+        s.radiosity.stochastic_rays_per_node = 64;
         let out = bake(&scene, &s);
         assert!(all_finite(&out), "{solver:?}: non-finite texels");
         let values: Vec<f32> = common::texels(&out, 0).iter().map(|t| t.value.x).collect();
@@ -643,12 +644,12 @@ fn a_surface_no_light_reaches_stays_black_and_finite_through_the_denoiser() {
     });
     for preset in [BakeSettings::medium(), BakeSettings::high()] {
         let mut settings = preset;
-        settings.texel_density = Some(24.0);
-        settings.texel_density_from_scene = false;
+        settings.layout.texel_density = Some(24.0);
+        settings.layout.texel_density_from_scene = false;
         // The hierarchical solve (the default above 32 768 nodes) gives the per-texel noise
         // the denoiser works from.
-        settings.solver = SolverChoice::Hierarchical;
-        assert!(settings.denoise);
+        settings.radiosity.solver = SolverChoice::Hierarchical;
+        assert!(settings.finish.denoise);
         let out = bake(&s, &settings);
         assert!(all_finite(&out), "a non-finite texel");
         let denoise = out.report.denoise.as_ref().expect("the denoiser ran");

@@ -40,14 +40,14 @@ fn furnace_failures_with(
     let expected = e / (1.0 - rho);
     let mut s = settings(method, 24.0);
     adjust(&mut s);
-    s.transport_rays = 64;
+    s.radiosity.transport_rays = 64;
     // Two plates 5° apart see mostly each other, so the direct pass's noise comes back
     // amplified by up to 1/(1 − ρ) = 10: sample it 4× more than the medium preset.
-    s.samples_per_texel = 128;
+    s.direct.samples_per_texel = 128;
     let mut failures = Vec::new();
     for &solver in solvers {
-        s.solver = solver;
-        s.stochastic_rays_per_node = 1024;
+        s.radiosity.solver = solver;
+        s.radiosity.stochastic_rays_per_node = 1024;
         let start = std::time::Instant::now();
         let out = bake(&scene, &s);
         assert!(all_finite(&out), "{solver:?}: non-finite texels");
@@ -130,8 +130,8 @@ fn instant_radiosity_in_the_hard_furnace_loses_only_the_paths_it_says_it_cuts() 
     const PLATE_SEEDS: u32 = 8;
     for depth in [16u32, 29] {
         let mut s = settings(Method::Hybrid, 24.0);
-        s.vpl_bias_compensation = true;
-        s.vpl_max_depth = depth;
+        s.vpl.bias_compensation = true;
+        s.vpl.max_depth = depth;
         let scene = hard_furnace(rho, e, &["tiny_cube", "slivers", "coincident"]);
         let lost = (rho as f64).powi(depth as i32 + 1);
         let expected = (e as f64 * (1.0 - lost) / (1.0 - rho as f64)) as f32;

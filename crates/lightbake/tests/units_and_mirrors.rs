@@ -98,8 +98,8 @@ fn mirrored(scene: &Scene) -> Scene {
 
 fn settings() -> BakeSettings {
     let mut s = BakeSettings::preview();
-    s.verify_points = 256;
-    s.verify_paths = 1024;
+    s.checks.verify_points = 256;
+    s.checks.verify_paths = 1024;
     s
 }
 

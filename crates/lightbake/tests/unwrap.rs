@@ -13,9 +13,10 @@ use lightbake::settings::BakeSettings;
 use lightbake::unwrap::{UvOrigin, overlapping_texels, unwrap_scene};
 
 fn check_layout(scene: &Scene, density: f32, padding: u32) -> usize {
-    let settings = BakeSettings {
-        padding,
-        ..BakeSettings::default()
+    let settings = {
+        let mut s = BakeSettings::default();
+        s.layout.padding = padding;
+        s
     };
     let layout = unwrap_scene(scene, &settings, density).unwrap();
     layout.validate().unwrap();
@@ -114,9 +115,10 @@ fn own_texcoord1_is_kept() {
     assert_eq!(u.indices, s.meshes[0].indices);
     assert_eq!(u.width, 30);
     // Unless asked to unwrap again.
-    let settings = BakeSettings {
-        reunwrap: true,
-        ..BakeSettings::default()
+    let settings = {
+        let mut s = BakeSettings::default();
+        s.layout.reunwrap = true;
+        s
     };
     let layout = unwrap_scene(&s, &settings, 10.0).unwrap();
     assert_eq!(layout.meshes[0].as_ref().unwrap().origin, UvOrigin::Xatlas);

@@ -17,8 +17,8 @@ use lightbake::{BakeSettings, Progress};
 fn verify_agrees_with_a_long_reference_within_its_stated_noise() {
     let scene = cornell_box(CornellLight::Area);
     let mut settings = BakeSettings::medium();
-    settings.verify_points = 256;
-    settings.verify_paths = 1024;
+    settings.checks.verify_points = 256;
+    settings.checks.verify_paths = 1024;
     let mut out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
     verify(&scene, &mut out);
     let v = out.report.verification.clone().unwrap();
@@ -77,8 +77,8 @@ fn verify_agrees_with_a_long_reference_within_its_stated_noise() {
 fn verify_sees_a_black_wall() {
     let scene = cornell_box(CornellLight::Area);
     let mut settings = BakeSettings::preview();
-    settings.verify_points = 128;
-    settings.verify_paths = 256;
+    settings.checks.verify_points = 128;
+    settings.checks.verify_paths = 256;
     let mut out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
     verify(&scene, &mut out);
     let good = out.report.verification.take().unwrap();
@@ -111,8 +111,8 @@ fn verify_sees_a_black_wall() {
 fn corpus_scene_checks(file: &str, bound: f64) {
     let scene = corpus_scene(file);
     let mut settings = BakeSettings::preview();
-    settings.verify_points = 256;
-    settings.verify_paths = 1024;
+    settings.checks.verify_points = 256;
+    settings.checks.verify_paths = 1024;
     let mut out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
     verify(&scene, &mut out);
     let v = out.report.verification.clone().unwrap();

@@ -15,8 +15,8 @@ use lightbake::vpl::instant_radiosity;
 
 fn prepared(scene: &Scene, density: f32) -> Prepared {
     let mut s = BakeSettings::medium();
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
     Prepared::new(scene, &s).unwrap()
 }
 
@@ -42,14 +42,14 @@ fn vpl_indirect_light_agrees_with_radiosity() {
     let direct = lightbake::direct::direct_irradiance(&prep.ctx());
     let reference = common::radiosity_indirect(&prep, &direct, 2048);
     let compensated = vpl_indirect(&prep, &direct, |s| {
-        s.vpl_particles = 65536;
-        s.vpl_bias_compensation = true;
-        s.vpl_compensation_rays = 256;
+        s.vpl.particles = 65536;
+        s.vpl.bias_compensation = true;
+        s.vpl.compensation_rays = 256;
     });
     let error = common::relative_l2(&prep, &compensated, &reference);
     assert!(error < 0.05, "relative RMS {error:.4} at 65536 particles");
     // Without compensation the clamp leaves a larger gap at the corners.
-    let clamped = vpl_indirect(&prep, &direct, |s| s.vpl_particles = 65536);
+    let clamped = vpl_indirect(&prep, &direct, |s| s.vpl.particles = 65536);
     let error_clamped = common::relative_l2(&prep, &clamped, &reference);
     assert!(
         error < error_clamped,
@@ -66,7 +66,7 @@ fn halton_walks_converge_faster_than_random_ones() {
     let direct = lightbake::direct::direct_irradiance(&prep.ctx());
     // A converged VPL result with the same clamp: what remains is sampling error.
     let reference = vpl_indirect(&prep, &direct, |s| {
-        s.vpl_particles = 131_072;
+        s.vpl.particles = 131_072;
         s.seed = 1234;
     });
     let counts = [256u32, 1024, 4096, 16384];
@@ -74,8 +74,8 @@ fn halton_walks_converge_faster_than_random_ones() {
         (0..seeds)
             .map(|seed| {
                 let e = vpl_indirect(&prep, &direct, |s| {
-                    s.vpl_particles = n;
-                    s.vpl_sequence = seq;
+                    s.vpl.particles = n;
+                    s.vpl.sequence = seq;
                     s.seed = seed;
                 });
                 common::relative_l2(&prep, &e, &reference)
@@ -207,10 +207,10 @@ fn clamping_keeps_corners_finite_and_compensation_restores_them() {
     let direct = lightbake::direct::direct_irradiance(&prep.ctx());
     let run = |clamp: Option<f32>, compensate: bool| {
         vpl_indirect(&prep, &direct, |s| {
-            s.vpl_particles = PARTICLES;
-            s.vpl_clamp_distance = clamp;
-            s.vpl_bias_compensation = compensate;
-            s.vpl_compensation_rays = 1024;
+            s.vpl.particles = PARTICLES;
+            s.vpl.clamp_distance = clamp;
+            s.vpl.bias_compensation = compensate;
+            s.vpl.compensation_rays = 1024;
         })
     };
     let unclamped = run(Some(1e-6), false);
@@ -292,8 +292,8 @@ fn vpl_bakes_are_the_same_on_one_and_two_threads() {
             let mut s = common::settings(48.0, 4);
             s.method = method;
             s.threads = threads;
-            s.vpl_particles = 512;
-            s.vpl_bias_compensation = true;
+            s.vpl.particles = 512;
+            s.vpl.bias_compensation = true;
             let out = common::bake(&scene, &s);
             assert!(out.report.vpl.as_ref().unwrap().vpls > 0);
             pages.push(out.pages);
@@ -378,9 +378,9 @@ fn a_near_field_over_the_memory_budget_falls_back_to_one_bounce_and_says_so() {
     let emitters = Emitters::collect(&prep.scene, &prep.rays);
     let run = |budget_mib: u64| {
         let mut st = prep.settings.clone();
-        st.vpl_particles = 1024;
-        st.vpl_bias_compensation = true;
-        st.vpl_compensation_rays = 256;
+        st.vpl.particles = 1024;
+        st.vpl.bias_compensation = true;
+        st.vpl.compensation_rays = 256;
         st.memory_budget_mib = budget_mib;
         let ctx = BakeContext {
             settings: &st,
@@ -400,7 +400,7 @@ fn a_near_field_over_the_memory_budget_falls_back_to_one_bounce_and_says_so() {
     let sum = |e: &[Vec3]| e.iter().map(|v| v.x as f64).sum::<f64>();
     let clamped = {
         let mut st = prep.settings.clone();
-        st.vpl_particles = 1024;
+        st.vpl.particles = 1024;
         let ctx = BakeContext {
             settings: &st,
             ..prep.ctx()

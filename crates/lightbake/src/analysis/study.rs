@@ -215,7 +215,7 @@ pub fn run_study(
     }
     Ok(Study {
         scene: scene.name.clone(),
-        texel_density: base.texel_density.unwrap_or_default(),
+        texel_density: base.layout.texel_density.unwrap_or_default(),
         density_reason,
         texels,
         reference_seconds: full_ref.report.total_seconds,
@@ -236,10 +236,11 @@ fn fitted_reference(
     size: StudySize,
 ) -> Result<(BakeSettings, crate::bake::BakeOutput, BakeSettings, String)> {
     let (density, source) = texel_density(scene, base);
-    let mut base = BakeSettings {
-        texel_density: Some(density),
-        texel_density_from_scene: false,
-        ..base.clone()
+    let mut base = {
+        let mut s = base.clone();
+        s.layout.texel_density = Some(density);
+        s.layout.texel_density_from_scene = false;
+        s
     };
     let mut reason = format!("{} texels/m, {source}", density_text(density));
     for _attempt in 0..6 {
@@ -251,9 +252,9 @@ fn fitted_reference(
                 budget_mib,
                 ..
             }) => {
-                let d = base.texel_density.unwrap_or(density);
+                let d = base.layout.texel_density.unwrap_or(density);
                 let lower = d * (0.9 * budget_mib / needed_mib.max(1.0)).sqrt() as f32;
-                base.texel_density = Some(lower);
+                base.layout.texel_density = Some(lower);
                 reason = format!(
                     "{} texels/m: lowered from {} texels/m ({source}) so the reference's full transport matrix ({:.0} MiB at {} texels/m) fits the memory budget of {budget_mib:.0} MiB",
                     density_text(lower),
@@ -277,19 +278,22 @@ fn reference_settings(base: &BakeSettings, size: StudySize) -> BakeSettings {
     let mut reference = base.clone();
     reference.seed = base.seed.wrapping_add(0x5eed);
     reference.method = Method::Radiosity;
-    reference.samples_per_texel = 1024;
-    reference.sky_samples = 4096;
-    reference.transport_rays = match size {
+    reference.direct.samples_per_texel = 1024;
+    reference.direct.sky_samples = 4096;
+    reference.radiosity.transport_rays = match size {
         StudySize::Full => 4096,
         StudySize::Quick => 1024,
     };
     // The reference may use the whole memory budget for its matrix.
-    reference.transport_budget_mib = reference.transport_budget_mib.max(base.memory_budget_mib);
-    reference.solver = SolverChoice::Krylov;
-    reference.solver_tolerance = 1e-7;
+    reference.radiosity.transport_budget_mib = reference
+        .radiosity
+        .transport_budget_mib
+        .max(base.memory_budget_mib);
+    reference.radiosity.solver = SolverChoice::Krylov;
+    reference.radiosity.solver_tolerance = 1e-7;
     reference.target_error = None;
     // A reference is converged, not filtered: the denoiser's bias would be in it.
-    reference.denoise = false;
+    reference.finish.denoise = false;
     reference
 }
 
@@ -322,10 +326,11 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
         }
     };
     // Every curve measures its method as it is, unfiltered, but for the denoised one.
-    let s = BakeSettings {
-        target_error: None,
-        denoise: false,
-        ..base.clone()
+    let s = {
+        let mut s = base.clone();
+        s.target_error = None;
+        s.finish.denoise = false;
+        s
     };
     let case = |curve: &str, parameter, budget, settings, against| Case {
         curve: curve.to_string(),
@@ -340,8 +345,8 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
     for spp in pick(&[1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0], &[2.0, 8.0]) {
         let mut d = s.clone();
         d.method = Method::Direct;
-        d.samples_per_texel = spp as u32;
-        d.sky_samples = (4 * spp as u32).max(4);
+        d.direct.samples_per_texel = spp as u32;
+        d.direct.sky_samples = (4 * spp as u32).max(4);
         cases.push(case("direct", "spp", spp, d, Against::Direct));
     }
     // Radiosity solvers over their tolerance at a fixed matrix.
@@ -362,11 +367,11 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
         for tol in tolerances {
             let mut r = s.clone();
             r.method = Method::Radiosity;
-            r.solver = solver;
-            r.solver_tolerance = tol;
-            r.transport_rays = 256;
+            r.radiosity.solver = solver;
+            r.radiosity.solver_tolerance = tol;
+            r.radiosity.transport_rays = 256;
             if solver == SolverChoice::StochasticJacobi {
-                r.stochastic_rays_per_node = 256;
+                r.radiosity.stochastic_rays_per_node = 256;
             }
             cases.push(case(solver.name(), "tolerance", tol, r, Against::Full));
         }
@@ -379,10 +384,10 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
         ) {
             let mut r = s.clone();
             r.method = Method::Radiosity;
-            r.solver = SolverChoice::GaussSeidel;
-            r.solver_tolerance = 1e-4;
-            r.basis = basis;
-            r.transport_rays = rays as u32;
+            r.radiosity.solver = SolverChoice::GaussSeidel;
+            r.radiosity.solver_tolerance = 1e-4;
+            r.radiosity.basis = basis;
+            r.radiosity.transport_rays = rays as u32;
             let curve = match basis {
                 Basis::Linear => "mc-linear",
                 Basis::Constant => "mc-constant",
@@ -401,9 +406,9 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
     ) {
         let mut r = s.clone();
         r.method = Method::Radiosity;
-        r.solver = SolverChoice::Hierarchical;
-        r.adaptive_gather = false;
-        r.transport_rays = rays as u32;
+        r.radiosity.solver = SolverChoice::Hierarchical;
+        r.radiosity.adaptive_gather = false;
+        r.radiosity.transport_rays = rays as u32;
         cases.push(case(
             "hierarchical",
             "rays/node",
@@ -412,7 +417,7 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
             Against::Full,
         ));
         // The same bakes through the denoiser, scored the same way.
-        r.denoise = true;
+        r.finish.denoise = true;
         cases.push(case(
             "hierarchical-denoised",
             "rays/node",
@@ -424,11 +429,11 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
     for tolerance in pick(&[0.3, 0.1, 0.03, 0.01, 0.003], &[0.3, 0.01]) {
         let mut r = s.clone();
         r.method = Method::Radiosity;
-        r.solver = SolverChoice::Hierarchical;
-        r.adaptive_gather = false;
-        r.transport_rays = 256;
-        r.cluster_texels = 64;
-        r.cluster_tolerance = tolerance;
+        r.radiosity.solver = SolverChoice::Hierarchical;
+        r.radiosity.adaptive_gather = false;
+        r.radiosity.transport_rays = 256;
+        r.radiosity.cluster_texels = 64;
+        r.radiosity.cluster_tolerance = tolerance;
         cases.push(case(
             "hierarchical-coarse",
             "cluster tolerance",
@@ -448,8 +453,8 @@ fn cases(base: &BakeSettings, size: StudySize) -> Vec<Case> {
     for n in pick(&[64.0, 256.0, 1024.0, 4096.0, 16384.0], &[64.0, 1024.0]) {
         let mut v = s.clone();
         v.method = Method::Hybrid;
-        v.vpl_particles = n as u32;
-        v.vpl_time_budget_s = None;
+        v.vpl.particles = n as u32;
+        v.vpl.time_budget_s = None;
         cases.push(case("vpl-hybrid", "particles", n, v, Against::Full));
     }
     cases
@@ -467,7 +472,7 @@ fn hemicube_run(
     let start = Instant::now();
     let mut settings = base.clone();
     settings.method = Method::Radiosity;
-    settings.basis = Basis::Constant;
+    settings.radiosity.basis = Basis::Constant;
     let prepared = Prepared::new(scene, &settings)?;
     let ctx = prepared.ctx();
     let mut irradiance = direct_irradiance(&prepared.ctx());
@@ -490,7 +495,7 @@ fn hemicube_run(
     let system = radiosity::system(&transport, &nodes, &source);
     let options = SolveOptions {
         tolerance: radiosity::residual_tolerance(1e-4, nodes.max_albedo()),
-        max_iterations: settings.max_solver_iterations,
+        max_iterations: settings.radiosity.max_solver_iterations,
     };
     let solution = solve::solve_matrix(SolverChoice::GaussSeidel, &system, &options);
     let reflected =
@@ -502,7 +507,7 @@ fn hemicube_run(
         &prepared.layout,
         &prepared.patches,
         &irradiance,
-        settings.padding + 2,
+        settings.layout.padding + 2,
     );
     Ok(StudyRow {
         curve: "hemicube".into(),

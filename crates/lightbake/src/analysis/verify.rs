@@ -1,5 +1,5 @@
 //! A bake checked against the path tracer: `bake --verify N`
-//! ([`BakeSettings::verify_points`](crate::BakeSettings::verify_points)).
+//! ([`CheckSettings::verify_points`](crate::settings::CheckSettings::verify_points)).
 //!
 //! * **Points**: `N` points of the baked surfaces (`points::sample_surface`: spread
 //!   by area × the instance's texel-density scale², open surface, not inside solids), kept
@@ -7,8 +7,8 @@
 //!   travels eight texels before hitting anything). Numbers from the bake's seed, so the same
 //!   bake gives the same points on any thread count.
 //! * **Reference**: `reference::irradiance` at
-//!   [`BakeSettings::verify_paths`](crate::BakeSettings::verify_paths) paths per point in two
-//!   independent halves (`points::references`); its noise is stated.
+//!   [`CheckSettings::verify_paths`](crate::settings::CheckSettings::verify_paths) paths
+//!   per point in two independent halves (`points::references`); its noise is stated.
 //! * **Bake**: the lightmap where the GPU reads it (`points::sample_bake`: bilinear,
 //!   on the point's lightmap UV in the baked scene).
 //! * **Measures** ([`Verification`](crate::report::Verification), in `checks`): the relative RMS error of the luminance of E/π with the
@@ -28,17 +28,20 @@ use crate::sampling::hash_words;
 use crate::scene::Scene;
 
 /// Checks `out` (a bake of `scene`) against the path tracer as its settings ask
-/// ([`BakeSettings::verify_points`] points at [`BakeSettings::verify_paths`] paths; nothing
-/// when the points are 0) and records the result in `out.report.verification`.
+/// ([`CheckSettings::verify_points`] points at [`CheckSettings::verify_paths`] paths;
+/// nothing when the points are 0) and records the result in `out.report.verification`.
 ///
-/// [`BakeSettings::verify_points`]: crate::BakeSettings::verify_points
-/// [`BakeSettings::verify_paths`]: crate::BakeSettings::verify_paths
+/// [`CheckSettings::verify_points`]: crate::settings::CheckSettings::verify_points
+/// [`CheckSettings::verify_paths`]: crate::settings::CheckSettings::verify_paths
 pub fn verify(scene: &Scene, out: &mut BakeOutput) {
     let settings = &out.report.settings;
-    if settings.verify_points == 0 {
+    if settings.checks.verify_points == 0 {
         return;
     }
-    let (count, paths) = (settings.verify_points as usize, settings.verify_paths);
+    let (count, paths) = (
+        settings.checks.verify_points as usize,
+        settings.checks.verify_paths,
+    );
     let seed = hash_words(&[settings.seed, 0x7e21_f1e5]);
     let start = Instant::now();
     let points = verification_points(scene, out, count, paths, seed, seed);

@@ -121,7 +121,7 @@ pub(super) fn denoise_pages(
     let covers = light.indirect.is_some() || !plan.runs(Stage::Indirect);
     if covers {
         let (st, error) = stages.run(Stage::Denoise, 1, || {
-            let radius = settings.denoise_radius;
+            let radius = settings.finish.denoise_radius;
             let (st, error) = match &light.indirect {
                 // Direct and indirect light apart, each with its own noise (scaled as the
                 // sum is to the bake's estimate).
@@ -214,7 +214,7 @@ pub(super) fn dilate_pages(
 ) -> Result<()> {
     let (scene, patches, settings) = (ctx.scene, ctx.patches, ctx.settings);
     stages.run(Stage::Dilate, 1, || {
-        assembly.dilate(settings.padding + 2);
+        assembly.dilate(settings.layout.padding + 2);
         let st = assembly.stats;
         lit.texels.filled = st.filled;
         lit.texels.dilated = st.dilated;
@@ -275,7 +275,7 @@ pub(super) fn volume_stage(
     };
     let progress = stages.progress();
     let volume = stages.run(Stage::Volume, grid.len() as u64, || {
-        let (volume, st) = bake_volume(&solution, grid, settings.probe_rays, settings.seed, progress);
+        let (volume, st) = bake_volume(&solution, grid, settings.volume.probe_rays, settings.seed, progress);
         let note = format!(
             "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
             st.resolution[0],

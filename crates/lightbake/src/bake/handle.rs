@@ -106,12 +106,13 @@ mod tests {
 
     #[test]
     fn a_handle_bakes_and_reports_panics() {
-        let settings = BakeSettings {
-            texel_density: Some(4.0),
-            texel_density_from_scene: false,
-            samples_per_texel: 2,
-            method: crate::settings::Method::Direct,
-            ..BakeSettings::preview()
+        let settings = {
+            let mut s = BakeSettings::preview();
+            s.layout.texel_density = Some(4.0);
+            s.layout.texel_density_from_scene = false;
+            s.direct.samples_per_texel = 2;
+            s.method = crate::settings::Method::Direct;
+            s
         };
         let scene = cornell_box(CornellLight::Point);
         let handle = BakeBuilder::new(scene.clone())

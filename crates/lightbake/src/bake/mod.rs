@@ -68,7 +68,7 @@ pub struct BakeOutput {
     /// Lightmap pages (E/π, linear RGB).
     pub pages: Vec<LightmapPage>,
     /// The irradiance volume for dynamic objects, when the settings ask for one
-    /// ([`BakeSettings::irradiance_volume`]).
+    /// ([`VolumeSettings::enabled`](crate::settings::VolumeSettings::enabled)).
     pub irradiance_volume: Option<IrradianceVolume>,
     /// Timings, counts, plan and warnings.
     pub report: BakeReport,

@@ -150,7 +150,7 @@ fn direct(
     let mut pilot = ctx.settings.clone();
     if share.is_some() {
         // A variance needs samples to spread: the pilot takes at least 4.
-        pilot.samples_per_texel = pilot.samples_per_texel.max(4);
+        pilot.direct.samples_per_texel = pilot.direct.samples_per_texel.max(4);
     }
     let scope = stages.scope();
     let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
@@ -200,7 +200,7 @@ fn direct(
                 };
                 rays += r.rays;
                 // One sample has no spread: no estimate then.
-                let est = (s.samples_per_texel >= 2).then(|| {
+                let est = (s.direct.samples_per_texel >= 2).then(|| {
                     ErrorEstimate::from_standard_errors(
                         &valid(patches, &r.standard_error),
                         rms_luminance(&valid(patches, &r.irradiance)),
@@ -215,22 +215,22 @@ fn direct(
             },
             |s, _, factor| {
                 let next = (
-                    scaled(s.samples_per_texel, factor, 4096),
-                    scaled(s.sky_samples, factor, 65_536),
+                    scaled(s.direct.samples_per_texel, factor, 4096),
+                    scaled(s.direct.sky_samples, factor, 65_536),
                 );
-                let changed = next != (s.samples_per_texel, s.sky_samples);
-                (s.samples_per_texel, s.sky_samples) = next;
+                let changed = next != (s.direct.samples_per_texel, s.direct.sky_samples);
+                (s.direct.samples_per_texel, s.direct.sky_samples) = next;
                 changed
             },
         )?;
         let s = &rounds.value.3;
         let note = format!(
             "{} spp, {} light(s), {} emitter triangle(s){}{}",
-            s.samples_per_texel,
+            s.direct.samples_per_texel,
             ctx.plan.lights.iter().filter(|l| l.instances > 0).count(),
             emitters.list.len(),
             if ctx.plan.sky {
-                format!(", {} sky rays/texel", s.sky_samples)
+                format!(", {} sky rays/texel", s.direct.sky_samples)
             } else {
                 String::new()
             },
@@ -285,8 +285,8 @@ fn vpl(
             },
             |s, (_, report), factor| {
                 let next = scaled(report.particles, factor, 10_000_000);
-                s.vpl_particles = next;
-                s.vpl_time_budget_s = None;
+                s.vpl.particles = next;
+                s.vpl.time_budget_s = None;
                 next != report.particles
             },
         )?;
@@ -318,11 +318,11 @@ fn vpl(
     }
     // Keller's walk follows at most `vpl_max_depth` reflections: in a closed scene the light
     // beyond them is ρ̄^(d+1) of the total, and it is not baked.
-    let depth = settings.vpl_max_depth.min(MAX_VPL_DEPTH);
+    let depth = settings.vpl.max_depth.min(MAX_VPL_DEPTH);
     let lost = (report.mean_reflectivity as f64).powi(depth as i32 + 1);
     if lost > 0.01 {
         warnings.push(format!(
-            "instant radiosity follows at most {depth} reflections; with mean reflectivity {:.3} the light beyond them, up to {:.1}% of the total in a closed scene, is not baked (raise vpl_max_depth, at most {MAX_VPL_DEPTH}, or use the radiosity method)",
+            "instant radiosity follows at most {depth} reflections; with mean reflectivity {:.3} the light beyond them, up to {:.1}% of the total in a closed scene, is not baked (raise vpl.max_depth, --vpl-max-depth, at most {MAX_VPL_DEPTH}, or use the radiosity method)",
             report.mean_reflectivity,
             100.0 * lost,
         ));
@@ -371,7 +371,7 @@ fn radiosity(
 ) -> Result<RadiosityResult> {
     let settings = ctx.settings;
     let nodes = stages.run(Stage::Nodes, 1, || {
-        let nodes = Nodes::new(ctx, settings.basis);
+        let nodes = Nodes::new(ctx, settings.radiosity.basis);
         let note = format!(
             "{} nodes, max albedo {:.3}",
             nodes.len(),
@@ -381,9 +381,9 @@ fn radiosity(
     })?;
     let mut s = settings.clone();
     if let Some(t) = settings.target_error {
-        s.solver_tolerance = s.solver_tolerance.min(t as f64 / 4.0);
+        s.radiosity.solver_tolerance = s.radiosity.solver_tolerance.min(t as f64 / 4.0);
     }
-    let tolerance = s.solver_tolerance;
+    let tolerance = s.radiosity.solver_tolerance;
     let rounds = until_target(
         share,
         s,
@@ -400,17 +400,18 @@ fn radiosity(
             if solved.coarse.is_some() {
                 // The final gather's rays set its noise; the coarse level's tolerance its
                 // bias: both are tightened by the same factor of error.
-                let next = scaled(s.transport_rays, factor, 65_536);
-                let tolerance = (s.cluster_tolerance / factor.sqrt()).max(1e-4);
-                let changed = next != s.transport_rays || tolerance != s.cluster_tolerance;
-                (s.transport_rays, s.cluster_tolerance) = (next, tolerance);
+                let next = scaled(s.radiosity.transport_rays, factor, 65_536);
+                let tolerance = (s.radiosity.cluster_tolerance / factor.sqrt()).max(1e-4);
+                let changed = next != s.radiosity.transport_rays
+                    || tolerance != s.radiosity.cluster_tolerance;
+                (s.radiosity.transport_rays, s.radiosity.cluster_tolerance) = (next, tolerance);
                 return changed;
             }
             // The count that sets the noise: form-factor rays, or the shooting's rays.
             let count = if solved.transport.is_some() {
-                &mut s.transport_rays
+                &mut s.radiosity.transport_rays
             } else {
-                &mut s.stochastic_rays_per_node
+                &mut s.radiosity.stochastic_rays_per_node
             };
             let next = scaled(*count, factor, 65_536);
             let changed = next != *count;
@@ -453,7 +454,7 @@ fn radiosity(
     let report = RadiosityReport {
         solver: solution.solver,
         solver_reason: plan.reason.clone(),
-        basis: settings.basis,
+        basis: settings.radiosity.basis,
         nodes: nodes.len(),
         max_albedo: nodes.max_albedo(),
         transport_nnz: transport.as_ref().map_or(0, Transport::nnz),
@@ -500,7 +501,7 @@ fn radiosity_round(
             let t = radiosity::build_transport(ctx, nodes, progress);
             let note = format!(
                 "{} rays/node, {} entries, {:.1} MiB (estimated {:.1})",
-                s.transport_rays,
+                s.radiosity.transport_rays,
                 t.nnz(),
                 t.bytes() as f64 / 1048576.0,
                 plan.transport_estimate_bytes as f64 / 1048576.0
@@ -534,7 +535,7 @@ fn radiosity_round(
             &solution.b,
             &solution.indirect,
             direct,
-            s.transport_rays,
+            s.radiosity.transport_rays,
         );
         let note = format!("{:.2}% from {}", 100.0 * e.relative_rms, e.method);
         Ok((e, rays, note))

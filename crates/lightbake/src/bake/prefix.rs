@@ -131,7 +131,7 @@ pub(super) fn admit(
                     grid.resolution.z,
                     grid.spacing,
                     grid.reason,
-                    settings.probe_rays
+                    settings.volume.probe_rays
                 ),
             ));
         }

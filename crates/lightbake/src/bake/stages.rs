@@ -95,7 +95,14 @@ impl<'p> Stages<'p> {
         if !self.previews.is_enabled() {
             return;
         }
-        let pages = || preview::pages(ctx.layout, ctx.patches, &direct, ctx.settings.padding);
+        let pages = || {
+            preview::pages(
+                ctx.layout,
+                ctx.patches,
+                &direct,
+                ctx.settings.layout.padding,
+            )
+        };
         self.preview(PreviewKind::Direct, ctx.layout, glam::Vec3::ZERO, pages);
         self.preview_direct = Some(direct);
     }
@@ -145,7 +152,7 @@ impl<'p> StageRunner<'p> for Stages<'p> {
                 .zip(indirect)
                 .map(|(d, i)| (*d + *i + ambient).max(glam::Vec3::ZERO))
                 .collect();
-            preview::pages(ctx.layout, ctx.patches, &sum, ctx.settings.padding)
+            preview::pages(ctx.layout, ctx.patches, &sum, ctx.settings.layout.padding)
         };
         self.preview(PreviewKind::Indirect, ctx.layout, ambient, pages);
     }
@@ -285,23 +292,24 @@ mod tests {
     /// to 10·4²·1.2 = 192 (error 1.8%), where it stops.
     #[test]
     fn rounds_raise_the_count_until_the_share_is_reached() {
-        let settings = BakeSettings {
-            samples_per_texel: 10,
-            ..BakeSettings::default()
+        let settings = {
+            let mut s = BakeSettings::default();
+            s.direct.samples_per_texel = 10;
+            s
         };
         let mut seen = Vec::new();
         let rounds = until_target(
             Some(0.02),
             settings,
             |s, round| {
-                seen.push((round, s.samples_per_texel));
-                let error = 0.08 * (10.0 / s.samples_per_texel as f64).sqrt();
-                Ok((s.samples_per_texel, Some(error)))
+                seen.push((round, s.direct.samples_per_texel));
+                let error = 0.08 * (10.0 / s.direct.samples_per_texel as f64).sqrt();
+                Ok((s.direct.samples_per_texel, Some(error)))
             },
             |s, _, factor| {
-                let next = scaled(s.samples_per_texel, factor, 4096);
-                let changed = next != s.samples_per_texel;
-                s.samples_per_texel = next;
+                let next = scaled(s.direct.samples_per_texel, factor, 4096);
+                let changed = next != s.direct.samples_per_texel;
+                s.direct.samples_per_texel = next;
                 changed
             },
         )

@@ -133,7 +133,7 @@ pub fn direct_light_of(
         settings: bake.settings,
         plan: bake.plan,
         emitters,
-        closed_form: emitters.list.len() <= bake.settings.max_closed_form_emitters as usize,
+        closed_form: emitters.list.len() <= bake.settings.direct.max_closed_form_emitters as usize,
         tree,
         untreed,
     };
@@ -202,7 +202,7 @@ struct Spread {
 ///
 /// The part from lights baked indirect only is also added to `realtime` (lux).
 fn texel(ctx: &Ctx<'_>, p: &Patch, rays: &mut u64, realtime: &mut Vec3) -> (Vec3, f32) {
-    let spp = ctx.settings.samples_per_texel;
+    let spp = ctx.settings.direct.samples_per_texel;
     let closed_form = ctx.plan.area_lights && ctx.closed_form && !ctx.emitters.is_empty();
     let mut e = Vec3::ZERO;
     let mut ratio = RatioEstimate::default();
@@ -385,7 +385,7 @@ fn add_sky(
     variance: &mut f64,
     rays: &mut u64,
 ) -> Vec3 {
-    let n = ctx.settings.sky_samples;
+    let n = ctx.settings.direct.sky_samples;
     let spp = samples.len() as u32;
     let mut escaped = 0u32;
     let scale = std::f64::consts::PI * luminance(ctx.scene.sky) as f64;

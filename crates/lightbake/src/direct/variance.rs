@@ -9,7 +9,7 @@ use crate::settings::BakeSettings;
 /// rays, when the sky is sampled).
 pub(super) fn uses_blocks(settings: &BakeSettings, sky: bool) -> bool {
     let enough = |n: u32| n as usize >= 2 * BLOCKS;
-    enough(settings.samples_per_texel) && (!sky || enough(settings.sky_samples))
+    enough(settings.direct.samples_per_texel) && (!sky || enough(settings.direct.sky_samples))
 }
 
 /// How the direct pass estimates its error with these settings (for the report).
@@ -17,12 +17,12 @@ pub fn error_method(settings: &BakeSettings, sky: bool) -> String {
     if uses_blocks(settings, sky) {
         format!(
             "spread of {BLOCKS} blocks of the {} footprint samples",
-            settings.samples_per_texel
+            settings.direct.samples_per_texel
         )
     } else {
         format!(
             "variance over {} footprint samples",
-            settings.samples_per_texel
+            settings.direct.samples_per_texel
         )
     }
 }

@@ -11,7 +11,8 @@
 //!
 //! The check:
 //!
-//! * **Points**: [`BakeSettings::grid_error_points`] valid texel patches drawn at random
+//! * **Points**: [`CheckSettings::grid_error_points`](crate::settings::CheckSettings::grid_error_points)
+//!   valid texel patches drawn at random
 //!   (uniform over texels, so by area × the chart's density², as `--verify` spreads its
 //!   points), each with a uniform point of its texel square mapped onto the surface (the
 //!   footprint triangles; near geometry only open surface on the patch's side of a wall,
@@ -77,7 +78,7 @@ pub struct GridError {
 type Checked = (f64, f64, f64, u64);
 
 /// The texel grid's error of the direct light `direct` (lux per patch, what the lightmap
-/// shows; `direct_se` its per-patch standard error) at `settings.grid_error_points` points,
+/// shows; `direct_se` its per-patch standard error) at `settings.checks.grid_error_points` points,
 /// relative to `value_rms` (lux; see the module docs). `None` when no valid texel exists or
 /// no point could be placed.
 #[allow(clippy::too_many_arguments)]
@@ -96,13 +97,13 @@ pub fn grid_error(
     let valid: Vec<u32> = (0..patches.patches.len() as u32)
         .filter(|&i| patches.patches[i as usize].is_valid())
         .collect();
-    if valid.is_empty() || settings.grid_error_points == 0 {
+    if valid.is_empty() || settings.checks.grid_error_points == 0 {
         return None;
     }
-    let (pages, _) = assemble(layout, patches, direct, settings.padding + 2);
+    let (pages, _) = assemble(layout, patches, direct, settings.layout.padding + 2);
     let surface = Surface::new(scene, layout, rays);
     let seed = hash_words(&[settings.seed, 0x96d1_e44e]);
-    let checked: Vec<Option<Checked>> = (0..settings.grid_error_points)
+    let checked: Vec<Option<Checked>> = (0..settings.checks.grid_error_points)
         .into_par_iter()
         .map(|i| {
             let key = hash_words(&[seed, i]);

@@ -54,18 +54,23 @@ impl Facts<'_> {
         } else {
             self.lights as f64
         } + if self.area_lights { 1.0 } else { 0.0 };
-        let direct = s.samples_per_texel as f64 * lights + weighed;
-        let sky = if self.sky { s.sky_samples as f64 } else { 0.0 };
-        let cluster = (s.cluster_texels as f64).powi(2);
+        let direct = s.direct.samples_per_texel as f64 * lights + weighed;
+        let sky = if self.sky {
+            s.direct.sky_samples as f64
+        } else {
+            0.0
+        };
+        let cluster = (s.radiosity.cluster_texels as f64).powi(2);
         let indirect = match s.method {
             Method::Direct => 0.0,
             Method::Radiosity => {
-                1.5 * s.transport_rays as f64 + 4.0 * s.cluster_rays as f64 / cluster
+                1.5 * s.radiosity.transport_rays as f64
+                    + 4.0 * s.radiosity.cluster_rays as f64 / cluster
             }
             Method::Vpl | Method::Hybrid => {
-                2.0 * s.vpl_particles as f64
-                    + if s.vpl_bias_compensation {
-                        s.vpl_compensation_rays as f64
+                2.0 * s.vpl.particles as f64
+                    + if s.vpl.bias_compensation {
+                        s.vpl.compensation_rays as f64
                     } else {
                         0.0
                     }
@@ -78,14 +83,14 @@ impl Facts<'_> {
     /// spacing), each with its rays and a quarter as many emitter samples.
     pub(super) fn volume_rays(&self, texels: f64) -> f64 {
         let s = self.settings;
-        if !(s.irradiance_volume && self.work) {
+        if !(s.volume.enabled && self.work) {
             return 0.0;
         }
-        let probes = match s.probe_spacing {
+        let probes = match s.volume.probe_spacing {
             None => 65_536f64.min(texels.max(1.0)),
             Some(_) => (1u64 << 20) as f64,
         };
-        probes * 1.25 * s.probe_rays as f64
+        probes * 1.25 * s.volume.probe_rays as f64
     }
 }
 
@@ -122,13 +127,16 @@ impl Facts<'_> {
         let s = self.settings;
         let why_not = if !self.work {
             Some(self.why_not())
-        } else if !s.adaptive_density {
+        } else if !s.layout.adaptive_density {
             Some(
-                "turned off (adaptive_density, --uniform-density): every chart at one density"
+                "turned off (layout.adaptive_density, --uniform-density): every chart at one density"
                     .to_string(),
             )
-        } else if s.texel_density.is_some() {
-            Some("the settings set the density (texel_density): every chart keeps it".to_string())
+        } else if s.layout.texel_density.is_some() {
+            Some(
+                "the settings set the density (layout.texel_density): every chart keeps it"
+                    .to_string(),
+            )
         } else if !density_from_budget(self.scene, s) {
             Some(
                 "the scene sets its density (extras.lightbake.texel_density): every chart keeps it"
@@ -268,8 +276,8 @@ impl Facts<'_> {
             .instances
             .iter()
             .all(|inst| scene.material_of(inst.mesh).albedo_factor().max_element() <= 0.0);
-        let particles = settings.vpl_time_budget_s.map_or_else(
-            || format!("{} particles", settings.vpl_particles),
+        let particles = settings.vpl.time_budget_s.map_or_else(
+            || format!("{} particles", settings.vpl.particles),
             |t| format!("particles for a {t} s gather"),
         );
         let (run, why) = match settings.method {
@@ -291,12 +299,12 @@ impl Facts<'_> {
                 true,
                 format!(
                     "radiosity, {} basis, solver {}{}",
-                    match settings.basis {
+                    match settings.radiosity.basis {
                         Basis::Linear => "piecewise-linear",
                         Basis::Constant => "piecewise-constant",
                     },
-                    settings.solver.name(),
-                    if settings.solver == SolverChoice::Auto {
+                    settings.radiosity.solver.name(),
+                    if settings.radiosity.solver == SolverChoice::Auto {
                         " (chosen once the texels are known)"
                     } else {
                         ""
@@ -307,14 +315,14 @@ impl Facts<'_> {
                 true,
                 format!(
                     "instant radiosity from the first reflection on: {particles}, {:?} walks",
-                    settings.vpl_sequence
+                    settings.vpl.sequence
                 ),
             ),
             Method::Vpl => (
                 true,
                 format!(
                     "instant radiosity, all light from VPLs: {particles}, {:?} walks{}",
-                    settings.vpl_sequence,
+                    settings.vpl.sequence,
                     if all_black {
                         " (every albedo is zero: no reflections)"
                     } else {
@@ -332,8 +340,8 @@ impl Facts<'_> {
         let s = self.settings;
         let why_not = if !self.work {
             Some(self.why_not())
-        } else if s.grid_error_points == 0 {
-            Some("turned off in the settings (grid_error_points; --grid-error-points 0): the estimate covers sampling noise only".to_string())
+        } else if s.checks.grid_error_points == 0 {
+            Some("turned off in the settings (checks.grid_error_points; --grid-error-points 0): the estimate covers sampling noise only".to_string())
         } else if s.method == Method::Vpl {
             Some("method 'vpl' has no direct pass whose texels it could read".to_string())
         } else {
@@ -346,7 +354,7 @@ impl Facts<'_> {
             why_not.unwrap_or_else(|| {
                 format!(
                     "the direct light between texel centres checked against its value at {} points: the texel grid's own error, added to the estimate",
-                    s.grid_error_points
+                    s.checks.grid_error_points
                 )
             }),
         )
@@ -368,18 +376,18 @@ impl Facts<'_> {
         vec![
             step(
                 Stage::Denoise,
-                s.denoise,
-                "turned off in the settings (denoise; the preview preset's default is off, medium's and high's on)",
+                s.finish.denoise,
+                "turned off in the settings (finish.denoise; the preview preset's default is off, medium's and high's on)",
                 &format!(
                     "edge-aware filter of {} texels' radius, as strong as each texel's noise warrants",
-                    s.denoise_radius
+                    s.finish.denoise_radius
                 ),
             ),
             self.grid_error_stage(),
             step(
                 Stage::ContactFit,
-                s.contact_fit,
-                "turned off in the settings (contact_fit)",
+                s.finish.contact_fit,
+                "turned off in the settings (finish.contact_fit)",
                 "texels next to geometry fitted so the bilinear reconstruction is right on the visible surface",
             ),
             stage(
@@ -387,23 +395,23 @@ impl Facts<'_> {
                 self.work,
                 self.when_lit(format!(
                     "fill invalid texels and {} texels of padding",
-                    self.settings.padding
+                    self.settings.layout.padding
                 )),
             ),
             step(
                 Stage::Stitch,
-                s.stitch_seams,
-                "turned off in the settings (stitch_seams)",
+                s.finish.stitch_seams,
+                "turned off in the settings (finish.stitch_seams)",
                 "both sides of every seam made to agree after bilinear filtering",
             ),
             step(
                 Stage::Volume,
-                s.irradiance_volume,
-                "no irradiance volume asked for (irradiance_volume; --irradiance-volume)",
+                s.volume.enabled,
+                "no irradiance volume asked for (volume.enabled; --irradiance-volume)",
                 &format!(
                     "irradiance volume for dynamic objects, {} rays per probe, spacing {}",
-                    s.probe_rays,
-                    s.probe_spacing.map_or_else(
+                    s.volume.probe_rays,
+                    s.volume.probe_spacing.map_or_else(
                         || "from the texel density".to_string(),
                         |d| format!("{d} m")
                     )

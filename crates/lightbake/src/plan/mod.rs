@@ -276,7 +276,7 @@ fn uv_sources(scene: &Scene, settings: &BakeSettings, baked: &[usize]) -> (usize
     meshes.dedup();
     let keeping = meshes
         .iter()
-        .filter(|&&m| scene.meshes[m].uv1.is_some() && !settings.reunwrap)
+        .filter(|&&m| scene.meshes[m].uv1.is_some() && !settings.layout.reunwrap)
         .count();
     (meshes.len() - keeping, keeping)
 }
@@ -357,9 +357,10 @@ mod tests {
         let s = cornell_box(CornellLight::Area);
         assert!(BakePlan::new(&s, &BakeSettings::default()).runs(Stage::GridError));
         let d = BakeSettings::default;
-        let off = BakeSettings {
-            grid_error_points: 0,
-            ..d()
+        let off = {
+            let mut s = d();
+            s.checks.grid_error_points = 0;
+            s
         };
         let vpl = BakeSettings {
             method: Method::Vpl,
@@ -376,16 +377,18 @@ mod tests {
     #[test]
     fn texel_density_precedence_and_budget() {
         let s = cornell_box(CornellLight::Area);
-        let explicit = BakeSettings {
-            texel_density: Some(64.0),
-            ..BakeSettings::default()
+        let explicit = {
+            let mut s = BakeSettings::default();
+            s.layout.texel_density = Some(64.0);
+            s
         };
         assert_eq!(texel_density(&s, &explicit).0, 64.0);
         assert_eq!(texel_density(&s, &BakeSettings::default()).0, 256.0);
-        let budget = BakeSettings {
-            texel_density_from_scene: false,
-            texel_budget: 10_000,
-            ..BakeSettings::default()
+        let budget = {
+            let mut s = BakeSettings::default();
+            s.layout.texel_density_from_scene = false;
+            s.layout.texel_budget = 10_000;
+            s
         };
         let (d, why) = texel_density(&s, &budget);
         let area: f32 = (0..s.instances.len()).map(|i| s.instance_area(i)).sum();

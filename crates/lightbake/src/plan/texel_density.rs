@@ -8,8 +8,8 @@ use crate::settings::BakeSettings;
 /// came from: the settings, the scene's hint, or the texel budget spread over the baked
 /// surface (so a scene in millimetres, metres or kilometres gets the same layout).
 pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
-    if let Some(d) = settings.texel_density {
-        return (d, "settings (texel_density)".to_string());
+    if let Some(d) = settings.layout.texel_density {
+        return (d, "settings (layout.texel_density)".to_string());
     }
     if let Some(d) = scene_hint(scene, settings) {
         return (
@@ -22,13 +22,13 @@ pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
     if !(area > 0.0 && area.is_finite()) {
         return (1.0, "no baked surface: any density".to_string());
     }
-    let budget = settings.texel_budget as f64;
+    let budget = settings.layout.texel_budget as f64;
     let density = (budget / area).sqrt().clamp(1e-9, 1e9) as f32;
     (
         density,
         format!(
             "a budget of {} texels over {} of baked surface",
-            settings.texel_budget,
+            settings.layout.texel_budget,
             format_area(area)
         ),
     )
@@ -38,13 +38,13 @@ pub fn texel_density(scene: &Scene, settings: &BakeSettings) -> (f32, String) {
 fn scene_hint(scene: &Scene, settings: &BakeSettings) -> Option<f32> {
     scene
         .texel_density_hint
-        .filter(|d| settings.texel_density_from_scene && d.is_finite() && *d > 0.0)
+        .filter(|d| settings.layout.texel_density_from_scene && d.is_finite() && *d > 0.0)
 }
 
 /// Whether the density comes from the texel budget (neither the settings nor the scene set
 /// it).
 pub fn density_from_budget(scene: &Scene, settings: &BakeSettings) -> bool {
-    settings.texel_density.is_none() && scene_hint(scene, settings).is_none()
+    settings.layout.texel_density.is_none() && scene_hint(scene, settings).is_none()
 }
 
 /// The baked surfaces' area, each instance's weighted by its density scale squared, m².

@@ -44,7 +44,7 @@ pub struct VolumeGrid {
 
 impl VolumeGrid {
     /// The grid over the bounds of the instances `layout` gives a lightmap, at
-    /// `settings.probe_spacing` or [`TEXELS_PER_PROBE`] texels at `texel_density`. `None` when
+    /// `settings.volume.probe_spacing` or [`TEXELS_PER_PROBE`] texels at `texel_density`. `None` when
     /// no instance is baked.
     ///
     /// # Errors
@@ -68,7 +68,7 @@ impl VolumeGrid {
         if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
             return Ok(None);
         }
-        Self::for_bounds(lo, hi, settings.probe_spacing, texel_density).map(Some)
+        Self::for_bounds(lo, hi, settings.volume.probe_spacing, texel_density).map(Some)
     }
 
     /// The grid over `[lo, hi]` at `spacing`, or (`None`) at [`TEXELS_PER_PROBE`] texels at
@@ -84,7 +84,7 @@ impl VolumeGrid {
     ) -> Result<Self> {
         match spacing {
             Some(s) => {
-                let grid = Self::over(lo, hi, s, format!("{s} m (probe_spacing)"));
+                let grid = Self::over(lo, hi, s, format!("{s} m (volume.probe_spacing)"));
                 if let Some(why) = grid.too_large(MAX_PROBES) {
                     return Err(BakeError::BadSetting {
                         name: "probe_spacing",
@@ -115,7 +115,7 @@ impl VolumeGrid {
                     )
                 } else {
                     format!(
-                        "widened from {} texels at {} texels/m ({wanted:.3e} m) to keep the volume within {MAX_AUTO_PROBES} probes (set probe_spacing to choose)",
+                        "widened from {} texels at {} texels/m ({wanted:.3e} m) to keep the volume within {MAX_AUTO_PROBES} probes (set volume.probe_spacing, --probe-spacing, to choose)",
                         TEXELS_PER_PROBE,
                         crate::plan::density_text(texel_density)
                     )

@@ -41,7 +41,7 @@ pub fn gather_error(
     if n == 0 {
         return (ErrorEstimate::default(), 0);
     }
-    let mapper = HitMapper::new(*ctx, nodes, ctx.settings.basis);
+    let mapper = HitMapper::new(*ctx, nodes, ctx.settings.radiosity.basis);
     let picked = picked_nodes(n);
     let gathers = regathers(ctx, &mapper, nodes, &picked, b, |_| rays, [1, 2]);
     let terms: Vec<f64> = picked

@@ -17,7 +17,7 @@
 //! the texels.
 //!
 //! The final gather's rays per node are shared out by the noise a pilot of a quarter of them
-//! measures ([`super::ray_allocation`]; `BakeSettings::adaptive_gather`), so with the same
+//! measures ([`super::ray_allocation`]; `settings.radiosity.adaptive_gather`), so with the same
 //! rays in all a node's row has 1/2 to 4 × the rays of a matrix row: the rays of a row of
 //! that length.
 //!

@@ -58,7 +58,7 @@ pub fn solve_round<'p>(
     round: u32,
     stages: &mut impl StageRunner<'p>,
 ) -> Result<HierarchicalRound> {
-    let mapper = HitMapper::new(*ctx, nodes, ctx.settings.basis);
+    let mapper = HitMapper::new(*ctx, nodes, ctx.settings.radiosity.basis);
     let coarse = coarse_stage(ctx, &mapper, nodes, direct, round, stages)?;
     let cell_indirect = &coarse.solution.indirect;
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
@@ -66,7 +66,7 @@ pub fn solve_round<'p>(
     let coarse_per_node = coarse.clusters.prolong(cell_indirect);
     let missed = hierarchical::missed_exitance(nodes, &gathered.light, &coarse_per_node);
     drop(coarse_per_node);
-    let correction_rays = correction_rays(ctx.settings.transport_rays);
+    let correction_rays = correction_rays(ctx.settings.radiosity.transport_rays);
     let corrected = correction_stages(ctx, &mapper, nodes, &missed, round, stages)?;
     let (correction, mut node_error) = (corrected.light, gathered.error);
     for (e, ce) in node_error.iter_mut().zip(&corrected.error) {
@@ -120,22 +120,29 @@ fn coarse_stage<'p>(
     let progress = stages.progress();
     // The plan admitted the coarse matrix at its per-node cap.
     let options = hierarchy_options(ctx, nodes, u64::MAX);
-    let coarse = stages.run(StageRun { stage: Stage::CoarseSolve, round }, 0, || {
-        let c = hierarchical::coarse_solve(ctx, mapper, nodes, direct, &options, progress);
-        let r = &c.report;
-        let note = format!(
-            "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
-            r.cells,
-            r.rounds,
-            r.matrix_entries,
-            r.matrix_bytes as f64 / 1048576.0,
-            100.0 * r.missed_detail,
-            r.stop_reason,
-            c.solution.stop_reason
-        );
-        let rays = r.rays;
-        Ok((c, rays, note))
-    })?;
+    let coarse = stages.run(
+        StageRun {
+            stage: Stage::CoarseSolve,
+            round,
+        },
+        0,
+        || {
+            let c = hierarchical::coarse_solve(ctx, mapper, nodes, direct, &options, progress);
+            let r = &c.report;
+            let note = format!(
+                "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
+                r.cells,
+                r.rounds,
+                r.matrix_entries,
+                r.matrix_bytes as f64 / 1048576.0,
+                100.0 * r.missed_detail,
+                r.stop_reason,
+                c.solution.stop_reason
+            );
+            let rays = r.rays;
+            Ok((c, rays, note))
+        },
+    )?;
     if stages.previewing() {
         let per_node = coarse.clusters.prolong(&coarse.solution.indirect);
         let per_patch = per_patch(nodes, &per_node, ctx.patches.patches.len());
@@ -160,13 +167,16 @@ fn correction_stages<'p>(
     round: u32,
     stages: &mut impl StageRunner<'p>,
 ) -> Result<Gathered> {
-    let rays = correction_rays(ctx.settings.transport_rays);
+    let rays = correction_rays(ctx.settings.radiosity.transport_rays);
     let per_node = |_: usize| 0..rays;
     let (mut correction, error) = gather_stage(
         ctx,
         (mapper, nodes),
         (missed, &per_node, Gather::Correction),
-        StageRun { stage: Stage::Correction, round },
+        StageRun {
+            stage: Stage::Correction,
+            round,
+        },
         |r| gather_note(format!("{rays} rays/node"), r),
         stages,
     )?;
@@ -183,7 +193,10 @@ fn correction_stages<'p>(
         .map(|i| nodes.albedo[i] * correction[i])
         .collect();
     let progress = stages.progress();
-    let run = StageRun { stage: Stage::Reflection, round };
+    let run = StageRun {
+        stage: Stage::Reflection,
+        round,
+    };
     let (reflection, visibility) = stages.run(run, near_count, || {
         let (d, _, traced) = hierarchical::final_gather(
             ctx,
@@ -199,7 +212,11 @@ fn correction_stages<'p>(
             "{near_count} nodes near geometry, {}",
             gather_note(format!("{rays} rays/node"), traced)
         );
-        Ok(((d, traced.visibility), traced.closest + traced.visibility, note))
+        Ok((
+            (d, traced.visibility),
+            traced.closest + traced.visibility,
+            note,
+        ))
     })?;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
@@ -222,25 +239,32 @@ fn error_stage<'p>(
     round: u32,
     stages: &mut impl StageRunner<'p>,
 ) -> Result<(ErrorEstimate, f64)> {
-    let rays = ctx.settings.transport_rays;
-    let (error, bias) = stages.run(StageRun { stage: Stage::ErrorEstimate, round }, 1, || {
-        let (e, bias, traced) = hierarchical_error(
-            ctx,
-            mapper,
-            nodes,
-            fields,
-            direct,
-            rays,
-            correction_rays(rays),
-        );
-        let note = format!(
-            "{:.2}% ({:.2}% the coarse level's bias) from {}",
-            100.0 * e.relative_rms,
-            100.0 * bias,
-            e.method
-        );
-        Ok(((e, bias), traced, note))
-    })?;
+    let rays = ctx.settings.radiosity.transport_rays;
+    let (error, bias) = stages.run(
+        StageRun {
+            stage: Stage::ErrorEstimate,
+            round,
+        },
+        1,
+        || {
+            let (e, bias, traced) = hierarchical_error(
+                ctx,
+                mapper,
+                nodes,
+                fields,
+                direct,
+                rays,
+                correction_rays(rays),
+            );
+            let note = format!(
+                "{:.2}% ({:.2}% the coarse level's bias) from {}",
+                100.0 * e.relative_rms,
+                100.0 * bias,
+                e.method
+            );
+            Ok(((e, bias), traced, note))
+        },
+    )?;
     stages.annotate(RayKind::Closest, Some(error.clone()));
     Ok((error, bias))
 }
@@ -289,10 +313,10 @@ fn final_gather<'p>(
     round: u32,
     stages: &mut impl StageRunner<'p>,
 ) -> Result<FinalGather> {
-    let rays = ctx.settings.transport_rays;
+    let rays = ctx.settings.radiosity.transport_rays;
     let run = |stage: Stage| StageRun { stage, round };
     let grid = (mapper, nodes);
-    let pilot = ray_allocation::pilot_rays(rays).filter(|_| ctx.settings.adaptive_gather);
+    let pilot = ray_allocation::pilot_rays(rays).filter(|_| ctx.settings.radiosity.adaptive_gather);
     let Some(pilot) = pilot else {
         let (light, error) = gather_stage(
             ctx,
@@ -348,11 +372,7 @@ fn final_gather<'p>(
 
 /// What a gather stage gathers: the field per node, each node's rays (a range of its
 /// sequence) and which gather it is.
-type GatherOf<'a> = (
-    &'a [Vec3],
-    &'a (dyn Fn(usize) -> Range<u32> + Sync),
-    Gather,
-);
+type GatherOf<'a> = (&'a [Vec3], &'a (dyn Fn(usize) -> Range<u32> + Sync), Gather);
 
 /// One split gather stage, `run`, over every node of `(mapper, nodes)`: rays `field.1(i)` of
 /// node `i`'s sequence gathering `field.0` (a split bake's work folder names its parts by the
@@ -385,7 +405,11 @@ fn gather_stage<'p>(
             closest: traced[0],
             visibility: traced[1],
         };
-        Ok(((h, se, traced.visibility), traced.closest + traced.visibility, note(traced)))
+        Ok((
+            (h, se, traced.visibility),
+            traced.closest + traced.visibility,
+            note(traced),
+        ))
     })?;
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);

@@ -112,12 +112,12 @@ pub struct RadiosityReport {
 pub fn hierarchy_options(ctx: &BakeContext<'_>, nodes: &Nodes, budget: u64) -> HierarchyOptions {
     let s = ctx.settings;
     HierarchyOptions {
-        top_level: s.cluster_texels.trailing_zeros() as u8,
-        cell_rays: s.cluster_rays,
-        tolerance: s.cluster_tolerance,
+        top_level: s.radiosity.cluster_texels.trailing_zeros() as u8,
+        cell_rays: s.radiosity.cluster_rays,
+        tolerance: s.radiosity.cluster_tolerance,
         max_matrix_bytes: (nodes.len() as u64 * solve::COARSE_BYTES_PER_NODE).min(budget),
-        solver_tolerance: s.solver_tolerance,
-        max_iterations: s.max_solver_iterations,
+        solver_tolerance: s.radiosity.solver_tolerance,
+        max_iterations: s.radiosity.max_solver_iterations,
     }
 }
 
@@ -134,8 +134,8 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     const MIB: u64 = 1024 * 1024;
     let rest = crate::memory::estimate_from_layout(ctx.scene, ctx.layout).total;
     let memory_room = (s.memory_budget_mib * MIB).saturating_sub(rest);
-    let budget = (s.transport_budget_mib * MIB).min(memory_room);
-    let limit = if memory_room < s.transport_budget_mib * MIB {
+    let budget = (s.radiosity.transport_budget_mib * MIB).min(memory_room);
+    let limit = if memory_room < s.radiosity.transport_budget_mib * MIB {
         format!(
             "the memory budget ({} MiB) leaves {:.0} MiB beside the rest of the bake ({:.0} MiB); raise --memory-budget",
             s.memory_budget_mib,
@@ -145,8 +145,9 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     } else {
         "raise the transport budget".to_string()
     };
-    let estimate = if s.solver.needs_matrix() || s.solver == SolverChoice::Auto {
-        monte_carlo::estimate_bytes(ctx, nodes, s.transport_rays, s.basis)
+    let estimate = if s.radiosity.solver.needs_matrix() || s.radiosity.solver == SolverChoice::Auto
+    {
+        monte_carlo::estimate_bytes(ctx, nodes, s.radiosity.transport_rays, s.radiosity.basis)
     } else {
         0
     };
@@ -155,7 +156,7 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let n = nodes.len();
     let common = common_bytes(ctx, n);
     let fits_with = |c: SolverChoice| common + estimate + c.working_bytes(n, estimate) <= budget;
-    let (choice, reason) = match s.solver {
+    let (choice, reason) = match s.radiosity.solver {
         SolverChoice::Auto if n > AUTO_MATRIX_NODES => (
             SolverChoice::Hierarchical,
             format!(
@@ -193,7 +194,7 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
                 "the {} solver needs the transport matrix of {} nodes × {} rays ({:.0} MiB) and {:.0} MiB beside it; use --solver hierarchical (no full matrix), or {limit}",
                 choice.name(),
                 nodes.len(),
-                s.transport_rays,
+                s.radiosity.transport_rays,
                 estimate as f64 / MIB as f64,
                 working as f64 / MIB as f64
             ),
@@ -236,13 +237,13 @@ pub fn source(nodes: &Nodes, direct: &[Vec3]) -> Vec<Vec3> {
         .collect()
 }
 
-/// Builds the transport matrix (Monte Carlo, `settings.transport_rays` per node).
+/// Builds the transport matrix (Monte Carlo, `settings.radiosity.transport_rays` per node).
 pub fn build_transport(ctx: &BakeContext<'_>, nodes: &Nodes, progress: &Progress) -> Transport {
     monte_carlo::build(
         ctx,
         nodes,
-        ctx.settings.transport_rays,
-        ctx.settings.basis,
+        ctx.settings.radiosity.transport_rays,
+        ctx.settings.radiosity.basis,
         progress,
     )
 }
@@ -257,17 +258,18 @@ pub fn solve_system(
     progress: &Progress,
 ) -> Solution {
     let s = ctx.settings;
-    let residual_tolerance = residual_tolerance(s.solver_tolerance, nodes.max_albedo());
+    let residual_tolerance = residual_tolerance(s.radiosity.solver_tolerance, nodes.max_albedo());
     match (plan.choice, transport) {
         (SolverChoice::Hierarchical, _) => {
             panic!("the hierarchical solve runs as its own stages (see bake::passes)")
         }
         (SolverChoice::StochasticJacobi, _) | (_, None) => {
-            let mapper = HitMapper::new(*ctx, nodes, s.basis);
+            let mapper = HitMapper::new(*ctx, nodes, s.radiosity.basis);
             let options = StochasticOptions {
-                first_iteration_rays: nodes.len() as u64 * s.stochastic_rays_per_node as u64,
+                first_iteration_rays: nodes.len() as u64
+                    * s.radiosity.stochastic_rays_per_node as u64,
                 tolerance: residual_tolerance,
-                max_iterations: s.max_solver_iterations,
+                max_iterations: s.radiosity.max_solver_iterations,
             };
             stochastic_jacobi::solve(ctx, nodes, &mapper, source, &options, progress)
         }
@@ -278,7 +280,7 @@ pub fn solve_system(
             };
             let options = SolveOptions {
                 tolerance: residual_tolerance,
-                max_iterations: s.max_solver_iterations,
+                max_iterations: s.radiosity.max_solver_iterations,
             };
             solve::solve_matrix(choice, &system, &options)
         }

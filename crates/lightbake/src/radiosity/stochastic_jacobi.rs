@@ -154,7 +154,7 @@ fn gather_slivers(
     let slivers: Vec<usize> = (0..nodes.len())
         .filter(|&i| nodes.sliver.get(i).copied().unwrap_or(false))
         .collect();
-    let gather_rays = ctx.settings.transport_rays.max(1);
+    let gather_rays = ctx.settings.radiosity.transport_rays.max(1);
     let gathered: Vec<Vec3> = slivers
         .par_iter()
         .map(|&i| monte_carlo::gather_row(ctx, mapper, nodes, i, gather_rays, b))

@@ -118,7 +118,10 @@ pub fn import_gltf(path: &Path, convention: LightConvention) -> Result<ImportedS
 }
 
 /// Reads a `.gltf` or `.glb` file. Its buffer and image URIs are read only inside its folder
-/// and `options.allow_read` ([`super::resources`]).
+/// and `options.allow_read`: a URI is a relative path (percent-decoded) naming a regular file
+/// that, with every link resolved, lies inside those folders, or a base64 `data:` URI. Other
+/// schemes, absolute paths, `..` steps or links that lead out, directories, devices and FIFOs
+/// are refused with an error naming the URI.
 ///
 /// # Errors
 /// [`BakeError::Read`] for a missing file, [`BakeError::BadGltf`] for a malformed document

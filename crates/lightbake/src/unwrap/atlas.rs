@@ -48,8 +48,9 @@ pub(super) fn xatlas_unwrap(
     // 1/1000 of the requested density: xatlas crashed (SIGSEGV) on a fuzzed mesh with a
     // 1.5·10⁸ m sliver next to 0.3 m faces.
     let max_chart = settings
+        .layout
         .max_page_size
-        .saturating_sub(2 * settings.padding + 2)
+        .saturating_sub(2 * settings.layout.padding + 2)
         .max(1) as f32;
     let (mut longest, mut longest_t) = (0.0f32, 0);
     for t in 0..mesh.triangle_count() {
@@ -66,7 +67,7 @@ pub(super) fn xatlas_unwrap(
             mesh: mesh.name.clone(),
             message: format!(
                 "triangle {longest_t} is {longest:e} units long, {texels:e} texels at {:e} texels per unit: a {}-texel page holds it only below 1/1000 of the requested density; split it or check the mesh",
-                request.texels_per_unit, settings.max_page_size
+                request.texels_per_unit, settings.layout.max_page_size
             ),
         });
     }
@@ -93,7 +94,7 @@ pub(super) fn xatlas_unwrap(
         uvs: uvs.as_deref(),
         indices: &mesh.indices,
     };
-    let max_page = settings.max_page_size;
+    let max_page = settings.layout.max_page_size;
     // A mesh smaller than a texel still gets a chart: at least MIN_MESH_TEXELS across.
     let extent = mesh_extent(mesh);
     let tpu = if extent * request.texels_per_unit < MIN_MESH_TEXELS && extent > 0.0 {
@@ -104,8 +105,10 @@ pub(super) fn xatlas_unwrap(
     };
     let mut pack = xatlas::PackOptions {
         texels_per_unit: tpu / unit,
-        padding: settings.padding,
-        max_chart_size: max_page.saturating_sub(2 * settings.padding + 2).max(1),
+        padding: settings.layout.padding,
+        max_chart_size: max_page
+            .saturating_sub(2 * settings.layout.padding + 2)
+            .max(1),
         ..xatlas::PackOptions::default()
     };
     let mut scaled = false;

@@ -32,7 +32,7 @@ pub(super) fn existing_uvs(
         return Err("its triangles cover no area in UV space".into());
     }
     let texels = (tpu * tpu * mesh.area() / uv_area).sqrt().ceil() as u32;
-    let size = texels.clamp(8, settings.max_page_size);
+    let size = texels.clamp(8, settings.layout.max_page_size);
     let overlapping = overlapping_texels(mesh, uv, size, size);
     if overlapping > 0 {
         return Err(format!(

@@ -212,7 +212,7 @@ impl Layout {
                 Some(r) => out.meshes[m] = Some(r),
                 None if u.origin == UvOrigin::Xatlas => out.warnings.push(format!(
                     "mesh '{}': its charts at their own densities fit no {}² page; kept at one density",
-                    scene.meshes[m].name, settings.max_page_size
+                    scene.meshes[m].name, settings.layout.max_page_size
                 )),
                 None => {}
             }
@@ -344,7 +344,7 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
             continue;
         }
         let mut small = false;
-        let keep_existing = !settings.reunwrap && mesh.uv1.is_some();
+        let keep_existing = !settings.layout.reunwrap && mesh.uv1.is_some();
         let unwrap = if keep_existing {
             match existing_uvs(mesh, request, settings) {
                 Ok(u) => u,
@@ -518,9 +518,10 @@ mod tests {
         let id = s.add_mesh(cuboid("big", Vec3::ZERO, Vec3::splat(100.0), false));
         s.instances
             .push(Instance::new("big", id, Affine3A::IDENTITY));
-        let settings = BakeSettings {
-            max_page_size: 256,
-            ..BakeSettings::default()
+        let settings = {
+            let mut s = BakeSettings::default();
+            s.layout.max_page_size = 256;
+            s
         };
         let layout = unwrap_scene(&s, &settings, 32.0).unwrap();
         let u = layout.meshes[0].as_ref().unwrap();
@@ -540,9 +541,10 @@ mod tests {
                 Affine3A::from_translation(Vec3::new(i as f32 * 2.0, 0.0, 0.0)),
             ));
         }
-        let settings = BakeSettings {
-            max_page_size: 128,
-            ..BakeSettings::default()
+        let settings = {
+            let mut s = BakeSettings::default();
+            s.layout.max_page_size = 128;
+            s
         };
         let layout = unwrap_scene(&s, &settings, 40.0).unwrap();
         layout.validate().unwrap();

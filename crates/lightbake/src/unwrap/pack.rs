@@ -8,8 +8,8 @@ use crate::settings::BakeSettings;
 /// order). Shelves wrap at a width chosen for a roughly square page (the square root of the
 /// total rectangle area, at least the widest rectangle, at most `max_page_size`).
 pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mut Layout) {
-    let gap = settings.padding;
-    let max = settings.max_page_size;
+    let gap = settings.layout.padding;
+    let max = settings.layout.max_page_size;
     let mut order: Vec<(usize, u32, u32)> = scene
         .instances
         .iter()

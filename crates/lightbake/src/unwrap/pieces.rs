@@ -314,7 +314,7 @@ fn xatlas_item(
     };
     let pack = xatlas::PackOptions {
         texels_per_unit: (tpu / unit as f64) as f32,
-        padding: settings.padding,
+        padding: settings.layout.padding,
         max_chart_size: max_chart,
         ..xatlas::PackOptions::default()
     };
@@ -424,9 +424,11 @@ pub(super) fn unwrap_in_pieces(
     };
     let (regions, rest) = planar_regions(mesh, &normals, extent, min_planar);
     let pieces = kd_pieces(mesh, rest);
-    let max_page = settings.max_page_size;
-    let max_chart = max_page.saturating_sub(2 * settings.padding + 2).max(1);
-    let gap = settings.padding + 1;
+    let max_page = settings.layout.max_page_size;
+    let max_chart = max_page
+        .saturating_sub(2 * settings.layout.padding + 2)
+        .max(1);
+    let gap = settings.layout.padding + 1;
     let requested = request.texels_per_unit as f64;
     let mut tpu = requested;
     for _attempt in 0..8 {
@@ -453,7 +455,7 @@ pub(super) fn unwrap_in_pieces(
                 message: format!(
                     "its {} separate charts need at least {least} texels with {} texels of padding each, more than a {max_page}² page holds; raise --max-page-size (up to 16384), lower --padding, or merge its loose parts",
                     items.len(),
-                    settings.padding
+                    settings.layout.padding
                 ),
             });
         }
@@ -622,9 +624,10 @@ mod tests {
 
     #[test]
     fn a_planar_region_larger_than_a_page_is_tiled_or_scaled() {
-        let settings = BakeSettings {
-            max_page_size: 128,
-            ..BakeSettings::default()
+        let settings = {
+            let mut s = BakeSettings::default();
+            s.layout.max_page_size = 128;
+            s
         };
         let request = Density {
             texels_per_unit: 30.0,

@@ -39,8 +39,8 @@ pub(crate) fn rescale_charts(
         let c = unwrap.triangle_charts[t] as usize;
         members[c.min(charts)].push((t as u32, corners));
     }
-    let gap = settings.padding + 1;
-    let max_page = settings.max_page_size;
+    let gap = settings.layout.padding + 1;
+    let max_page = settings.layout.max_page_size;
     let mut fit = 1.0f32;
     for _attempt in 0..8 {
         let items: Vec<Item> = members
@@ -192,9 +192,10 @@ mod tests {
     #[test]
     fn a_mesh_scaled_past_the_page_is_fitted_to_it() {
         let scene = cornell_box(CornellLight::Point);
-        let settings = BakeSettings {
-            max_page_size: 256,
-            ..BakeSettings::default()
+        let settings = {
+            let mut s = BakeSettings::default();
+            s.layout.max_page_size = 256;
+            s
         };
         let layout = unwrap_scene(&scene, &settings, 64.0).unwrap();
         let (m, u) = layout

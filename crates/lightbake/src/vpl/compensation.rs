@@ -92,7 +92,7 @@ pub fn compensate(
         ctx,
         &mapper,
         bound,
-        s.vpl_compensation_rays,
+        s.vpl.compensation_rays,
         max_bytes,
         progress,
     ) {
@@ -122,7 +122,7 @@ pub fn compensate(
                 ctx,
                 &mapper,
                 bound,
-                s.vpl_compensation_rays,
+                s.vpl.compensation_rays,
                 &exitance_with(&extra),
                 progress,
             );

@@ -71,7 +71,8 @@ pub struct VplReport {
 /// The clamp distance for a scene: the setting, or 2% of the scene's diagonal.
 pub fn clamp_distance(ctx: &BakeContext<'_>) -> f32 {
     ctx.settings
-        .vpl_clamp_distance
+        .vpl
+        .clamp_distance
         .unwrap_or(0.02 * ctx.rays.extent)
         .max(1e-9)
 }
@@ -83,8 +84,8 @@ fn particle_count(
     first_generation: bool,
 ) -> (u32, String) {
     let s = ctx.settings;
-    let Some(budget) = s.vpl_time_budget_s else {
-        return (s.vpl_particles, "set in the settings".into());
+    let Some(budget) = s.vpl.time_budget_s else {
+        return (s.vpl.particles, "set in the settings".into());
     };
     // Pilot: a small walk and a gather over a sample of texels.
     let pilot = walk::walk(
@@ -93,9 +94,9 @@ fn particle_count(
         emitters,
         &WalkSettings {
             particles: 64,
-            sequence: s.vpl_sequence,
+            sequence: s.vpl.sequence,
             seed: s.seed,
-            max_depth: s.vpl_max_depth,
+            max_depth: s.vpl.max_depth,
             first_generation,
         },
     );
@@ -153,9 +154,9 @@ pub fn instant_radiosity(
         emitters,
         &WalkSettings {
             particles,
-            sequence: s.vpl_sequence,
+            sequence: s.vpl.sequence,
             seed: s.seed,
-            max_depth: s.vpl_max_depth,
+            max_depth: s.vpl.max_depth,
             first_generation,
         },
     );
@@ -173,7 +174,7 @@ pub fn instant_radiosity(
     let total = weigh(&gathered.irradiance) + weigh(&gathered.clamped);
     let mut irradiance = gathered.irradiance;
     let mut rays = set.rays + gathered.shadow_rays;
-    let compensated = s.vpl_bias_compensation;
+    let compensated = s.vpl.bias_compensation;
     let mut compensation_iterations = 0u32;
     let mut compensation_note = None;
     if compensated {
@@ -189,7 +190,7 @@ pub fn instant_radiosity(
     let report = VplReport {
         particles,
         particles_reason: reason,
-        sequence: s.vpl_sequence,
+        sequence: s.vpl.sequence,
         vpls: set.vpls.len(),
         per_depth: set.per_depth.clone(),
         mean_reflectivity: set.mean_reflectivity,

@@ -65,11 +65,11 @@ pub fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, transform: Affine3A, bak
 pub fn settings(density: f32, spp: u32) -> BakeSettings {
     let mut s = BakeSettings::medium();
     s.method = Method::Direct;
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
-    s.samples_per_texel = spp;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
+    s.direct.samples_per_texel = spp;
     // The texels as the direct pass computed them, unfiltered (the denoiser has its tests).
-    s.denoise = false;
+    s.finish.denoise = false;
     s
 }
 
@@ -175,9 +175,9 @@ pub fn relative_l2(prep: &lightbake::context::Prepared, a: &[Vec3], b: &[Vec3]) 
 pub fn radiosity_settings(density: f32, solver: SolverChoice) -> BakeSettings {
     let mut s = settings(density, 4);
     s.method = Method::Radiosity;
-    s.solver = solver;
-    s.transport_rays = 64;
-    s.stochastic_rays_per_node = 4096;
+    s.radiosity.solver = solver;
+    s.radiosity.transport_rays = 64;
+    s.radiosity.stochastic_rays_per_node = 4096;
     s
 }
 
@@ -244,8 +244,8 @@ pub fn two_squares(perpendicular: bool) -> Scene {
 pub fn method_settings(method: Method, density: f32) -> BakeSettings {
     let mut s = BakeSettings::medium();
     s.method = method;
-    s.texel_density = Some(density);
-    s.texel_density_from_scene = false;
+    s.layout.texel_density = Some(density);
+    s.layout.texel_density_from_scene = false;
     s
 }
 

@@ -35,13 +35,13 @@ fn patch_rays(p: &Patch, settings: &BakeSettings, lights: usize, sky: bool) -> f
     if !p.is_valid() {
         return 1.0;
     }
-    let spp = settings.samples_per_texel as f64;
+    let spp = settings.direct.samples_per_texel as f64;
     let sky = if sky {
-        settings.sky_samples as f64
+        settings.direct.sky_samples as f64
     } else {
         0.0
     };
-    spp * (lights as f64 + 1.0) + sky + 1.25 * settings.transport_rays as f64
+    spp * (lights as f64 + 1.0) + sky + 1.25 * settings.radiosity.transport_rays as f64
 }
 
 /// An identifier of this `prepare` run: the clock, the process and the patches, mixed.

@@ -1,0 +1,69 @@
+//! The settings of the irradiance volume for dynamic objects ([`VolumeSettings`],
+//! `BakeSettings::volume`; the stage is [`crate::probes`]).
+//!
+//! | field | unit | range | preview | medium | high |
+//! |---|---|---|---|---|---|
+//! | `enabled` | – | bool | false | false | false |
+//! | `probe_spacing` | m | > 0 or none (16 texels at the bake's density) | none | none | none |
+//! | `probe_rays` | rays per probe | 1..=65 536 | 256 | 512 | 1024 |
+
+use serde::{Deserialize, Serialize};
+
+use super::{Quality, Rule};
+
+/// Whether and how densely the irradiance volume is baked.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VolumeSettings {
+    /// Also bake an irradiance volume: a grid of probes over the baked instances, each the
+    /// light from the six axis directions read from the lightmaps (without the direct light
+    /// of the lights, which the engine draws on dynamic objects itself), written as
+    /// `irradiance_volumes/volume_0.ktx2` in the layout Bevy's `IrradianceVolume` reads.
+    /// Default false.
+    pub enabled: bool,
+    /// Distance between the volume's probes, m (per scene unit). Default none: 16 lightmap
+    /// texels at the bake's density, widened so the volume has at most 65 536 probes (the
+    /// plan says so). An explicit spacing giving over 2²⁰ probes is refused.
+    pub probe_spacing: Option<f32>,
+    /// Rays per probe (plus a quarter as many samples of emissive surfaces). Range
+    /// 1..=65 536. Default 256 (preview), 512 (medium), 1024 (high).
+    pub probe_rays: u32,
+}
+
+impl Default for VolumeSettings {
+    fn default() -> Self {
+        Self::preset(Quality::Medium)
+    }
+}
+
+impl VolumeSettings {
+    /// The volume of a quality preset (off in all of them).
+    pub fn preset(quality: Quality) -> Self {
+        Self {
+            enabled: false,
+            probe_spacing: None,
+            probe_rays: match quality {
+                Quality::Preview => 256,
+                Quality::Medium => 512,
+                Quality::High => 1024,
+            },
+        }
+    }
+
+    /// The group's rows of the validation table.
+    pub(super) fn rules(&self) -> Vec<(&'static str, Rule)> {
+        vec![
+            (
+                "volume.probe_spacing",
+                Rule::Positive(
+                    self.probe_spacing.map(f64::from),
+                    "a positive distance in metres",
+                ),
+            ),
+            (
+                "volume.probe_rays",
+                Rule::count(self.probe_rays, 1, 65_536, ""),
+            ),
+        ]
+    }
+}

@@ -1,0 +1,87 @@
+//! The settings of instant radiosity (Keller 1997): the particles traced from the lights
+//! and how their virtual point lights are gathered ([`VplSettings`], `BakeSettings::vpl`).
+//!
+//! | field | unit | range | preview | medium | high |
+//! |---|---|---|---|---|---|
+//! | `particles` | particles | 1..=10⁷ | 256 | 1024 | 4096 |
+//! | `time_budget_s` | s | > 0 or none | none | none | none |
+//! | `sequence` | – | [`Sequence`] | scrambled Halton | scrambled Halton | scrambled Halton |
+//! | `clamp_distance` | m | > 0 or none (2% of the diagonal) | none | none | none |
+//! | `bias_compensation` | – | bool | false | false | false |
+//! | `compensation_rays` | rays per texel | any | 64 | 64 | 64 |
+//! | `max_depth` | reflections | 0..=29 | 16 | 16 | 16 |
+
+use serde::{Deserialize, Serialize};
+
+use super::{MAX_VPL_DEPTH, Quality, Rule, Sequence};
+
+/// How instant radiosity traces and gathers its virtual point lights.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VplSettings {
+    /// Particles started from the lights (N); about N/(1 − ρ̄) VPLs result.
+    /// Range 1..=10⁷. Default 1024 (medium), 256 (preview), 4096 (high).
+    pub particles: u32,
+    /// Choose N to fit this many seconds of gathering instead (measured against a pilot).
+    /// Default none.
+    pub time_budget_s: Option<f64>,
+    /// The number pattern of the walks. Default [`Sequence::ScrambledHalton`] (plain Halton
+    /// converges as fast but its higher bases are correlated at small N).
+    pub sequence: Sequence,
+    /// VPLs closer than this (m) are clamped (G ≤ 1/d²). Default 2% of the scene's diagonal.
+    pub clamp_distance: Option<f32>,
+    /// Restore the clamped energy (Kollig & Keller 2004). Default off.
+    pub bias_compensation: bool,
+    /// Rays per texel of the bias compensation. Default 64.
+    pub compensation_rays: u32,
+    /// Deepest reflection followed (≤ [`MAX_VPL_DEPTH`]). Default 16.
+    pub max_depth: u32,
+}
+
+impl Default for VplSettings {
+    fn default() -> Self {
+        Self::preset(Quality::Medium)
+    }
+}
+
+impl VplSettings {
+    /// Instant radiosity at a quality preset.
+    pub fn preset(quality: Quality) -> Self {
+        Self {
+            particles: match quality {
+                Quality::Preview => 256,
+                Quality::Medium => 1024,
+                Quality::High => 4096,
+            },
+            time_budget_s: None,
+            sequence: Sequence::ScrambledHalton,
+            clamp_distance: None,
+            bias_compensation: false,
+            compensation_rays: 64,
+            max_depth: 16,
+        }
+    }
+
+    /// The group's rows of the validation table.
+    pub(super) fn rules(&self) -> Vec<(&'static str, Rule)> {
+        let distance = "a positive distance in metres";
+        vec![
+            (
+                "vpl.particles",
+                Rule::count(self.particles, 1, 10_000_000, ""),
+            ),
+            (
+                "vpl.time_budget_s",
+                Rule::Positive(self.time_budget_s, "a positive number of seconds"),
+            ),
+            (
+                "vpl.clamp_distance",
+                Rule::Positive(self.clamp_distance.map(f64::from), distance),
+            ),
+            (
+                "vpl.max_depth",
+                Rule::count(self.max_depth, 0, MAX_VPL_DEPTH as u64, ""),
+            ),
+        ]
+    }
+}
