@@ -1,7 +1,11 @@
 //! The driver: plan → memory check → unwrap → BVH → texel patches → validity → direct light
 //! → indirect light (radiosity or instant radiosity) → pages (fill, dilate). Each stage runs
 //! only when the plan says the scene needs it, and is timed, counted and recorded in the
-//! report (`bake::stages`); the lighting passes are `bake::passes`.
+//! report. `bake::stages` is the driver's stage runner (the `runner` seam the passes run
+//! through: timing, progress, previews, and where a stage's work units run);
+//! `bake::prefix` the passes before the lighting, `bake::passes` the lighting passes (each
+//! algorithm composes its own stages, such as `radiosity::hierarchical_solve`) and
+//! `bake::finish` the passes over the pages.
 //!
 //! [`bake`] works in memory and returns [`BakeOutput`]; [`crate::output::write_outputs`]
 //! writes it. [`BakeBuilder`] sets up any other bake: with progressive previews

@@ -5,18 +5,18 @@
 
 use glam::Vec3;
 
-use super::stages::{Stages, scaled, until_target};
+use super::stages::{Scope, Stages, scaled, until_target};
 use super::{direct_pass_runs, valid};
 use crate::context::BakeContext;
 use crate::direct::{DirectResult, direct_light_of, error_method};
 use crate::error::Result;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
 use crate::lights::Emitters;
-use crate::progress::RayKind;
+use crate::progress::{Progress, RayKind};
 use crate::radiosity::hierarchical::CoarseReport;
 use crate::radiosity::{self, Nodes, RadiosityReport, hierarchical_solve};
 use crate::runner::{StageRunner, WorkScope};
-use crate::settings::{MAX_VPL_DEPTH, Method, SolverChoice};
+use crate::settings::{BakeSettings, MAX_VPL_DEPTH, Method, SolverChoice};
 use crate::solve::{Solution, Transport};
 use crate::stage::{Stage, StageRun};
 use crate::vpl::{VplReport, instant_radiosity};
@@ -58,10 +58,11 @@ pub(super) fn lighting(
     let share = settings
         .target_error
         .map(|t| t as f64 / (sampling_stages.max(1) as f64).sqrt());
+    let patches = ctx.patches.patches.len();
     let mut light = Lighting {
-        irradiance: vec![Vec3::ZERO; ctx.patches.patches.len()],
+        irradiance: vec![Vec3::ZERO; patches],
         errors: Vec::new(),
-        texel_error: vec![0.0; ctx.patches.patches.len()],
+        texel_error: vec![0.0; patches],
         direct: Vec::new(),
         indirect: None,
         coarse_bias: None,
@@ -71,18 +72,11 @@ pub(super) fn lighting(
     };
     let mut realtime = Vec::new();
     if direct_runs {
-        let (irradiance, texel_error, error, rt) = direct(ctx, emitters, share, stages, warnings)?;
-        light.irradiance = irradiance;
-        light.texel_error = texel_error;
-        light.errors.extend(error);
-        realtime = rt;
-        let shown: Vec<Vec3> = if realtime.is_empty() {
-            light.irradiance.clone()
+        let pass = direct(ctx, emitters, share, stages, warnings)?;
+        let shown: Vec<Vec3> = if pass.realtime.is_empty() {
+            pass.irradiance.clone()
         } else {
-            light
-                .irradiance
-                .iter()
-                .zip(&realtime)
+            (pass.irradiance.iter().zip(&pass.realtime))
                 .map(|(e, r)| (*e - *r).max(Vec3::ZERO))
                 .collect()
         };
@@ -90,12 +84,36 @@ pub(super) fn lighting(
             light.direct = shown.clone();
         }
         stages.preview_direct(ctx, shown);
+        light.irradiance = pass.irradiance;
+        light.texel_error = pass.texel_error;
+        light.errors.extend(pass.error);
+        realtime = pass.realtime;
     }
     if !(indirect_runs && settings.method == Method::Radiosity) {
         // No split stage follows (instant radiosity and direct-only bakes): a shard stops.
         stages.scope().stop_after_split()?;
     }
-    if indirect_runs && matches!(settings.method, Method::Vpl | Method::Hybrid) {
+    if indirect_runs {
+        indirect(ctx, emitters, share, stages, warnings, &mut light)?;
+    }
+    // Lights baked indirect only: their direct light fed the interreflections above and
+    // leaves the lightmaps now (the engine draws it in real time).
+    for (e, r) in light.irradiance.iter_mut().zip(&realtime) {
+        *e = (*e - *r).max(Vec3::ZERO);
+    }
+    Ok(light)
+}
+
+/// The method's indirect pass (instant radiosity or radiosity), added to `light`.
+fn indirect(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    share: Option<f64>,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+    light: &mut Lighting,
+) -> Result<()> {
+    if matches!(ctx.settings.method, Method::Vpl | Method::Hybrid) {
         let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
         for (e, v) in light.irradiance.iter_mut().zip(&from_vpls) {
             *e += *v;
@@ -106,38 +124,54 @@ pub(super) fn lighting(
             report.particles, report.particles_reason, report.vpls, report.clamp_distance
         ));
         light.vpl = Some(report);
-    } else if indirect_runs {
-        let (reflected, reflected_error, report, error) =
-            radiosity(ctx, &light.irradiance, share, stages, warnings)?;
-        for (e, r) in light.irradiance.iter_mut().zip(&reflected) {
-            *e += *r;
-        }
-        if let Some(re) = reflected_error
-            && ctx.plan.runs(Stage::Denoise)
-        {
-            light.indirect = Some((reflected, re));
-        }
-        light.coarse_bias = report.coarse_bias;
-        light.errors.extend(error);
-        light.indirect_reason = Some(format!(
-            "radiosity, solver {}: {}",
-            report.solver, report.solver_reason
-        ));
-        light.radiosity = Some(report);
+        return Ok(());
     }
-    // Lights baked indirect only: their direct light fed the interreflections above and
-    // leaves the lightmaps now (the engine draws it in real time).
-    for (e, r) in light.irradiance.iter_mut().zip(&realtime) {
-        *e = (*e - *r).max(Vec3::ZERO);
+    let Reflected {
+        irradiance: reflected,
+        texel_error,
+        report,
+        error,
+    } = radiosity(ctx, &light.irradiance, share, stages, warnings)?;
+    for (e, r) in light.irradiance.iter_mut().zip(&reflected) {
+        *e += *r;
     }
-    Ok(light)
+    if let Some(re) = texel_error
+        && ctx.plan.runs(Stage::Denoise)
+    {
+        light.indirect = Some((reflected, re));
+    }
+    light.coarse_bias = report.coarse_bias;
+    light.errors.push(error);
+    light.indirect_reason = Some(format!(
+        "radiosity, solver {}: {}",
+        report.solver, report.solver_reason
+    ));
+    light.radiosity = Some(report);
+    Ok(())
 }
 
-/// The direct stage's irradiance per patch, its per-patch standard error, its error
-/// estimate, and the part of the irradiance from lights baked indirect only.
-type DirectPass = (Vec<Vec3>, Vec<f32>, Option<ErrorEstimate>, Vec<Vec3>);
+/// What the direct stage gives.
+struct DirectPass {
+    /// Irradiance per patch, lux.
+    irradiance: Vec<Vec3>,
+    /// Its standard error per patch (luminance, lux).
+    texel_error: Vec<f32>,
+    /// The stage's error estimate (none from one sample per texel).
+    error: Option<ErrorEstimate>,
+    /// The part of the irradiance from lights baked indirect only, lux per patch (empty
+    /// when there are none).
+    realtime: Vec<Vec3>,
+}
 
-/// The direct stage: irradiance per patch and its error estimate.
+/// One round of the direct stage, at the counts of `settings`.
+struct DirectRound {
+    pass: DirectPass,
+    settings: BakeSettings,
+    rays: u64,
+}
+
+/// The direct stage: irradiance per patch and its error estimate, in rounds towards its
+/// share of a target error.
 fn direct(
     ctx: &BakeContext<'_>,
     emitters: &Emitters,
@@ -145,16 +179,14 @@ fn direct(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<DirectPass> {
-    let patches = ctx.patches;
-    let progress = stages.progress();
     let mut pilot = ctx.settings.clone();
     if share.is_some() {
         // A variance needs samples to spread: the pilot takes at least 4.
         pilot.direct.samples_per_texel = pilot.direct.samples_per_texel.max(4);
     }
-    let scope = stages.scope();
-    let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
-    let rounds = stages.run(Stage::Direct, patches.patches.len() as u64, || {
+    let (scope, progress) = (stages.scope(), stages.progress());
+    let units = ctx.patches.patches.len() as u64;
+    let rounds = stages.run(Stage::Direct, units, || {
         let mut rays = 0;
         let rounds = until_target(
             share,
@@ -166,52 +198,21 @@ fn direct(
                             stage: Stage::Direct,
                             round,
                         },
-                        patches.patches.len() as u64,
+                        units,
                     );
                 }
-                let c = BakeContext {
-                    settings: s,
-                    ..*ctx
-                };
-                // Split across the shards of a split bake (the rounds of a target error are
-                // refused there).
-                let (values, split_rays) = scope.split(
-                    Stage::Direct,
-                    patches.patches.len(),
-                    |p| p,
-                    |only| {
-                        let r = direct_light_of(&c, emitters, only, progress);
-                        let realtime = |i: usize| r.realtime.get(i).copied().unwrap_or_default();
-                        let values = (0..r.irradiance.len())
-                            .map(|i| (r.irradiance[i], r.standard_error[i], realtime(i)))
-                            .collect();
-                        (values, [0, r.rays])
+                let r = direct_round(
+                    &BakeContext {
+                        settings: s,
+                        ..*ctx
                     },
+                    emitters,
+                    scope,
+                    progress,
                 )?;
-                let r = DirectResult {
-                    irradiance: values.iter().map(|v| v.0).collect(),
-                    standard_error: values.iter().map(|v| v.1).collect(),
-                    rays: split_rays[1],
-                    realtime: if any_realtime {
-                        values.iter().map(|v| v.2).collect()
-                    } else {
-                        Vec::new()
-                    },
-                };
                 rays += r.rays;
-                // One sample has no spread: no estimate then.
-                let est = (s.direct.samples_per_texel >= 2).then(|| {
-                    ErrorEstimate::from_standard_errors(
-                        &valid(patches, &r.standard_error),
-                        rms_luminance(&valid(patches, &r.irradiance)),
-                        error_method(s, ctx.plan.sky),
-                    )
-                });
-                let relative = est.as_ref().map(|e| e.relative_rms);
-                Ok((
-                    (r.irradiance, r.standard_error, est, s.clone(), r.realtime),
-                    relative,
-                ))
+                let relative = r.pass.error.as_ref().map(|e| e.relative_rms);
+                Ok((r, relative))
             },
             |s, _, factor| {
                 let next = (
@@ -223,35 +224,93 @@ fn direct(
                 changed
             },
         )?;
-        let s = &rounds.value.3;
-        let note = format!(
-            "{} spp, {} light(s), {} emitter triangle(s){}{}",
-            s.direct.samples_per_texel,
-            ctx.plan.lights.iter().filter(|l| l.instances > 0).count(),
-            emitters.list.len(),
-            if ctx.plan.sky {
-                format!(", {} sky rays/texel", s.direct.sky_samples)
-            } else {
-                String::new()
-            },
-            if rounds.round > 1 {
-                format!(", {} rounds", rounds.round)
-            } else {
-                String::new()
-            }
-        );
+        let note = direct_note(ctx, emitters, &rounds.value.settings, rounds.round);
         Ok((rounds, rays, note))
     })?;
-    let (irradiance, texel_error, error, _, realtime) = rounds.value;
-    if let Some(e) = error.as_ref().filter(|_| rounds.missed) {
+    let pass = rounds.value.pass;
+    if let Some(e) = pass.error.as_ref().filter(|_| rounds.missed) {
         warnings.push(format!(
             "direct light stopped at an estimated {:.2}% error, above its share {:.2}% of the target (sample counts capped or rounds used up)",
             100.0 * e.relative_rms,
             100.0 * share.unwrap_or(0.0)
         ));
     }
-    stages.annotate(RayKind::Shadow, error.clone());
-    Ok((irradiance, texel_error, error, realtime))
+    stages.annotate(RayKind::Shadow, pass.error.clone());
+    Ok(pass)
+}
+
+/// The direct light of every patch at `ctx`'s counts, split across the shards of a split
+/// bake (the rounds of a target error are refused there), and its error estimate.
+fn direct_round(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    scope: Scope<'_>,
+    progress: &Progress,
+) -> Result<DirectRound> {
+    let patches = ctx.patches;
+    let any_realtime = ctx.scene.lights.iter().any(|l| !l.direct_is_baked());
+    let (values, split_rays) = scope.split(
+        Stage::Direct,
+        patches.patches.len(),
+        |p| p,
+        |only| {
+            let r = direct_light_of(ctx, emitters, only, progress);
+            let realtime = |i: usize| r.realtime.get(i).copied().unwrap_or_default();
+            let values = (0..r.irradiance.len())
+                .map(|i| (r.irradiance[i], r.standard_error[i], realtime(i)))
+                .collect();
+            (values, [0, r.rays])
+        },
+    )?;
+    let r = DirectResult {
+        irradiance: values.iter().map(|v| v.0).collect(),
+        standard_error: values.iter().map(|v| v.1).collect(),
+        rays: split_rays[1],
+        realtime: if any_realtime {
+            values.iter().map(|v| v.2).collect()
+        } else {
+            Vec::new()
+        },
+    };
+    let s = ctx.settings;
+    // One sample has no spread: no estimate then.
+    let error = (s.direct.samples_per_texel >= 2).then(|| {
+        ErrorEstimate::from_standard_errors(
+            &valid(patches, &r.standard_error),
+            rms_luminance(&valid(patches, &r.irradiance)),
+            error_method(s, ctx.plan.sky),
+        )
+    });
+    Ok(DirectRound {
+        pass: DirectPass {
+            irradiance: r.irradiance,
+            texel_error: r.standard_error,
+            error,
+            realtime: r.realtime,
+        },
+        settings: s.clone(),
+        rays: r.rays,
+    })
+}
+
+/// The direct stage's note: its counts at `s` after `round` rounds.
+fn direct_note(ctx: &BakeContext<'_>, emitters: &Emitters, s: &BakeSettings, round: u32) -> String {
+    format!(
+        "{} spp, {} light(s), {} emitter triangle(s){}{}",
+        s.direct.samples_per_texel,
+        ctx.plan.lights.iter().filter(|l| l.instances > 0).count(),
+        emitters.list.len(),
+        if ctx.plan.sky {
+            format!(", {} sky rays/texel", s.direct.sky_samples)
+        } else {
+            String::new()
+        },
+        if round > 1 {
+            format!(", {round} rounds")
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// The instant-radiosity stage: irradiance per patch from the VPLs (all of it for method
@@ -290,29 +349,46 @@ fn vpl(
                 next != report.particles
             },
         )?;
-        let (e, report) = rounds.value;
-        let note = format!(
-            "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}{}",
-            report.particles,
-            report.vpls,
-            report.mean_reflectivity,
-            100.0 * report.clamped_fraction,
-            if report.compensated {
-                format!(
-                    ", compensated ({} iterations)",
-                    report.compensation_iterations
-                )
-            } else {
-                String::new()
-            },
-            if rounds.round > 1 {
-                format!(", {} rounds", rounds.round)
-            } else {
-                String::new()
-            }
-        );
-        Ok(((e, report), rays, note))
+        let note = vpl_note(&rounds.value.1, rounds.round);
+        Ok((rounds.value, rays, note))
     })?;
+    vpl_warnings(settings, &report, share, warnings);
+    stages.annotate(RayKind::Shadow, Some(report.error.clone()));
+    Ok((from_vpls, report))
+}
+
+/// The instant-radiosity stage's note after `round` rounds.
+fn vpl_note(report: &VplReport, round: u32) -> String {
+    format!(
+        "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}{}",
+        report.particles,
+        report.vpls,
+        report.mean_reflectivity,
+        100.0 * report.clamped_fraction,
+        if report.compensated {
+            format!(
+                ", compensated ({} iterations)",
+                report.compensation_iterations
+            )
+        } else {
+            String::new()
+        },
+        if round > 1 {
+            format!(", {round} rounds")
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// What instant radiosity leaves out or could not reach, as warnings: the bias
+/// compensation's note, the light beyond the deepest reflection, a missed target share.
+fn vpl_warnings(
+    settings: &BakeSettings,
+    report: &VplReport,
+    share: Option<f64>,
+    warnings: &mut Vec<String>,
+) {
     if let Some(note) = &report.compensation_note {
         warnings.push(note.clone());
     }
@@ -334,8 +410,6 @@ fn vpl(
             100.0 * t
         ));
     }
-    stages.annotate(RayKind::Shadow, Some(report.error.clone()));
-    Ok((from_vpls, report))
 }
 
 /// One radiosity round's result.
@@ -351,24 +425,26 @@ struct Solved {
     node_error: Option<Vec<f32>>,
 }
 
-/// Per-patch reflected irradiance and its per-patch standard error (when the solver gives
-/// one), the report and the error estimate.
-type RadiosityResult = (
-    Vec<Vec3>,
-    Option<Vec<f32>>,
-    RadiosityReport,
-    Option<ErrorEstimate>,
-);
+/// What the radiosity stages give.
+struct Reflected {
+    /// Reflected irradiance per patch, lux.
+    irradiance: Vec<Vec3>,
+    /// Its standard error per patch (luminance, lux), when the solver estimates it node by
+    /// node (the hierarchical solve's gathers).
+    texel_error: Option<Vec<f32>>,
+    report: RadiosityReport,
+    error: ErrorEstimate,
+}
 
-/// The radiosity stages (nodes, transport, solve, error estimate): reflected irradiance per
-/// patch, its standard error per patch, the report and the error estimate.
+/// The radiosity stages (nodes, then rounds of transport, solve and error estimate towards
+/// the stage's share of a target error).
 fn radiosity(
     ctx: &BakeContext<'_>,
     direct: &[Vec3],
     share: Option<f64>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<RadiosityResult> {
+) -> Result<Reflected> {
     let settings = ctx.settings;
     let nodes = stages.run(Stage::Nodes, 1, || {
         let nodes = Nodes::new(ctx, settings.radiosity.basis);
@@ -419,6 +495,26 @@ fn radiosity(
             changed
         },
     )?;
+    if rounds.missed {
+        warnings.push(format!(
+            "radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
+            100.0 * rounds.value.error.relative_rms,
+            100.0 * share.unwrap_or(0.0)
+        ));
+    }
+    let solution = &rounds.value.solution;
+    if !solution.converged {
+        warnings.push(format!(
+            "the {} solver did not reach the tolerance {tolerance:.1e}: {}",
+            solution.solver, solution.stop_reason
+        ));
+    }
+    Ok(reflected(ctx, &nodes, rounds.value))
+}
+
+/// The solved round `solved` per patch, and its report (which outlives the lighting
+/// passes, so it keeps no per-node vectors).
+fn reflected(ctx: &BakeContext<'_>, nodes: &Nodes, solved: Solved) -> Reflected {
     let Solved {
         plan,
         transport,
@@ -426,35 +522,22 @@ fn radiosity(
         error,
         coarse,
         node_error,
-    } = rounds.value;
-    if rounds.missed {
-        warnings.push(format!(
-            "radiosity stopped at an estimated {:.2}% error, above its share {:.2}% of the target",
-            100.0 * error.relative_rms,
-            100.0 * share.unwrap_or(0.0)
-        ));
-    }
-    if !solution.converged {
-        warnings.push(format!(
-            "the {} solver did not reach the tolerance {tolerance:.1e}: {}",
-            solution.solver, solution.stop_reason
-        ));
-    }
-    let reflected = radiosity::per_patch(&nodes, &solution.indirect, ctx.patches.patches.len());
-    let reflected_error = node_error.map(|e| {
-        let mut out = vec![0.0f32; ctx.patches.patches.len()];
+    } = solved;
+    let patches = ctx.patches.patches.len();
+    let irradiance = radiosity::per_patch(nodes, &solution.indirect, patches);
+    let texel_error = node_error.map(|e| {
+        let mut out = vec![0.0f32; patches];
         for (n, &p) in nodes.patch.iter().enumerate() {
             out[p as usize] = e[n];
         }
         out
     });
-    // The report outlives the lighting passes: it keeps no per-node vectors.
     solution.b = Vec::new();
     solution.indirect = Vec::new();
     let report = RadiosityReport {
         solver: solution.solver,
         solver_reason: plan.reason.clone(),
-        basis: settings.radiosity.basis,
+        basis: ctx.settings.radiosity.basis,
         nodes: nodes.len(),
         max_albedo: nodes.max_albedo(),
         transport_nnz: transport.as_ref().map_or(0, Transport::nnz),
@@ -465,7 +548,12 @@ fn radiosity(
         coarse_bias: coarse.as_ref().map(|c| c.1),
         coarse: coarse.map(|c| c.0),
     };
-    Ok((reflected, reflected_error, report, Some(error)))
+    Reflected {
+        irradiance,
+        texel_error,
+        report,
+        error,
+    }
 }
 
 /// One round of radiosity at `ctx`'s counts: the solver plan, the transport matrix (when the

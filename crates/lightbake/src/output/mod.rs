@@ -14,8 +14,7 @@
 //!   report.json                                      settings, plan, timings, rays, warnings
 //! ```
 
-pub mod gltf_export;
-pub mod images;
+internal!(gltf_export, images);
 pub mod manifest;
 
 use std::path::{Path, PathBuf};
