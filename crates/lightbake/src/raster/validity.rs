@@ -250,7 +250,11 @@ impl Patches {
         self.invalid = 0;
         self.rescued = 0;
         for p in &mut self.patches {
-            let r = if on_fan_grid(p) { grid.next() } else { rest.next() };
+            let r = if on_fan_grid(p) {
+                grid.next()
+            } else {
+                rest.next()
+            };
             let r = r.expect("one probe per patch");
             p.position = r.position;
             p.flags = r.flags;
