@@ -392,7 +392,7 @@ fn vpl_warnings(
     if let Some(note) = &report.compensation_note {
         warnings.push(note.clone());
     }
-    // Keller's walk follows at most `vpl_max_depth` reflections: in a closed scene the light
+    // Keller's walk follows at most `vpl.max_depth` reflections: in a closed scene the light
     // beyond them is ρ̄^(d+1) of the total, and it is not baked.
     let depth = settings.vpl.max_depth.min(MAX_VPL_DEPTH);
     let lost = (report.mean_reflectivity as f64).powi(depth as i32 + 1);

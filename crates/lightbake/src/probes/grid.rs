@@ -48,8 +48,8 @@ impl VolumeGrid {
     /// no instance is baked.
     ///
     /// # Errors
-    /// [`BakeError::BadSetting`] (`probe_spacing`) when an explicit spacing gives more than
-    /// [`MAX_PROBES`] probes or a texture side beyond [`MAX_TEXTURE_SIDE`].
+    /// [`BakeError::BadSetting`] (`volume.probe_spacing`) when an explicit spacing gives more
+    /// than [`MAX_PROBES`] probes or a texture side beyond [`MAX_TEXTURE_SIDE`].
     pub fn plan(
         scene: &Scene,
         layout: &Layout,
@@ -87,7 +87,7 @@ impl VolumeGrid {
                 let grid = Self::over(lo, hi, s, format!("{s} m (volume.probe_spacing)"));
                 if let Some(why) = grid.too_large(MAX_PROBES) {
                     return Err(BakeError::BadSetting {
-                        name: "probe_spacing",
+                        name: "volume.probe_spacing",
                         value: s.to_string(),
                         message: format!(
                             "{why}: choose a larger spacing (the baked region is {:.3} × {:.3} × {:.3} m)",

@@ -202,7 +202,7 @@ pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     }
     if choice == SolverChoice::Direct && nodes.len() > DIRECT_MAX_NODES {
         return Err(BakeError::BadSetting {
-            name: "solver",
+            name: "radiosity.solver",
             value: "direct".into(),
             message: format!(
                 "the dense LU solve is limited to {DIRECT_MAX_NODES} nodes and this bake has {}; use auto or krylov",

@@ -9,8 +9,8 @@
 //! * `hybrid`: direct light is computed exactly by [`crate::direct`]; VPLs from the first
 //!   reflection on carry the indirect light.
 //!
-//! The number of particles is set directly (`vpl_particles`) or from a time budget
-//! (`vpl_time_budget_s`, measured against a pilot of shadow rays).
+//! The number of particles is set directly (`vpl.particles`) or from a time budget
+//! (`vpl.time_budget_s`, measured against a pilot of shadow rays).
 
 pub mod compensation;
 pub mod gather;
