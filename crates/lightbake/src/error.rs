@@ -239,6 +239,13 @@ pub enum BakeError {
         /// What is wrong and what to run.
         message: String,
     },
+    /// A bake over a subset of the texels was given earlier values that do not fit it: they
+    /// were kept by a bake of other patches or other settings ([`crate::bake::TexelRun`]).
+    #[error("a bake over a subset of the texels: {message}")]
+    Subset {
+        /// What does not fit.
+        message: String,
+    },
 }
 
 /// Shorthand for results with [`BakeError`].

@@ -2,7 +2,8 @@
 //!
 //! An engine-free lightmap baker. A [`Scene`] (imported from glTF with [`import_gltf`], or
 //! built in code) is baked with [`bake()`] (or, set up with [`BakeBuilder`], with previews,
-//! in the background as a [`BakeHandle`], or split across processes) into HDR
+//! in the background as a [`BakeHandle`], split across processes, or over a subset of the
+//! texels) into HDR
 //! lightmap pages with direct and interreflected light, and [`write_outputs`] writes them with
 //! a baked glTF (`TEXCOORD_1`), a manifest and a report:
 //!

@@ -1,8 +1,9 @@
 //! How a lighting pass runs its stages, without knowing the process it runs in: the driver
 //! implements [`StageRunner`] (each stage timed, counted, recorded and published to the
 //! progress, a cancel seen between stages, previews) and [`WorkScope`] (which of a stage's
-//! work units this process computes: all of them, or one shard's share of a bake split
-//! across processes, the rest read from the other shards). A pass composes its own stages
+//! work units this process computes: all of them; one shard's share of a bake split across
+//! processes, the rest read from the other shards; or the texels of a subset, the rest kept
+//! from an earlier run). A pass composes its own stages
 //! through them: it says what it computes, not where or for whom.
 
 use glam::Vec3;

@@ -1,6 +1,6 @@
 //! One way to set up any bake, in the manner of texture-synthesis's `Session::builder()`: the
 //! scene and its settings, then how it is watched (progress, previews), then where it runs
-//! (this thread, a thread of its own, or one process of a split bake).
+//! (this thread, a thread of its own, one process of a split bake, or a subset of the texels).
 //!
 //! ```no_run
 //! use std::sync::Arc;
@@ -25,14 +25,16 @@ use std::sync::Arc;
 use super::handle::BakeHandle;
 use super::preview::PreviewSlot;
 use super::shard::ShardRun;
-use super::{BakeOutput, bake_split, bake_with};
+use super::stages::Scope;
+use super::subset::TexelRun;
+use super::{BakeOutput, bake_split, bake_texels, bake_with};
 use crate::error::Result;
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
 
 /// A bake being set up: [`BakeBuilder::new`], the optional steps, then [`BakeBuilder::run`],
-/// [`BakeBuilder::spawn`] or [`BakeBuilder::run_split`].
+/// [`BakeBuilder::spawn`], [`BakeBuilder::run_split`] or [`BakeBuilder::run_texels`].
 #[derive(Debug)]
 pub struct BakeBuilder {
     scene: Scene,
@@ -93,7 +95,24 @@ impl BakeBuilder {
             &self.settings,
             &self.progress,
             &self.previews,
-            None,
+            Scope::All,
+        )
+    }
+
+    /// Runs the bake on this thread over the texels `run` marks, the others' values taken
+    /// from an earlier run (see [`TexelRun`]); `run` keeps this run's values for the
+    /// next.
+    ///
+    /// # Errors
+    /// As [`super::bake()`]; [`crate::BakeError::Subset`] when the earlier values belong to
+    /// other texel patches or settings; [`crate::BakeError::BadSetting`] for a target error.
+    pub fn run_texels(self, run: &TexelRun) -> Result<BakeOutput> {
+        bake_texels(
+            &self.scene,
+            &self.settings,
+            &self.progress,
+            &self.previews,
+            run,
         )
     }
 
@@ -134,7 +153,7 @@ impl BakeBuilder {
         } = self;
         let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
         BakeHandle::start(progress, previews, move || {
-            let output = bake_with(&scene, &settings, &watched, &published, None)?;
+            let output = bake_with(&scene, &settings, &watched, &published, Scope::All)?;
             then(output, &scene, &settings)
         })
     }

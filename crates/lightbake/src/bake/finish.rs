@@ -71,6 +71,9 @@ pub(super) fn texel_patches(
                 Ok(((), patches.rays, note))
             })?;
             stages.annotate(RayKind::Shadow, None);
+            if let Some(run) = stages.scope().texel_run() {
+                run.patches_known(&patches, settings)?;
+            }
             if let Some(run) = stages.scope().split_bake() {
                 // Prepare writes the patches and the work units here, and stops.
                 let units = Units::plan(&patches, layout, settings, scene.lights.len(), plan.sky);

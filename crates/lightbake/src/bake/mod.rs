@@ -25,6 +25,7 @@ mod passes;
 pub mod preview;
 pub mod shard;
 mod stages;
+mod subset;
 
 use std::time::Instant;
 
@@ -57,7 +58,8 @@ use estimate::with_grid_error;
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
 pub use shard::{Role, ShardRun};
-use stages::Stages;
+use stages::{Scope, Stages};
+pub use subset::{StageValues, TexelRun};
 
 /// Rays of each kind the floor calibration traces.
 const CALIBRATION_RAYS: usize = 65_536;
@@ -88,7 +90,13 @@ pub struct BakeOutput {
 /// Invalid settings or scene ([`BakeError::BadSetting`] and the scene errors),
 /// [`BakeError::OverMemoryBudget`], [`BakeError::Unwrap`], [`BakeError::Cancelled`].
 pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<BakeOutput> {
-    bake_with(scene, settings, progress, &PreviewSlot::default(), None)
+    bake_with(
+        scene,
+        settings,
+        progress,
+        &PreviewSlot::default(),
+        Scope::All,
+    )
 }
 
 /// One process of a bake split across processes ([`shard`]): `run` says which (prepare,
@@ -118,7 +126,7 @@ fn bake_split(
         settings,
         progress,
         &PreviewSlot::default(),
-        Some(run),
+        Scope::Split(run),
     ) {
         Ok(output) => Ok(SplitOutcome::Merged(Box::new(output))),
         Err(BakeError::Cancelled) if !progress.is_cancelled() => match run.stopped() {
@@ -129,12 +137,36 @@ fn bake_split(
     }
 }
 
+/// A bake that computes the texels `run` marks, the others' split-stage values taken from an
+/// earlier run ([`TexelRun`]).
+///
+/// # Errors
+/// As [`bake`]; [`BakeError::Subset`] when the earlier values do not fit;
+/// [`BakeError::BadSetting`] for a target error (its rounds would make the stages depend on
+/// the subset's estimate).
+fn bake_texels(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    previews: &PreviewSlot,
+    run: &TexelRun,
+) -> Result<BakeOutput> {
+    if let Some(t) = settings.target_error {
+        return Err(BakeError::BadSetting {
+            name: "target_error",
+            value: t.to_string(),
+            message: "a bake over a subset of the texels takes fixed sample counts: its rounds would depend on the subset's own estimate".into(),
+        });
+    }
+    bake_with(scene, settings, progress, previews, Scope::Subset(run))
+}
+
 fn bake_with(
     scene: &Scene,
     settings: &BakeSettings,
     progress: &Progress,
     previews: &PreviewSlot,
-    shards: Option<&ShardRun>,
+    scope: Scope<'_>,
 ) -> Result<BakeOutput> {
     settings.validate()?;
     scene.validate()?;
@@ -177,7 +209,7 @@ fn bake_with(
             settings,
             progress,
             previews,
-            shards,
+            scope,
             pool.current_num_threads(),
             notes,
         )
@@ -233,12 +265,12 @@ fn bake_in_pool(
     settings: &BakeSettings,
     progress: &Progress,
     previews: &PreviewSlot,
-    shards: Option<&ShardRun>,
+    scope: Scope<'_>,
     threads: usize,
     notes: Vec<String>,
 ) -> Result<BakeOutput> {
     let start = Instant::now();
-    let mut stages = Stages::new(progress, previews, shards);
+    let mut stages = Stages::new(progress, previews, scope);
     let mut warnings = scene.warnings.clone();
     warnings.extend(notes);
     let mut decisions = Vec::new();
@@ -294,7 +326,9 @@ fn bake_in_pool(
         seams: lit.seams,
         denoise: lit.denoise,
         irradiance_volume: volume_stats,
-        split: shards.map(ShardRun::split_stages).unwrap_or_default(),
+        split: (scope.split_bake())
+            .map(ShardRun::split_stages)
+            .unwrap_or_default(),
         texels: lit.texels,
         triangles: scene.instanced_triangle_count(),
         threads,

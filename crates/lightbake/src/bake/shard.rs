@@ -35,8 +35,9 @@ use crate::unwrap::Layout;
 
 mod units;
 pub use crate::runner::Record;
+pub(in crate::bake) use units::patches_hash;
+use units::preparation_id;
 pub use units::{BadUnits, UNITS, Units, layout_hash};
-use units::{patches_hash, preparation_id};
 
 /// File of the work units in the work folder.
 pub const UNITS_FILE: &str = "units.json";

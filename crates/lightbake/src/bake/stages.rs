@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use super::preview::{self, PreviewKind, PreviewSlot};
 use super::shard::ShardRun;
+use super::subset::TexelRun;
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::ErrorEstimate;
@@ -27,6 +28,9 @@ pub(super) enum Scope<'a> {
     /// rest read from the other shards' parts ([`ShardRun::split`]); prepare and the shards
     /// stop where their part ends ([`Scope::stop_after_split`]).
     Split(&'a ShardRun),
+    /// The texels a [`TexelRun`] marks, the rest taken from an earlier run's values
+    /// ([`TexelRun::split`]).
+    Subset(&'a TexelRun),
 }
 
 impl WorkScope for Scope<'_> {
@@ -40,13 +44,14 @@ impl WorkScope for Scope<'_> {
         match self {
             Scope::All => Ok(compute(None)),
             Scope::Split(run) => run.split(stage, items, patch, compute),
+            Scope::Subset(run) => run.split(stage, items, patch, compute),
         }
     }
 
     /// See [`ShardRun::shard_stops`].
     fn stop_after_split(self) -> Result<()> {
         match self {
-            Scope::All => Ok(()),
+            Scope::All | Scope::Subset(_) => Ok(()),
             Scope::Split(run) => run.shard_stops(),
         }
     }
@@ -56,8 +61,16 @@ impl<'a> Scope<'a> {
     /// The split bake this process is part of, if any.
     pub(super) fn split_bake(self) -> Option<&'a ShardRun> {
         match self {
-            Scope::All => None,
+            Scope::All | Scope::Subset(_) => None,
             Scope::Split(run) => Some(run),
+        }
+    }
+
+    /// The bake over a subset of the texels this is, if any.
+    pub(super) fn texel_run(self) -> Option<&'a TexelRun> {
+        match self {
+            Scope::Subset(run) => Some(run),
+            Scope::All | Scope::Split(_) => None,
         }
     }
 }
@@ -67,24 +80,20 @@ pub(super) struct Stages<'p> {
     pub(super) list: Vec<StageStats>,
     progress: &'p Progress,
     previews: &'p PreviewSlot,
-    /// The split bake this process is part of, if any.
-    shards: Option<&'p ShardRun>,
+    /// Where the stages' work units run.
+    scope: Scope<'p>,
     /// The direct light the previews show (lux per patch), kept for the indirect preview
     /// when previews are asked for.
     preview_direct: Option<Vec<glam::Vec3>>,
 }
 
 impl<'p> Stages<'p> {
-    pub(super) fn new(
-        progress: &'p Progress,
-        previews: &'p PreviewSlot,
-        shards: Option<&'p ShardRun>,
-    ) -> Self {
+    pub(super) fn new(progress: &'p Progress, previews: &'p PreviewSlot, scope: Scope<'p>) -> Self {
         Self {
             list: Vec::new(),
             progress,
             previews,
-            shards,
+            scope,
             preview_direct: None,
         }
     }
@@ -127,7 +136,7 @@ impl<'p> StageRunner<'p> for Stages<'p> {
 
     /// Where the stages' work units run ([`Scope`]).
     fn scope(&self) -> Scope<'p> {
-        self.shards.map_or(Scope::All, Scope::Split)
+        self.scope
     }
 
     /// Whether the bake publishes previews (and has a direct-light preview to build on).

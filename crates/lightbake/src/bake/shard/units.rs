@@ -89,7 +89,7 @@ pub fn layout_hash(layout: &Layout) -> u64 {
 }
 
 /// FNV-1a over every patch's identity and geometry.
-pub(super) fn patches_hash(patches: &Patches) -> u64 {
+pub(in crate::bake) fn patches_hash(patches: &Patches) -> u64 {
     let mut h = Fnv1a::default();
     let mut eat = |w: u32| h.word(w);
     for p in &patches.patches {
