@@ -3,6 +3,8 @@
 //! on the real house of the corpus and the sunlit room with a visibility test of the test's
 //! own.
 
+mod common;
+
 use std::path::Path;
 
 use glam::Vec2;
@@ -166,4 +168,38 @@ fn texels_lit_from_the_visible_part_of_their_footprint_get_the_light_there() {
         (0.75..1.33).contains(&ratio),
         "baked / path traced = {ratio:.3}"
     );
+}
+
+/// The validity pass skips a texel's short probes when every triangle within their reach
+/// lies in the texel's plane; on real scenes (flat floors, curved teapots, a mirrored
+/// instance, centimetre units) the probes it skips would have found nothing.
+#[test]
+fn texels_in_an_open_plane_skip_only_probes_that_find_nothing() {
+    let mut scenes = vec![("house", house()), ("sunlit room", sunlit_room())];
+    for file in [
+        "assimp/teapots.gltf",
+        "assimp/mirrored_cubes.gltf",
+        "openarena/kaos.gltf",
+    ] {
+        scenes.push((file, common::corpus_scene(file)));
+    }
+    for (name, scene) in scenes {
+        let settings = BakeSettings::preview();
+        let prep = Prepared::new(&scene, &settings).unwrap();
+        let raw = lightbake::raster::Patches::build(&prep.scene, &prep.layout, &prep.rays);
+        let [nothing, passed, contradicted] =
+            raw.open_plane_check(&prep.scene, &prep.layout, &prep.rays);
+        println!(
+            "{name}: {passed} of {} texels skip their probes; the probes find nothing at {nothing}",
+            raw.patches.len()
+        );
+        assert_eq!(
+            contradicted, 0,
+            "{name}: probes skipped that would have hit"
+        );
+        assert!(
+            passed as f64 > 0.9 * nothing as f64,
+            "{name}: only {passed} of the {nothing} texels that could skip"
+        );
+    }
 }

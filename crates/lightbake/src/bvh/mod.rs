@@ -22,7 +22,7 @@ use obvhs::{BvhBuildParams, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocB
 
 use wide::{Bvh4, Ray4};
 
-use crate::scene::Scene;
+use crate::scene::{Scene, closest_on_triangle};
 
 /// What the baker knows about each world-space triangle (global order: instance by instance,
 /// triangles in mesh order).
@@ -263,6 +263,20 @@ impl RayScene {
         self.bvh.occluded(&mut Ray4::new(origin, dir, tmin, tmax))
     }
 
+    /// Whether a triangle (its world vertices) that `accept` takes comes within `radius` of
+    /// `center` (m): a query of the BVH's boxes against the ball, then the exact distance.
+    pub fn any_triangle_within(
+        &self,
+        center: Vec3,
+        radius: f32,
+        mut accept: impl FnMut(&[Vec3; 3]) -> bool,
+    ) -> bool {
+        self.bvh.any_in_ball(center, radius, |k| {
+            let t = &self.accel[k as usize];
+            accept(t) && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
+        })
+    }
+
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
     #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn closest_hit_brute_force(
@@ -340,6 +354,32 @@ mod tests {
             ),
         ));
         s
+    }
+
+    #[test]
+    fn triangles_within_a_ball_agree_with_brute_force() {
+        let s = random_scene();
+        let rs = RayScene::build(&s);
+        let (lo, hi) = rs.bounds;
+        let (mut found, mut empty) = (0, 0);
+        for i in 0..3000u32 {
+            let r = |k: u32| unit_float(hash_words(&[i, k, 9]));
+            let center = lo + (hi - lo) * Vec3::new(r(0), r(1), r(2));
+            let radius = 0.002 + 0.05 * r(3);
+            // Accept only triangles facing up, to check that the filter is applied.
+            let up = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).y > 0.0;
+            let fast = rs.any_triangle_within(center, radius, up);
+            let slow = rs.accel.iter().any(|t| {
+                up(t) && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
+            });
+            assert_eq!(fast, slow, "ball {i}: {center} radius {radius}");
+            if fast {
+                found += 1;
+            } else {
+                empty += 1;
+            }
+        }
+        assert!(found > 200 && empty > 200, "{found} found, {empty} empty");
     }
 
     #[test]

@@ -357,6 +357,47 @@ impl Bvh4 {
         hit
     }
 
+    /// Whether `f(primitive)` is true for a primitive of a leaf whose box comes within
+    /// `radius` of `center` (every such primitive is offered until one is accepted; `f` does
+    /// the exact test).
+    pub fn any_in_ball(&self, center: Vec3, radius: f32, mut f: impl FnMut(u32) -> bool) -> bool {
+        if self.root == EMPTY {
+            return false;
+        }
+        let c = [center.x, center.y, center.z].map(Vec4::splat);
+        let r2 = Vec4::splat(radius * radius);
+        let mut stack = vec![self.root];
+        while let Some(r) = stack.pop() {
+            if r & LEAF_BIT != 0 {
+                for tri in self.leaf(r) {
+                    for &id in &tri.id {
+                        if id != u32::MAX && f(id) {
+                            return true;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            // Squared distance from the centre to each child box (0 inside it; an empty slot's
+            // inverted box gives +∞ or NaN, which fails the test).
+            let mut d2 = Vec4::ZERO;
+            for axis in 0..3 {
+                let below = (node.lo[axis] - c[axis]).max(Vec4::ZERO);
+                let above = (c[axis] - node.hi[axis]).max(Vec4::ZERO);
+                let d = below + above;
+                d2 += d * d;
+            }
+            let mask = d2.cmple(r2).bitmask();
+            for lane in 0..4 {
+                if mask & (1 << lane) != 0 && node.child[lane] != EMPTY {
+                    stack.push(node.child[lane]);
+                }
+            }
+        }
+        false
+    }
+
     /// Checks the invariants: every primitive `0..prim_count` sits in exactly one leaf lane,
     /// every child box contains its subtree's triangles, and the stack bound holds.
     ///

@@ -16,6 +16,7 @@ pub mod persist;
 pub mod rasterize;
 pub mod surface;
 pub mod validity;
+pub use validity::ValidityRays;
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -143,6 +144,8 @@ pub struct Patches {
     pub visible_unlit: usize,
     /// Rays traced by the validity pass.
     pub rays: u64,
+    /// The validity pass's rays by step (zero for patches read from a file).
+    pub ray_steps: ValidityRays,
 }
 
 impl Patches {

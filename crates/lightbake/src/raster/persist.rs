@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::{Patch, Patches};
+use super::{Patch, Patches, ValidityRays};
 use crate::unwrap::Layout;
 
 /// Magic of the file.
@@ -146,6 +146,7 @@ impl Patches {
             invalid: counts[2] as usize,
             visible_unlit: counts[3] as usize,
             rays: counts[4],
+            ray_steps: ValidityRays::default(),
         })
     }
 }
@@ -235,6 +236,7 @@ mod tests {
             invalid: 0,
             visible_unlit: 0,
             rays: 1 << 40,
+            ray_steps: ValidityRays::default(),
         };
         let back = Patches::from_bytes(&patches.to_bytes()).unwrap();
         assert_eq!(back.patches, patches.patches);
