@@ -273,7 +273,8 @@ impl RayScene {
     ) -> bool {
         self.bvh.any_in_ball(center, radius, |k| {
             let t = &self.accel[k as usize];
-            accept(t) && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
+            accept(t)
+                && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
         })
     }
 
@@ -370,7 +371,8 @@ mod tests {
             let up = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).y > 0.0;
             let fast = rs.any_triangle_within(center, radius, up);
             let slow = rs.accel.iter().any(|t| {
-                up(t) && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
+                up(t)
+                    && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
             });
             assert_eq!(fast, slow, "ball {i}: {center} radius {radius}");
             if fast {

@@ -507,12 +507,7 @@ impl Patches {
     /// patches [`Self::in_open_plane`] passes, those of them whose probes do find something:
     /// must be none).
     #[cfg(feature = "internals")]
-    pub fn open_plane_check(
-        &self,
-        scene: &Scene,
-        layout: &Layout,
-        rays: &RayScene,
-    ) -> [usize; 3] {
+    pub fn open_plane_check(&self, scene: &Scene, layout: &Layout, rays: &RayScene) -> [usize; 3] {
         let surface = Surface::new(scene, layout, rays);
         let checked: Vec<[bool; 3]> = self
             .patches
@@ -522,7 +517,8 @@ impl Patches {
                 let passed = self.in_open_plane(p, layout, &surface, rays, reach);
                 let mut used = 0;
                 let mut near = self.hangs_over(p, layout, &surface, rays, reach, &mut used);
-                let found = nearest_back_face(p, rays, reach, &mut near, &mut used).is_some() || near;
+                let found =
+                    nearest_back_face(p, rays, reach, &mut near, &mut used).is_some() || near;
                 [!found, passed, passed && found]
             })
             .collect();
@@ -658,11 +654,11 @@ impl Patches {
         let rect = layout.instances[p.instance as usize];
         let footprint = self.footprint_of(p);
         (0..NORMAL_PROBES).filter_map(move |k| {
-                let rect = rect?;
-                let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
-                let q = texel + sobol_02(k, p.rng(VALIDITY_SEED, 0x0e4a));
-                footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0))
-            })
+            let rect = rect?;
+            let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
+            let q = texel + sobol_02(k, p.rng(VALIDITY_SEED, 0x0e4a));
+            footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0))
+        })
     }
 
     /// Whether geometry hangs within `reach` above points of the patch's footprint (short
