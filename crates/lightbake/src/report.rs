@@ -20,6 +20,82 @@ use crate::settings::BakeSettings;
 pub use crate::solve::{HistoryEntry, Solution};
 pub use crate::vpl::VplReport;
 
+/// One part of the bake's error estimate ([`BakeReport::error_budget`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ErrorShare {
+    /// What the part is.
+    pub part: String,
+    /// Its RMS error, lux.
+    pub rms: f64,
+    /// Its share of the estimate's mean square (0–1; the shares add up to 1).
+    pub share: f64,
+}
+
+/// Where the estimate `total` of a bake with stages `stages` comes from: the direct light's
+/// texel grid (the `grid error` stage) and the rest (the sampling stages' noise, after the
+/// denoiser when it ran, and the coarse level's bias), the rest shared out over the sampling
+/// stages that estimated their error in proportion to their mean squares before the
+/// denoiser (the denoiser filters each by its own noise; the proportion is its input's).
+/// Empty without an estimate. The parts add in quadrature, as the estimate does
+/// ([`ErrorEstimate::combine`]). A stage run in rounds counts with its last round.
+pub fn error_budget(stages: &[StageStats], total: Option<&ErrorEstimate>) -> Vec<ErrorShare> {
+    let Some(total) = total.filter(|t| t.rms > 0.0) else {
+        return Vec::new();
+    };
+    let total_sq = total.rms * total.rms;
+    let error_of = |s: &StageStats| s.error.as_ref().map_or(0.0, |e| e.rms * e.rms);
+    let grid_sq: f64 = (stages.iter())
+        .filter(|s| s.run.stage == Stage::GridError)
+        .map(error_of)
+        .sum::<f64>()
+        .min(total_sq);
+    // A stage run in rounds (a target error) counts once: its last round's estimate.
+    let mut sampling: Vec<(String, f64)> = Vec::new();
+    for (k, st) in stages.iter().enumerate() {
+        let last = !stages[k + 1..].iter().any(|o| o.run.stage == st.run.stage);
+        if last && st.run.stage != Stage::GridError && error_of(st) > 0.0 {
+            let part = match st.run.stage {
+                Stage::Direct => "the direct light's noise".to_string(),
+                Stage::ErrorEstimate => "the indirect light's noise and bias".to_string(),
+                other => format!("the {other} stage's noise"),
+            };
+            sampling.push((part, error_of(st)));
+        }
+    }
+    let denoised = stages.iter().any(|s| s.run.stage == Stage::Denoise);
+    let rest_sq = total_sq - grid_sq;
+    let sampling_sq: f64 = sampling.iter().map(|s| s.1).sum();
+    let mut parts = Vec::new();
+    if sampling_sq > 0.0 {
+        for (name, sq) in sampling {
+            let part_sq = rest_sq * sq / sampling_sq;
+            parts.push(ErrorShare {
+                part: if denoised {
+                    format!("{name} after the denoiser")
+                } else {
+                    name
+                },
+                rms: part_sq.sqrt(),
+                share: part_sq / total_sq,
+            });
+        }
+    } else if rest_sq > 0.0 {
+        parts.push(ErrorShare {
+            part: "sampling noise and the coarse level's bias".into(),
+            rms: rest_sq.sqrt(),
+            share: rest_sq / total_sq,
+        });
+    }
+    if grid_sq > 0.0 {
+        parts.push(ErrorShare {
+            part: "the direct light's texel grid".into(),
+            rms: grid_sq.sqrt(),
+            share: grid_sq / total_sq,
+        });
+    }
+    parts
+}
+
 /// The ray-tracing floor: the shortest time the bake's rays can take at the rates the BVH
 /// measured on this scene and these threads, and how far the bake is above it.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -308,6 +384,10 @@ pub struct BakeReport {
     /// relative to the final lightmap (none when nothing was sampled).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<ErrorEstimate>,
+    /// Where the estimate's error comes from, by stage ([`error_budget`]); empty without an
+    /// estimate.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub error_budget: Vec<ErrorShare>,
     /// The ray-tracing floor (none when no rays were traced).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub floor: Option<Floor>,
@@ -421,6 +501,15 @@ impl BakeReport {
                 100.0 * e.relative_rms,
                 100.0 * e.p95
             ));
+            if !self.error_budget.is_empty() {
+                let parts: Vec<String> = (self.error_budget.iter())
+                    .map(|p| format!("{} {:.0}%", p.part, 100.0 * p.share))
+                    .collect();
+                s.push_str(&format!(
+                    "  shares of its mean square: {}\n",
+                    parts.join(", ")
+                ));
+            }
             if self.verification.is_none() {
                 s.push_str(if self.grid_checked() {
                     "  (the estimate covers sampling noise, the coarse level's bias and the direct light's texel grid (shadow edges and light finer than a texel), not the indirect light's grid error at contacts; `--verify N` measures the whole error against the path tracer)\n"
@@ -505,4 +594,55 @@ pub struct SplitStage {
     pub stage: Stage,
     /// The parts, by shard.
     pub parts: Vec<ShardPart>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stage(stage: Stage, round: u32, rms: Option<f64>) -> StageStats {
+        StageStats {
+            run: StageRun { stage, round },
+            seconds: 1.0,
+            rays: 10,
+            ray_kind: RayKind::Closest,
+            shadow_rays: 0,
+            error: rms.map(|rms| ErrorEstimate {
+                rms,
+                ..ErrorEstimate::default()
+            }),
+            note: String::new(),
+        }
+    }
+
+    #[test]
+    fn the_error_budget_shares_the_estimate_out_in_quadrature() {
+        let total = ErrorEstimate {
+            rms: 13.0,
+            ..ErrorEstimate::default()
+        };
+        // A direct pass in two rounds (the last counts), the indirect estimate, the denoiser
+        // and the grid: 13² = 5² (sampling, after the denoiser) + 12² (grid).
+        let stages = [
+            stage(Stage::Direct, 1, Some(10.0)),
+            stage(Stage::Direct, 2, Some(6.0)),
+            stage(Stage::ErrorEstimate, 1, Some(8.0)),
+            stage(Stage::Denoise, 1, None),
+            stage(Stage::GridError, 1, Some(12.0)),
+        ];
+        let budget = error_budget(&stages, Some(&total));
+        let shares: Vec<f64> = budget.iter().map(|p| p.share).collect();
+        // The 25 of sampling shared 36 : 64 between the direct light and the indirect.
+        let expected = [9.0 / 169.0, 16.0 / 169.0, 144.0 / 169.0];
+        assert_eq!(budget.len(), 3, "{budget:?}");
+        for (s, e) in shares.iter().zip(expected) {
+            assert!((s - e).abs() < 1e-12, "{shares:?}");
+        }
+        assert!((budget[2].rms - 12.0).abs() < 1e-12);
+        assert_eq!(
+            budget[0].part,
+            "the direct light's noise after the denoiser"
+        );
+        assert!(error_budget(&stages, None).is_empty());
+    }
 }

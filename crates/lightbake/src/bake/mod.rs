@@ -312,6 +312,7 @@ fn bake_in_pool(
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
     let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
+    let error_budget = crate::report::error_budget(&stages.list, lit.error.as_ref());
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
         scene: scene.name.clone(),
@@ -335,6 +336,7 @@ fn bake_in_pool(
         memory: admitted.estimate,
         warnings,
         error: lit.error,
+        error_budget,
         floor,
         verification: None,
         total_seconds,

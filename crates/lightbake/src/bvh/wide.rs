@@ -366,36 +366,50 @@ impl Bvh4 {
         }
         let c = [center.x, center.y, center.z].map(Vec4::splat);
         let r2 = Vec4::splat(radius * radius);
-        let mut stack = vec![self.root];
-        while let Some(r) = stack.pop() {
-            if r & LEAF_BIT != 0 {
-                for tri in self.leaf(r) {
-                    for &id in &tri.id {
-                        if id != u32::MAX && f(id) {
-                            return true;
+        // As in `traverse`: the current node is kept out of the stack, and of the children a
+        // node test enters, one becomes current and the others (at most three) are pushed.
+        self.with_stack(|stack| {
+            let mut sp = 0usize;
+            let mut r = self.root;
+            loop {
+                if r & LEAF_BIT != 0 {
+                    for tri in self.leaf(r) {
+                        for &id in &tri.id {
+                            if id != u32::MAX && f(id) {
+                                return true;
+                            }
                         }
                     }
+                } else {
+                    let node = &self.nodes[r as usize];
+                    // Squared distance from the centre to each child box (0 inside it; an
+                    // empty slot's inverted box gives a distance beyond any radius).
+                    let mut d2 = Vec4::ZERO;
+                    for axis in 0..3 {
+                        let below = (node.lo[axis] - c[axis]).max(Vec4::ZERO);
+                        let above = (c[axis] - node.hi[axis]).max(Vec4::ZERO);
+                        let d = below + above;
+                        d2 += d * d;
+                    }
+                    let mut mask = d2.cmple(r2).bitmask();
+                    if mask != 0 {
+                        r = node.child[mask.trailing_zeros() as usize];
+                        mask &= mask - 1;
+                        while mask != 0 {
+                            stack[sp] = (node.child[mask.trailing_zeros() as usize], 0.0);
+                            sp += 1;
+                            mask &= mask - 1;
+                        }
+                        continue;
+                    }
                 }
-                continue;
-            }
-            let node = &self.nodes[r as usize];
-            // Squared distance from the centre to each child box (0 inside it; an empty slot's
-            // inverted box gives +∞ or NaN, which fails the test).
-            let mut d2 = Vec4::ZERO;
-            for axis in 0..3 {
-                let below = (node.lo[axis] - c[axis]).max(Vec4::ZERO);
-                let above = (c[axis] - node.hi[axis]).max(Vec4::ZERO);
-                let d = below + above;
-                d2 += d * d;
-            }
-            let mask = d2.cmple(r2).bitmask();
-            for lane in 0..4 {
-                if mask & (1 << lane) != 0 && node.child[lane] != EMPTY {
-                    stack.push(node.child[lane]);
+                if sp == 0 {
+                    return false;
                 }
+                sp -= 1;
+                r = stack[sp].0;
             }
-        }
-        false
+        })
     }
 
     /// Checks the invariants: every primitive `0..prim_count` sits in exactly one leaf lane,
