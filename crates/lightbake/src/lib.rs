@@ -121,4 +121,4 @@ pub use settings::{
     SolverChoice,
 };
 pub use stage::{Stage, StageRun};
-pub use unwrap::{InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};
+pub use unwrap::{BadLayout, InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};

@@ -4,8 +4,9 @@
 //! A [`TexelRun`] either computes every texel and keeps each split stage's values
 //! ([`TexelRun::all`]), or computes only the texels it marks and takes every other texel's
 //! values from an earlier run's [`StageValues`] ([`TexelRun::only`]). The earlier values
-//! must come from a bake of the same scene, settings, layout and texel patches (checked: the
-//! patches' hash, and each split stage in the order the bake reaches it). Every value is the
+//! must come from a bake with the same settings and texel patches (the same geometry and
+//! layout; lights and materials may differ), checked by hashes of both and by each split
+//! stage's name and size in the order the bake reaches it. Every value is the
 //! same function of its texel and the stages before it in either case (as in a split bake),
 //! so a run over a subset with values kept from a run of the same input gives the same bits
 //! as the whole bake; the texels outside the subset keep what the earlier run computed. This
@@ -21,8 +22,9 @@ use crate::sampling::Fnv1a;
 use crate::settings::BakeSettings;
 use crate::stage::Stage;
 
-/// The values of a bake's split stages (direct light, final gather, correction), in the
-/// order the bake computed them, with the hash of the texel patches they belong to.
+/// The values of a bake's split stages (direct light, the gather's pilot, final gather,
+/// correction), in the order the bake computed them, with hashes of the texel patches they
+/// belong to and of the settings that computed them. Held in memory (not written to a file).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StageValues {
     patches_hash: u64,

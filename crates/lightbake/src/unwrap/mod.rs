@@ -232,8 +232,8 @@ impl Layout {
     /// Checks the layout: UVs in [0, 1], rectangles inside their pages and not overlapping.
     ///
     /// # Errors
-    /// A description of the first violation.
-    pub fn validate(&self) -> std::result::Result<(), String> {
+    /// [`BadLayout`]: the first violation.
+    pub fn validate(&self) -> std::result::Result<(), BadLayout> {
         for (m, u) in self.meshes.iter().enumerate() {
             let Some(u) = u else { continue };
             if let Some(bad) = u
@@ -241,13 +241,14 @@ impl Layout {
                 .iter()
                 .position(|p| !(p.min_element() >= 0.0 && p.max_element() <= 1.0))
             {
-                return Err(format!(
-                    "mesh {m}: uv1[{bad}] = {:?} is outside [0, 1]",
-                    u.uv1[bad]
-                ));
+                return Err(BadLayout::UvOutside {
+                    mesh: m,
+                    index: bad,
+                    uv: u.uv1[bad],
+                });
             }
             if u.triangle_charts.len() * 3 != u.indices.len() {
-                return Err(format!("mesh {m}: chart list does not match the triangles"));
+                return Err(BadLayout::Charts { mesh: m });
             }
         }
         let rects: Vec<(usize, InstanceRect)> = self
@@ -257,14 +258,15 @@ impl Layout {
             .filter_map(|(i, r)| r.map(|r| (i, r)))
             .collect();
         for &(i, r) in &rects {
-            let page = self
-                .pages
-                .get(r.page as usize)
-                .ok_or_else(|| format!("instance {i}: page {} does not exist", r.page))?;
+            let page = self.pages.get(r.page as usize).ok_or(BadLayout::NoPage {
+                instance: i,
+                page: r.page,
+            })?;
             if r.x + r.width > page.width || r.y + r.height > page.height {
-                return Err(format!(
-                    "instance {i}: rectangle {r:?} leaves page {page:?}"
-                ));
+                return Err(BadLayout::OffPage {
+                    instance: i,
+                    rect: r,
+                });
             }
         }
         for (a, &(i, ra)) in rects.iter().enumerate() {
@@ -275,12 +277,60 @@ impl Layout {
                     || ra.y + ra.height <= rb.y
                     || rb.y + rb.height <= ra.y;
                 if !disjoint {
-                    return Err(format!("instances {i} and {j} overlap: {ra:?} / {rb:?}"));
+                    return Err(BadLayout::Overlap {
+                        instances: [i, j],
+                        rects: [ra, rb],
+                    });
                 }
             }
         }
         Ok(())
     }
+}
+
+/// What [`Layout::validate`] found wrong with a layout.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BadLayout {
+    /// A lightmap UV outside [0, 1].
+    #[error("mesh {mesh}: lightmap UV {index} = {uv} is outside [0, 1]")]
+    UvOutside {
+        /// The mesh.
+        mesh: usize,
+        /// The vertex.
+        index: usize,
+        /// Its UV.
+        uv: Vec2,
+    },
+    /// The per-triangle chart list does not have one entry per triangle.
+    #[error("mesh {mesh}: its chart list does not match its triangles")]
+    Charts {
+        /// The mesh.
+        mesh: usize,
+    },
+    /// An instance's rectangle names a page the layout does not have.
+    #[error("instance {instance}: page {page} does not exist")]
+    NoPage {
+        /// The instance.
+        instance: usize,
+        /// The page it names.
+        page: u32,
+    },
+    /// An instance's rectangle reaches past its page's edge.
+    #[error("instance {instance}: its rectangle {rect:?} leaves its page")]
+    OffPage {
+        /// The instance.
+        instance: usize,
+        /// Its rectangle, texels.
+        rect: InstanceRect,
+    },
+    /// Two instances' rectangles overlap.
+    #[error("instances {} and {} overlap: {:?} / {:?}", instances[0], instances[1], rects[0], rects[1])]
+    Overlap {
+        /// The two instances.
+        instances: [usize; 2],
+        /// Their rectangles, texels.
+        rects: [InstanceRect; 2],
+    },
 }
 
 /// World-area scale of `mesh` under an instance transform: sqrt(world area / local area).
@@ -478,6 +528,33 @@ mod tests {
         let floor = s.meshes.iter().position(|m| m.name == "floor").unwrap();
         let u = layout.meshes[floor].as_ref().unwrap();
         assert!(u.width >= 60 && u.width <= 90, "{}", u.width);
+    }
+
+    #[test]
+    fn a_broken_layout_names_what_is_wrong() {
+        let s = cornell_box(CornellLight::Area);
+        let layout = unwrap_scene(&s, &BakeSettings::default(), 64.0).unwrap();
+        let mut overlapping = layout.clone();
+        overlapping.instances[1] = overlapping.instances[0];
+        assert_eq!(
+            overlapping.validate(),
+            Err(BadLayout::Overlap {
+                instances: [0, 1],
+                rects: [layout.instances[0].unwrap(); 2],
+            })
+        );
+        let mut outside = layout.clone();
+        let r = outside.instances[2].as_mut().unwrap();
+        r.x = outside.pages[0].width;
+        let err = outside.validate().unwrap_err();
+        assert!(
+            matches!(err, BadLayout::OffPage { instance: 2, .. }),
+            "{err}"
+        );
+        assert!(
+            err.to_string().starts_with("instance 2: its rectangle"),
+            "{err}"
+        );
     }
 
     #[test]
