@@ -5,13 +5,15 @@
 //!    exact world area of every covered texel and its representative point.
 //! 2. [`surface`]: lightmap-space points → world surface points.
 //! 3. [`validity`] (after the BVH exists): texels inside or behind geometry are moved out or
-//!    marked invalid; texels next to geometry are flagged.
+//!    marked invalid; texels next to geometry are flagged. `open_plane` answers its short
+//!    probes without rays where nothing near can meet them.
 //! 4. [`footprint`]: the points of a texel's footprint that the lighting passes sample.
 //!
 //! [`persist`] writes the patches to bytes and reads them back (for bakes split across
 //! processes).
 
 pub mod footprint;
+mod open_plane;
 pub mod persist;
 pub mod rasterize;
 pub mod surface;

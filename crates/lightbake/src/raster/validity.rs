@@ -23,6 +23,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::open_plane::short_probes_meet_nothing;
 use super::{Patch, Patches, Surface, SurfacePoint};
 use crate::bvh::RayScene;
 use crate::sampling::{basis, cosine_hemisphere, hash_words, sobol_02};
@@ -164,6 +165,16 @@ fn nearest_back_face(
         }
     }
     exit
+}
+
+/// Whether geometry hangs within `reach` above `points` of a patch's footprint (short probes
+/// along the normal, up to the first hit).
+fn hangs_over(points: &[SurfacePoint], rays: &RayScene, reach: f32, used: &mut u64) -> bool {
+    points.iter().any(|sp| {
+        *used += 1;
+        let o = rays.offset(sp.position, sp.geometric_normal);
+        rays.occluded(o, sp.geometric_normal, 0.0, reach)
+    })
 }
 
 /// What [`is_open`] found at a point.
@@ -406,10 +417,11 @@ impl Patches {
     ) -> Probed {
         let mut used = 0u64;
         let reach = 1.5 * p.texel_size;
-        let (mut near, exit) = if self.in_open_plane(p, layout, surface, rays, reach) {
+        let points: Vec<SurfacePoint> = self.normal_probe_points(p, layout, surface).collect();
+        let (mut near, exit) = if short_probes_meet_nothing(rays, p, reach, &points) {
             (false, None)
         } else {
-            let mut near = self.hangs_over(p, layout, surface, rays, reach, &mut used);
+            let mut near = hangs_over(&points, rays, reach, &mut used);
             let exit = nearest_back_face(p, rays, reach, &mut near, &mut used);
             (near, exit)
         };
@@ -463,69 +475,10 @@ impl Patches {
         }
     }
 
-    /// Whether the short probes of `p` (along the surface from its lifted centre, along the
-    /// normal from points of its footprint, within `reach`) can hit nothing, found without
-    /// tracing them: no triangle within their reach crosses the heights they run at. The
-    /// probes would then find nothing near and no back face, which is what the caller takes.
-    ///
-    /// A probe leaves its point lifted by the ray offset ℓ ([`RayScene::offset`]), along the
-    /// surface (at heights ℓ ± its rounding, under 0.5ℓ) or along the normal (up from ℓ). So a
-    /// triangle in the ball around a tangent probe's reach meets it only if its vertices'
-    /// heights over the patch's plane span (0.2ℓ, 1.8ℓ), and one in the ball around the
-    /// normal probes only if a vertex rises above 0.2ℓ: the surface a texel lies on, and
-    /// everything below it, is never a candidate.
-    pub(crate) fn in_open_plane(
-        &self,
-        p: &Patch,
-        layout: &Layout,
-        surface: &Surface<'_>,
-        rays: &RayScene,
-        reach: f32,
-    ) -> bool {
-        let heights = |t: &[Vec3; 3], at: Vec3, n: Vec3| t.map(|v| (v - at).dot(n));
-        let (c, n) = (p.position, p.geometric_normal);
-        let lift = rays.epsilon(c);
-        let along = rays.any_triangle_within(c, reach + 2.0 * lift, |t| {
-            let h = heights(t, c, n);
-            h.iter().any(|&h| h > 0.2 * lift) && h.iter().any(|&h| h < 1.8 * lift)
-        });
-        if along {
-            return false;
-        }
-        // The probes from points on the patch's plane (within reach of its centre, at most
-        // 0.2ℓ off it, facing as it does) start above 0.5ℓ and rise: one ball holds all their
-        // segments (their two ends), and only a triangle with a vertex above 0.2ℓ can meet
-        // them. A probe point elsewhere (a stretched texel, a crease) gets a ball of its own,
-        // over its own plane.
-        let mid = c + n * (lift + 0.5 * reach);
-        let mut radius = 0.0f32;
-        for sp in self.normal_probe_points(p, layout, surface) {
-            let (at, g) = (sp.position, sp.geometric_normal);
-            let from = rays.offset(at, g);
-            let to = from + g * reach;
-            let on_plane =
-                at.distance(c) <= reach && (at - c).dot(n).abs() <= 0.2 * lift && g.dot(n) >= 0.999;
-            if on_plane {
-                radius = radius.max(from.distance(mid)).max(to.distance(mid));
-                continue;
-            }
-            let own = rays.epsilon(at);
-            let hit = rays.any_triangle_within(0.5 * (from + to), 0.5 * reach + 2.0 * own, |t| {
-                heights(t, at, g).iter().any(|&h| h > 0.2 * own)
-            });
-            if hit {
-                return false;
-            }
-        }
-        !rays.any_triangle_within(mid, radius + 2.0 * lift, |t| {
-            heights(t, c, n).iter().any(|&h| h > 0.2 * lift)
-        })
-    }
-
     /// The fast path against the rays it saves, for the tests: over every patch (before the
     /// validity pass), (patches whose short probes find nothing near and no back face,
-    /// patches [`Self::in_open_plane`] passes, those of them whose probes do find something:
-    /// must be none).
+    /// patches the fast path (`open_plane.rs`) passes, those of them whose probes do find
+    /// something: must be none).
     #[cfg(feature = "internals")]
     pub fn open_plane_check(&self, scene: &Scene, layout: &Layout, rays: &RayScene) -> [usize; 3] {
         let surface = Surface::new(scene, layout, rays);
@@ -534,9 +487,11 @@ impl Patches {
             .par_iter()
             .map(|p| {
                 let reach = 1.5 * p.texel_size;
-                let passed = self.in_open_plane(p, layout, &surface, rays, reach);
+                let points: Vec<SurfacePoint> =
+                    self.normal_probe_points(p, layout, &surface).collect();
+                let passed = short_probes_meet_nothing(rays, p, reach, &points);
                 let mut used = 0;
-                let mut near = self.hangs_over(p, layout, &surface, rays, reach, &mut used);
+                let mut near = hangs_over(&points, rays, reach, &mut used);
                 let found =
                     nearest_back_face(p, rays, reach, &mut near, &mut used).is_some() || near;
                 [!found, passed, passed && found]
@@ -678,24 +633,6 @@ impl Patches {
             let texel = Vec2::new((p.x - rect.x) as f32, (p.y - rect.y) as f32);
             let q = texel + sobol_02(k, p.rng(VALIDITY_SEED, 0x0e4a));
             footprint.iter().find_map(|&tri| surface.point(tri, q, 0.0))
-        })
-    }
-
-    /// Whether geometry hangs within `reach` above points of the patch's footprint (short
-    /// probes along the normal).
-    fn hangs_over(
-        &self,
-        p: &Patch,
-        layout: &Layout,
-        surface: &Surface<'_>,
-        rays: &RayScene,
-        reach: f32,
-        used: &mut u64,
-    ) -> bool {
-        self.normal_probe_points(p, layout, surface).any(|sp| {
-            *used += 1;
-            let o = rays.offset(sp.position, sp.geometric_normal);
-            rays.occluded(o, sp.geometric_normal, 0.0, reach)
         })
     }
 
