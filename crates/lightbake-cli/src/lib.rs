@@ -227,6 +227,13 @@ struct Args {
     /// shared out by each node's noise in a pilot.
     #[arg(long)]
     even_gather: bool,
+    /// The final gather through an irradiance cache of cells this many texels wide (a power
+    /// of two, 2 to 64), interpolated where the light is smooth; 0: every texel gathered.
+    #[arg(long, value_name = "TEXELS")]
+    gather_cache: Option<u32>,
+    /// The irradiance cache's accuracy (Ward's a; smaller: more gathers).
+    #[arg(long)]
+    cache_accuracy: Option<f32>,
     /// The edge-aware denoiser (default: off for preview, on for medium and high).
     #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
     denoise: Option<bool>,
@@ -366,6 +373,10 @@ fn settings_from(args: &Args) -> BakeSettings {
     set(&mut s.radiosity.transport_rays, args.transport_rays);
     set(&mut s.radiosity.cluster_texels, args.cluster_texels);
     set(&mut s.radiosity.cluster_rays, args.cluster_rays);
+    set(&mut s.radiosity.cache_spacing, args.gather_cache);
+    if let Some(a) = args.cache_accuracy {
+        s.radiosity.cache_accuracy = a;
+    }
     if let Some(v) = args.cluster_tolerance {
         s.radiosity.cluster_tolerance = v;
     }

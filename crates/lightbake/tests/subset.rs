@@ -90,6 +90,28 @@ fn a_subset_over_kept_values_of_the_same_input_gives_the_whole_bakes_bits() {
     assert_eq!(half.values(), values, "the values kept for a next run");
 }
 
+/// The final gather through the irradiance cache: each node's value reads only the records
+/// of the cells around it, so a subset run (and a split bake's shard) gets the whole bits.
+#[test]
+fn a_subset_with_the_irradiance_cache_gives_the_whole_bakes_bits() {
+    let scene = cornell_box(CornellLight::Point);
+    let mut s = density_at(BakeSettings::default(), 32.0);
+    s.radiosity.solver = SolverChoice::Hierarchical;
+    s.radiosity.cache_spacing = 4;
+    let whole = lightbake::bake(&scene, &s, &Progress::new()).unwrap();
+    let all = TexelRun::all();
+    assert_eq!(bits(&bake_over(&scene, &s, &all).pages), bits(&whole.pages));
+    let third = TexelRun::only(all.values(), |_, x, y| (x + 2 * y) % 3 == 0);
+    let out = bake_over(&scene, &s, &third);
+    assert_eq!(
+        bits(&out.pages),
+        bits(&whole.pages),
+        "a third of the texels"
+    );
+    let [computed, items] = third.computed();
+    assert!(computed < items, "computed {computed} of {items}");
+}
+
 #[test]
 fn texels_outside_the_subset_keep_the_earlier_runs_light() {
     let s = settings(64.0);

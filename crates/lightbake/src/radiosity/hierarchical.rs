@@ -379,10 +379,10 @@ pub fn final_gather(
                 return (Vec3::ZERO, 0.0);
             }
             closest.fetch_add(range.len() as u64, Ordering::Relaxed);
-            let (h, se, v) = monte_carlo::gather(ctx, mapper, nodes, i, range, stream, &grid);
-            visibility.fetch_add(v, Ordering::Relaxed);
+            let g = monte_carlo::gather(ctx, mapper, nodes, i, range, stream, &grid);
+            visibility.fetch_add(g.visibility, Ordering::Relaxed);
             progress.advance(1);
-            (h, se)
+            (g.h, g.se)
         })
         .unzip();
     let traced = GatherRays {

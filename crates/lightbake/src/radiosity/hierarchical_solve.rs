@@ -5,7 +5,8 @@
 //!    ([`hierarchical::coarse_solve`]);
 //! 2. **gather pilot** and **final gather**: H₁ at every node from the fine exitance, a pilot
 //!    first and then each node's rays by its noise ([`ray_allocation`]), or one pass of the
-//!    settings' rays;
+//!    settings' rays, or (`cache_spacing`) at the irradiance cache's records only, interpolated
+//!    between them ([`gather_cache`]);
 //! 3. **correction**: what the coarse level missed, ρ(H₁ − C), gathered once more;
 //! 4. **reflection**: near geometry, where the missed light is largest, the correction's own
 //!    reflection gathered too;
@@ -20,6 +21,7 @@ use std::ops::Range;
 use glam::Vec3;
 
 use super::error_estimate::HierarchicalFields;
+use super::gather_cache::{self, CacheOptions};
 use super::hierarchical::{self, Coarse, CoarseReport, Gather, GatherRays};
 use super::{HitMapper, Nodes, hierarchical_error, hierarchy_options, per_patch, ray_allocation};
 use crate::color::luminance;
@@ -316,6 +318,9 @@ fn final_gather<'p>(
     let rays = ctx.settings.radiosity.transport_rays;
     let run = |stage: Stage| StageRun { stage, round };
     let grid = (mapper, nodes);
+    if ctx.settings.radiosity.cache_spacing > 1 {
+        return cached_final_gather(ctx, grid, b, run(Stage::FinalGather), stages);
+    }
     let pilot = ray_allocation::pilot_rays(rays).filter(|_| ctx.settings.radiosity.adaptive_gather);
     let Some(pilot) = pilot else {
         let (light, error) = gather_stage(
@@ -386,6 +391,24 @@ fn gather_stage<'p>(
     stages: &mut impl StageRunner<'p>,
 ) -> Result<(Vec<Vec3>, Vec<f32>)> {
     let progress = stages.progress();
+    split_stage(
+        nodes,
+        run,
+        |only| hierarchical::final_gather(ctx, mapper, nodes, field, rays, gather, only, progress),
+        note,
+        stages,
+    )
+}
+
+/// A split stage `run` of one value per node: `compute(only)` gives the light and standard
+/// error at the nodes `only` marks (`None`: every node) and the rays it traced.
+fn split_stage<'p>(
+    nodes: &Nodes,
+    run: StageRun,
+    compute: impl Fn(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, GatherRays) + Sync,
+    note: impl FnOnce(GatherRays) -> String,
+    stages: &mut impl StageRunner<'p>,
+) -> Result<(Vec<Vec3>, Vec<f32>)> {
     let scope = stages.scope();
     let (h, se, visibility) = stages.run(run, nodes.len() as u64, || {
         let (values, traced) = scope.split(
@@ -393,9 +416,7 @@ fn gather_stage<'p>(
             nodes.len(),
             |i| nodes.patch[i] as usize,
             |only| {
-                let (h, se, traced) = hierarchical::final_gather(
-                    ctx, mapper, nodes, field, rays, gather, only, progress,
-                );
+                let (h, se, traced) = compute(only);
                 let values = h.into_iter().zip(se).collect();
                 (values, [traced.closest, traced.visibility])
             },
@@ -414,4 +435,76 @@ fn gather_stage<'p>(
     stages.annotate(RayKind::Closest, None);
     stages.shadow_rays(visibility);
     Ok((h, se))
+}
+
+/// The final gather H₁ from exitance `b` through the irradiance cache
+/// ([`gather_cache`]), as the split stage `run`.
+fn cached_final_gather<'p>(
+    ctx: &BakeContext<'_>,
+    (mapper, nodes): (&HitMapper<'_>, &Nodes),
+    b: &[Vec3],
+    run: StageRun,
+    stages: &mut impl StageRunner<'p>,
+) -> Result<FinalGather> {
+    let r = &ctx.settings.radiosity;
+    let options = CacheOptions {
+        spacing: r.cache_spacing,
+        accuracy: r.cache_accuracy,
+        spread: gather_cache::SPREAD,
+    };
+    let progress = stages.progress();
+    let counts = std::sync::Mutex::new(None);
+    let (light, error) = split_stage(
+        nodes,
+        run,
+        |only| {
+            let c = gather_cache::cached_gather(
+                ctx,
+                mapper,
+                nodes,
+                b,
+                r.transport_rays,
+                options,
+                only,
+                progress,
+            );
+            let traced = GatherRays {
+                closest: c.closest,
+                visibility: c.visibility,
+            };
+            let words = (c.record_count(), c.interpolated, c.records.clone());
+            *counts.lock().expect("no panic holds it") = Some(words);
+            (c.light, c.error, traced)
+        },
+        |traced| {
+            let per_level = counts
+                .lock()
+                .expect("no panic holds it")
+                .take()
+                .map_or_else(String::new, |(records, interpolated, levels)| {
+                    let levels: Vec<String> =
+                        levels.iter().map(|(e, k)| format!("{k} at {e}")).collect();
+                    format!(
+                        "irradiance cache: {records} records of {} rays ({}), {interpolated} nodes interpolated; ",
+                        r.transport_rays,
+                        levels.join(", "),
+                    )
+                });
+            format!(
+                "{per_level}{}",
+                gather_note("", traced).trim_start_matches(", ")
+            )
+        },
+        stages,
+    )?;
+    let words = format!(
+        "{} rays per record of an irradiance cache of {}-texel cells",
+        r.transport_rays, r.cache_spacing
+    );
+    Ok(FinalGather {
+        light,
+        error,
+        rays: None,
+        words,
+    })
 }

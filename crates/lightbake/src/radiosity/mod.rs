@@ -28,6 +28,7 @@
 //! | [`hierarchical`] | the coarse solve, its refinement and the per-texel final gather |
 //! | [`hierarchical_solve`] | one round of the hierarchical solve as stages: coarse level, final gather, correction, reflection, error |
 //! | [`ray_allocation`] | the final gather's rays per node, by each node's noise in a pilot |
+//! | [`gather_cache`] | the final gather at sparse records, interpolated between them (irradiance caching) |
 //! | [`error_estimate`] | the pass's estimate of its own error |
 //!
 //! The linear algebra (the matrix F and the matrix solvers) is [`crate::solve`].
@@ -37,6 +38,7 @@ pub mod clusters;
 pub mod coarse;
 pub mod error_estimate;
 pub mod exitance_grid;
+pub mod gather_cache;
 pub mod hemicube;
 pub mod hierarchical;
 pub mod hierarchical_solve;

@@ -222,11 +222,12 @@ pub fn gather_row(
 /// without forming the row (lux): (F·B)ᵢ of the matrix row those rays would make. The final
 /// gather of the hierarchical solve.
 ///
-/// Also returns the standard error of its luminance and the visibility rays of the start
-/// points. The error comes from [`GATHER_BLOCKS`] blocks of consecutive rays: each block of
-/// a (0, 2)-sequence of a power-of-two length is a stratified replicate of the whole, so the
-/// spread of the blocks' estimates is the stratified estimator's (the spread of single rays
-/// would overstate it); the variance of the mean is the blocks' sample variance / blocks.
+/// Also returns the standard error of its luminance, the visibility rays of the start points
+/// and the harmonic mean distance to the surfaces its rays hit. The error comes from
+/// [`GATHER_BLOCKS`] blocks of consecutive rays: each block of a (0, 2)-sequence of a
+/// power-of-two length is a stratified replicate of the whole, so the spread of the blocks'
+/// estimates is the stratified estimator's (the spread of single rays would overstate it); the
+/// variance of the mean is the blocks' sample variance / blocks.
 pub fn gather(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -235,8 +236,8 @@ pub fn gather(
     rays: Range<u32>,
     stream: u32,
     grid: &ExitanceGrid<'_>,
-) -> (Vec3, f32, u64) {
-    let (mut total, mut sum) = (0.0f32, Vec3::ZERO);
+) -> GatherSample {
+    let (mut total, mut sum, mut inverse) = (0.0f32, Vec3::ZERO, 0.0f64);
     let mut blocks = [(0.0f64, 0.0f64); GATHER_BLOCKS];
     let (first, len) = (rays.start, rays.len().max(1));
     let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, k| {
@@ -247,10 +248,36 @@ pub fn gather(
             let v = grid.at(&hit) * weight;
             sum += v;
             b.1 += luminance(v) as f64;
+            inverse += weight as f64 / (hit.t as f64).max(1e-6);
         }
     });
     let h = if total > 0.0 { sum / total } else { Vec3::ZERO };
-    (h, block_error(&blocks), visibility)
+    let distance = if inverse > 0.0 {
+        (total as f64 / inverse) as f32
+    } else {
+        f32::INFINITY
+    };
+    GatherSample {
+        h,
+        se: block_error(&blocks),
+        visibility,
+        distance,
+    }
+}
+
+/// One node's gather ([`gather`]).
+#[derive(Clone, Copy, Debug)]
+pub struct GatherSample {
+    /// The gathered irradiance, lux.
+    pub h: Vec3,
+    /// The standard error of its luminance, lux.
+    pub se: f32,
+    /// Any-hit rays: the visibility tests of its start points.
+    pub visibility: u64,
+    /// The harmonic mean distance to the surfaces its rays hit (escaped rays count as
+    /// infinitely far; `INFINITY` when none hit), m: Ward's record radius
+    /// ([`super::gather_cache`]).
+    pub distance: f32,
 }
 
 /// Blocks of a gather's rays for its error estimate (see [`gather`]).

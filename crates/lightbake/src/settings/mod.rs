@@ -449,7 +449,7 @@ mod tests {
     #[test]
     fn every_limit_is_checked_at_its_edge() {
         type Edit = fn(&mut BakeSettings, bool);
-        let edges: [(&str, Edit); 12] = [
+        let edges: [(&str, Edit); 14] = [
             ("layout.texel_budget", |s, out| {
                 s.layout.texel_budget = if out { 999 } else { 1_000 }
             }),
@@ -464,6 +464,12 @@ mod tests {
             }),
             ("radiosity.cluster_texels", |s, out| {
                 s.radiosity.cluster_texels = if out { 512 } else { 256 }
+            }),
+            ("radiosity.cache_spacing", |s, out| {
+                s.radiosity.cache_spacing = if out { 128 } else { 64 }
+            }),
+            ("radiosity.cache_accuracy", |s, out| {
+                s.radiosity.cache_accuracy = if out { 4.5 } else { 4.0 }
             }),
             ("radiosity.cluster_tolerance", |s, out| {
                 s.radiosity.cluster_tolerance = if out { 1.0 } else { 0.99 }
@@ -501,7 +507,7 @@ mod tests {
                 other => panic!("{name} past its limit: {other:?}"),
             }
         }
-        assert_eq!(BakeSettings::default().rules().len(), 27);
+        assert_eq!(BakeSettings::default().rules().len(), 29);
     }
 
     #[test]

@@ -7,6 +7,8 @@
 //! | `basis` | – | [`Basis`] | linear | linear | linear |
 //! | `transport_rays` | rays per node | 1..=65 536 | 32 | 128 | 256 |
 //! | `adaptive_gather` | – | bool | true | true | true |
+//! | `cache_spacing` | texels | 0 or a power of two, 2..=64 | 0 | 0 | 0 |
+//! | `cache_accuracy` | – | (0, 4] | 0.5 | 0.5 | 0.5 |
 //! | `cluster_texels` | texels | power of two, 1..=256 | 16 | 8 | 8 |
 //! | `cluster_rays` | rays per cell | 1..=65 536 | 64 | 128 | 128 |
 //! | `cluster_tolerance` | relative | (0, 1) | 0.02 | 0.01 | 0.005 |
@@ -37,6 +39,17 @@ pub struct RadiositySettings {
     /// noisy. Off: `transport_rays` at every node (the rays of the full matrix's rows).
     /// Needs `transport_rays` ≥ 16. Default on.
     pub adaptive_gather: bool,
+    /// The hierarchical solve's final gather through an irradiance cache (Ward, Rubinstein &
+    /// Clear 1988; module `radiosity::gather_cache`): gathered at the corners of cells of
+    /// this many texels, and at the corners of their quarters where the light or the
+    /// geometry changes within them, and interpolated between (`transport_rays` rays at each
+    /// record; `adaptive_gather` does not apply). 0: gathered at every node. A power of two,
+    /// 2..=64, or 0. Default 0.
+    pub cache_spacing: u32,
+    /// The irradiance cache's accuracy, Ward's a: a cell is interpolated when its diagonal
+    /// over the harmonic mean distance of each corner's rays, plus √(1 − n·n') of the
+    /// corners' normals, is at most this (smaller: more records). Range (0, 4]. Default 0.5.
+    pub cache_accuracy: f32,
     /// Hierarchical solve: edge of the first cut's cells, texels (a power of two,
     /// 1..=256); refinement splits them where the coarse solution is too coarse.
     /// Default 16 (preview), 8 (medium, high).
@@ -85,6 +98,8 @@ impl RadiositySettings {
             basis: Basis::Linear,
             transport_rays,
             adaptive_gather: true,
+            cache_spacing: 0,
+            cache_accuracy: 0.5,
             cluster_texels,
             cluster_rays,
             cluster_tolerance,
@@ -102,6 +117,24 @@ impl RadiositySettings {
             (
                 "radiosity.transport_rays",
                 Rule::count(self.transport_rays, 1, 65_536, ""),
+            ),
+            (
+                "radiosity.cache_spacing",
+                Rule::Holds {
+                    ok: self.cache_spacing == 0
+                        || (self.cache_spacing.is_power_of_two()
+                            && (2..=64).contains(&self.cache_spacing)),
+                    value: self.cache_spacing.to_string(),
+                    message: "must be 0 (no cache) or a power of two from 2 to 64 texels",
+                },
+            ),
+            (
+                "radiosity.cache_accuracy",
+                Rule::Holds {
+                    ok: self.cache_accuracy > 0.0 && self.cache_accuracy <= 4.0,
+                    value: self.cache_accuracy.to_string(),
+                    message: "must be above 0 and at most 4",
+                },
             ),
             (
                 "radiosity.cluster_texels",
