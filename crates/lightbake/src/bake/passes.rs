@@ -503,6 +503,13 @@ fn radiosity(
         ));
     }
     let solution = &rounds.value.solution;
+    if settings.radiosity.cache_spacing > 0 && rounds.value.coarse.is_none() {
+        warnings.push(format!(
+            "the irradiance cache (radiosity.cache_spacing, --gather-cache) is the hierarchical \
+             solve's final gather; the {} solver was chosen ({}), so every node was gathered",
+            solution.solver, rounds.value.plan.reason
+        ));
+    }
     if !solution.converged {
         warnings.push(format!(
             "the {} solver did not reach the tolerance {tolerance:.1e}: {}",

@@ -1,19 +1,22 @@
 //! Irradiance caching in the final gather: the gather made at a sparse set of texel nodes
 //! (the cache's *records*) and interpolated between them where the cache can tell the light
 //! varies smoothly (Ward, Rubinstein & Clear, "A ray tracing solution for diffuse
-//! interreflection", SIGGRAPH 1988; the record placement here is a quadtree over the texel
-//! grid, as in the final gathers of Unreal Lightmass and mental ray, rather than Ward's
-//! octree over space).
+//! interreflection", SIGGRAPH 1988). The records are placed by a quadtree over the texel
+//! grid, not by Ward's octree over space, so interpolation follows the lightmap's own
+//! reconstruction and never leaves a chart.
 //!
-//! Each lightmap page is cut into square cells of [`CacheOptions::spacing`] texels. A cell's
-//! four corner texels are gathered (rays `0..R` of each node's final-gather sequence, as the
-//! dense gather traces), and the cell is **interpolated** (the bilinear weights of its
-//! corners at every texel inside, the reconstruction the GPU makes between texels) when all
-//! of these hold:
+//! Each lightmap page is cut into square cells of [`CacheOptions::spacing`] texels. A cell is
+//! a **candidate** when, its edges included:
 //!
-//! 1. every texel of the cell, its edges included, is a node of one chart whose basis support
-//!    no geometry cuts (`Nodes::split`, `Nodes::sliver`): the cache never interpolates across
-//!    a chart's border, a contact or a texel under geometry;
+//! 1. at least two of its four corner texels are nodes, all of one chart, and every other
+//!    texel is either outside every chart or a node of that chart (a texel under geometry,
+//!    an invalid patch, stops it).
+//!
+//! A candidate's corners are gathered (rays `0..R` of each node's final-gather sequence, as
+//! the dense gather traces), and the cell is **interpolated** (the bilinear weights of its
+//! corners, renormalised over those present, at every texel inside: the reconstruction the
+//! GPU makes between texels) when also:
+//!
 //! 2. **Ward's error bound** holds at each corner k for the farthest texel of the cell:
 //!    d/R_k + √(1 − n_k·n_l) ≤ a, with d the cell's diagonal (m), R_k the harmonic mean
 //!    distance of the corner's rays to the surfaces they hit (the radius over which the
@@ -24,19 +27,24 @@
 //!    shadow edge of the reflected light between two corners (which the distances do not
 //!    see) splits the cell.
 //!
-//! A cell that fails is cut into four cells of half its edge, whose new corners are gathered
-//! in their turn; cells of one texel are all corners, so every node is either gathered or
-//! interpolated. A texel on the edge of two interpolated cells takes the smaller cell's
-//! value (the one nearer records), and the top cell first in (page, row, column) order
-//! between equals. Every decision reads only the records of its own cell, and the cells
-//! containing a node are all refined when the node is asked for, so a node's value does not
-//! depend on which others a process computes: a split bake's shards and a subset run give
-//! the bits of the whole bake.
+//! In an interpolated cell, the nodes whose support geometry cuts or whose texel lies under
+//! geometry (`Nodes::split`, `Nodes::sliver`: contacts) and the texels whose present corners
+//! weigh under [`MIN_WEIGHT`] are gathered as records of their own. A cell that fails is cut
+//! into four cells of half its edge, whose new corners are gathered in their turn; cells of
+//! one texel are all corners, so every node is either gathered or interpolated. A texel on
+//! the edge of two interpolated cells takes the smaller cell's value (the one nearer
+//! records), and the top cell first in (page, row, column) order between equals. Every
+//! decision reads only the records of its own cell, and the cells containing a node are all
+//! refined when the node is asked for, so a node's value does not depend on which others a
+//! process computes: a split bake's shards and a subset run give the bits of the whole bake.
 //!
 //! An interpolated node's standard error is that of the weighted corners,
-//! √(Σ w_k²·se_k²); the interpolation's own error is not in it, and the hierarchical solve's
-//! error estimate re-gathers sampled nodes, interpolated ones among them, and so measures it
-//! ([`super::error_estimate::hierarchical_error`]).
+//! √(Σ w_k²·se_k²). The hierarchical solve's error estimate re-gathers sampled nodes,
+//! interpolated ones among them ([`super::error_estimate::hierarchical_error`]), but the
+//! denoiser and the estimate after it read these per-texel errors, which take the corners'
+//! noise as independent where it is shared across the cell: on the Cornell box the estimate
+//! is 0.68× the measured error with the cache (docs/benchmarks.md), and the dense gather is
+//! the default.
 
 use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -149,8 +157,8 @@ pub fn cached_gather(
     };
     while !cells.is_empty() && !progress.is_cancelled() {
         let edge = cells[0].edge;
-        // Cells of one chart with no cut in them are candidates, whose corners are gathered;
-        // the rest are quartered at once (at one texel, every cell's corners are gathered).
+        // Cells of one chart with no texel under geometry are candidates, whose corners are
+        // gathered; the rest are quartered at once (at one texel, every corner is gathered).
         let (candidates, rest): (Vec<_>, Vec<_>) = cells
             .into_iter()
             .map(|c| (c, lattice.uniform(&c)))
@@ -366,7 +374,7 @@ type Corners = [Option<usize>; 4];
 
 /// Least weight of a cell's present corners at a texel for it to be interpolated: nearer a
 /// missing corner than this, the texel is a record of its own.
-const MIN_WEIGHT: f32 = 0.25;
+pub const MIN_WEIGHT: f32 = 0.25;
 
 /// The bilinear weights of cell `c`'s corners `k` at texel (x, y), renormalised over the
 /// corners present (zero at the missing one); `None` when they weigh under [`MIN_WEIGHT`].
