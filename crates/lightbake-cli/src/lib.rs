@@ -725,6 +725,8 @@ mod tests {
             "--no-contact-fit",
             "--no-stitch",
             "--even-gather",
+            "--gather-cache=16",
+            "--cache-accuracy=0.75",
             "--denoise=off",
             "--denoise-radius=5",
             "--irradiance-volume",

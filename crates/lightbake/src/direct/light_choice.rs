@@ -1,8 +1,9 @@
-//! One light per footprint sample, chosen for the texel: when more than
+//! Lights per footprint sample, chosen for the texel: when more than
 //! [`MANY_LIGHTS`](crate::lights::tree::MANY_LIGHTS) lights reach an instance, each footprint
-//! sample evaluates one light picked with probability in proportion to a weight the texel
-//! works out once, and divides by that probability (an unbiased estimate of the sum over the
-//! lights whenever every light that can reach the texel has a non-zero weight).
+//! sample evaluates [`PICKS_PER_SAMPLE`](crate::lights::tree::PICKS_PER_SAMPLE) lights, each
+//! picked with probability in proportion to a weight the texel works out once, and divides by
+//! that probability and the number of picks (an unbiased estimate of the sum over the lights
+//! whenever every light that can reach the texel has a non-zero weight).
 //!
 //! A light's weight is its unoccluded irradiance at two points of the texel (its
 //! representative point and its first footprint point), each traced with a shadow ray. The
@@ -25,9 +26,8 @@
 //! Distributions*, Technometrics 1995).
 //!
 //! The weights cost two shadow rays per light and texel, once: at most 2 ×
-//! [`PER_TEXEL_LIGHTS`](crate::lights::tree::PER_TEXEL_LIGHTS), no more than evaluating all of
-//! [`MANY_LIGHTS`](crate::lights::tree::MANY_LIGHTS) lights at 16 footprint samples. Beyond
-//! that many lights per instance the light tree picks instead.
+//! [`PER_TEXEL_LIGHTS`](crate::lights::tree::PER_TEXEL_LIGHTS). Beyond that many lights per
+//! instance the light tree picks instead, one light per sample.
 
 use glam::Vec2;
 

@@ -22,7 +22,7 @@ use crate::bvh::RayScene;
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::error_estimate::standard_error;
-use crate::lights::tree::{LightTree, MANY_LIGHTS, PER_TEXEL_LIGHTS};
+use crate::lights::tree::{LightTree, MANY_LIGHTS, PER_TEXEL_LIGHTS, PICKS_PER_SAMPLE};
 use crate::lights::{Emitters, LightSource, SceneDisc, sky};
 use crate::plan::BakePlan;
 use crate::progress::Progress;
@@ -315,8 +315,9 @@ fn texel_choice(
 
 /// Adds the light of every punctual and directional light the plan evaluates for `p` at
 /// footprint sample `s` (point `sp`, shadow rays from `origin`) to `e`, one light at a time,
-/// and the light of those baked indirect only to `realtime` as well. With many lights, one
-/// is picked: by the texel's `choice` when it has one, else from the light tree.
+/// and the light of those baked indirect only to `realtime` as well. With many lights, some
+/// are picked: [`PICKS_PER_SAMPLE`] by the texel's `choice` when it has one, else one from the
+/// light tree.
 #[allow(clippy::too_many_arguments)]
 fn add_lights(
     ctx: &Ctx<'_>,
@@ -359,18 +360,28 @@ fn add_lights(
     {
         add(li, 1.0);
     }
-    let u = unit_float(hash(
-        p.rng(ctx.settings.seed, stream::LIGHT_PICK) ^ s.wrapping_mul(0x9e37_79b9),
-    ));
-    let picked = match choice {
-        Some(c) => c.pick(u),
-        None => ctx.tree.pick(sp.position, sp.normal, u),
+    // A texel's own weights pick `PICKS_PER_SAMPLE` lights per sample (pick k of sample s is
+    // draw s·k + j of the texel's stream), each weighted 1/(k·p); the tree one.
+    let picks = if choice.is_some() {
+        PICKS_PER_SAMPLE
+    } else {
+        1
     };
-    if let Some((li, pdf)) = picked
-        && lights.binary_search(&li).is_ok()
-        && pdf > 0.0
-    {
-        add(li, 1.0 / pdf);
+    for j in 0..picks {
+        let draw = s.wrapping_mul(picks).wrapping_add(j);
+        let u = unit_float(hash(
+            p.rng(ctx.settings.seed, stream::LIGHT_PICK) ^ draw.wrapping_mul(0x9e37_79b9),
+        ));
+        let picked = match choice {
+            Some(c) => c.pick(u),
+            None => ctx.tree.pick(sp.position, sp.normal, u),
+        };
+        if let Some((li, pdf)) = picked
+            && lights.binary_search(&li).is_ok()
+            && pdf > 0.0
+        {
+            add(li, 1.0 / (picks as f32 * pdf));
+        }
     }
 }
 

@@ -3,7 +3,7 @@
 
 use super::texel_density::density_from_budget;
 use super::{DirectSource, PlannedSource, PlannedStage};
-use crate::lights::tree::{MANY_LIGHTS, PER_TEXEL_LIGHTS};
+use crate::lights::tree::{MANY_LIGHTS, PER_TEXEL_LIGHTS, PICKS_PER_SAMPLE};
 use crate::scene::Scene;
 use crate::settings::{BakeSettings, Basis, Method, SolverChoice};
 use crate::stage::Stage;
@@ -44,13 +44,20 @@ impl Facts<'_> {
             0.0
         };
         let lights = if self.lights > MANY_LIGHTS {
-            // One picked per sample, and the suns one by one.
-            1.0 + self
-                .scene
-                .lights
-                .iter()
-                .filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. }))
-                .count() as f64
+            // Picked per sample (four by the texel's weights, one from the tree), and the
+            // suns one by one.
+            let picks = if self.lights <= PER_TEXEL_LIGHTS {
+                PICKS_PER_SAMPLE as f64
+            } else {
+                1.0
+            };
+            picks
+                + self
+                    .scene
+                    .lights
+                    .iter()
+                    .filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. }))
+                    .count() as f64
         } else {
             self.lights as f64
         } + if self.area_lights { 1.0 } else { 0.0 };
@@ -232,7 +239,7 @@ impl Facts<'_> {
                     as_vpls.to_string()
                 } else if self.lights > MANY_LIGHTS {
                     format!(
-                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes one light instead of all: picked by the texel's own weights (each light's unoccluded light and its visibility from the texel) up to {PER_TEXEL_LIGHTS} lights, from a light tree (by power over distance²) beyond",
+                        "{} of {} light(s) reach baked instances; where more than {MANY_LIGHTS} reach one, each footprint sample takes some lights instead of all: {PICKS_PER_SAMPLE} picked by the texel's own weights (each light's unoccluded light and its visibility from the texel) up to {PER_TEXEL_LIGHTS} lights, one from a light tree (by power over distance²) beyond",
                         self.lights,
                         scene.lights.len()
                     )
