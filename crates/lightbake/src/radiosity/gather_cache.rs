@@ -317,9 +317,9 @@ impl Lattice<'_> {
     }
 
     /// Cell `c`'s corners when it may be interpolated as far as the texel grid can tell
-    /// (module docs, test 1): an edge of two texels or more, three corners or four that are
+    /// (module docs, test 1): an edge of two texels or more, two corners or more that are
     /// nodes of one chart, and every texel of the cell either outside every chart or a node
-    /// of that chart whose support no geometry cuts.
+    /// of that chart (a texel under geometry, an invalid patch, fails it).
     fn uniform(&self, c: &Cell) -> Option<Corners> {
         if c.edge < 2 {
             return None;
