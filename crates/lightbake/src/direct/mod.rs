@@ -360,8 +360,8 @@ fn add_lights(
     {
         add(li, 1.0);
     }
-    // A texel's own weights pick `PICKS_PER_SAMPLE` lights per sample (pick k of sample s is
-    // draw s·k + j of the texel's stream), each weighted 1/(k·p); the tree one.
+    // A texel's own weights pick k = `PICKS_PER_SAMPLE` lights per sample (pick j of sample s
+    // is draw s·k + j of the texel's stream), each weighted 1/(k·p); the tree picks one.
     let picks = if choice.is_some() {
         PICKS_PER_SAMPLE
     } else {
