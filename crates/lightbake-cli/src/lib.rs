@@ -157,6 +157,9 @@ struct Args {
     /// Instant radiosity: particles started from the lights.
     #[arg(long)]
     vpl_particles: Option<u32>,
+    /// Instant radiosity: VPLs each texel gathers through a lightcut (0: every VPL).
+    #[arg(long)]
+    vpl_cut: Option<u32>,
     /// Instant radiosity: choose the particle count to fit this many seconds of gathering.
     #[arg(long)]
     vpl_time_budget: Option<f64>,
@@ -395,6 +398,7 @@ fn settings_from(args: &Args) -> BakeSettings {
         args.stochastic_rays,
     );
     set(&mut s.vpl.particles, args.vpl_particles);
+    set(&mut s.vpl.cut_size, args.vpl_cut);
     s.vpl.time_budget_s = args.vpl_time_budget;
     s.vpl.sequence = args.vpl_sequence;
     s.vpl.clamp_distance = args.vpl_clamp;
@@ -704,6 +708,7 @@ mod tests {
             "--max-solver-iterations=11",
             "--stochastic-rays=13",
             "--vpl-particles=17",
+            "--vpl-cut=33",
             "--vpl-time-budget=1.5",
             "--vpl-sequence=jittered",
             "--vpl-clamp=0.5",

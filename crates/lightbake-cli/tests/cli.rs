@@ -248,6 +248,7 @@ fn convergence_study_writes_csv_markdown_and_plots() {
         "hierarchical-coarse",
         "hemicube",
         "vpl-hybrid",
+        "vpl-cut",
     ] {
         assert!(
             rows.iter().any(|r| r[0] == curve),

@@ -87,24 +87,32 @@ fn stages(c: &mut Criterion) {
         b.iter(|| black_box(direct_light(&ctx, &emitters, &Progress::new())))
     });
     let direct = lightbake::direct::direct_irradiance(&prepared.ctx());
-    let mut vpl_settings = settings.clone();
-    vpl_settings.method = Method::Hybrid;
-    vpl_settings.vpl.particles = 256;
-    let vpl_ctx = BakeContext {
-        settings: &vpl_settings,
-        ..ctx
-    };
-    g.bench_function("vpl_walk_and_gather_256", |b| {
-        b.iter(|| {
-            black_box(instant_radiosity(
-                &vpl_ctx,
-                &emitters,
-                false,
-                Some(&direct),
-                &Progress::new(),
-            ))
-        })
-    });
+    // Keller's gather of every VPL (256 particles), and lightcuts of 64 nodes over the VPLs
+    // of 16 384 particles.
+    for (name, particles, cut) in [
+        ("vpl_walk_and_gather_256", 256, 0),
+        ("vpl_walk_and_lightcuts_16384_cut_64", 16_384, 64),
+    ] {
+        let mut vpl_settings = settings.clone();
+        vpl_settings.method = Method::Hybrid;
+        vpl_settings.vpl.particles = particles;
+        vpl_settings.vpl.cut_size = cut;
+        let vpl_ctx = BakeContext {
+            settings: &vpl_settings,
+            ..ctx
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(instant_radiosity(
+                    &vpl_ctx,
+                    &emitters,
+                    false,
+                    Some(&direct),
+                    &Progress::new(),
+                ))
+            })
+        });
+    }
     let nodes = Nodes::new(&ctx, settings.radiosity.basis);
     // The re-gather reads a full-matrix solution (`auto` would take the hierarchical solve,
     // which runs as stages of its own).

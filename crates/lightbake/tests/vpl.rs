@@ -20,20 +20,22 @@ fn prepared(scene: &Scene, density: f32) -> Prepared {
     Prepared::new(scene, &s).unwrap()
 }
 
-/// VPL indirect irradiance (depth ≥ 1, as in method hybrid) per patch.
+/// VPL indirect irradiance (depth ≥ 1, as in method hybrid) per patch, by Keller's gather of
+/// every VPL at every texel unless `configure` sets a cut (`tests/lightcuts.rs`).
 fn vpl_indirect(
     prep: &Prepared,
     direct: &[Vec3],
     configure: impl Fn(&mut BakeSettings),
 ) -> Vec<Vec3> {
     let mut st = prep.settings.clone();
+    st.vpl.cut_size = 0;
     configure(&mut st);
     let ctx = BakeContext {
         settings: &st,
         ..prep.ctx()
     };
     let emitters = Emitters::collect(&prep.scene, &prep.rays);
-    instant_radiosity(&ctx, &emitters, false, Some(direct), &Progress::new()).0
+    instant_radiosity(&ctx, &emitters, false, Some(direct), &Progress::new()).irradiance
 }
 
 #[test]
@@ -386,10 +388,11 @@ fn a_near_field_over_the_memory_budget_falls_back_to_one_bounce_and_says_so() {
             settings: &st,
             ..prep.ctx()
         };
-        instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new())
+        let got = instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new());
+        (got.irradiance, got.report)
     };
-    let (full, full_report, _) = run(8192);
-    let (cut, cut_report, _) = run(1);
+    let (full, full_report) = run(8192);
+    let (cut, cut_report) = run(1);
     assert!(full_report.compensation_note.is_none());
     assert!(full_report.compensation_iterations > 1);
     let note = cut_report
@@ -405,7 +408,7 @@ fn a_near_field_over_the_memory_budget_falls_back_to_one_bounce_and_says_so() {
             settings: &st,
             ..prep.ctx()
         };
-        instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new()).0
+        instant_radiosity(&ctx, &emitters, false, Some(&direct), &Progress::new()).irradiance
     };
     println!(
         "indirect sums: clamped {:.1}, one bounce {:.1}, fixed point {:.1}",

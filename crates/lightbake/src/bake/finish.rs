@@ -28,6 +28,7 @@ use crate::raster::Patches;
 use crate::runner::StageRunner;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
+use crate::settings::Method;
 use crate::stage::Stage;
 use crate::unwrap::Layout;
 
@@ -180,10 +181,15 @@ pub(super) fn denoise_pages(
         finite::pages("denoise", scene, patches, &mut assembly.pages)?;
         lit.denoise = Some(st);
     } else {
-        lit.skipped.push((
-            Stage::Denoise,
-            "the indirect pass gives no per-texel noise estimate (only the hierarchical solve's gathers do)".to_string(),
-        ));
+        let why = if matches!(settings.method, Method::Vpl | Method::Hybrid) {
+            // Its per-texel noise (the cut's picks paired node by node) overstates the noise
+            // 1.4–2.4×; filtered that strongly, a floor's light crossed under a thin wall
+            // into the dark room and a 5° wedge lost 10% of its light (tests/stability.rs).
+            "instant radiosity's per-texel noise estimate overstates its noise, and filtering by it blurs light across walls"
+        } else {
+            "the indirect pass gives no per-texel noise estimate (only the hierarchical solve's gathers do)"
+        };
+        lit.skipped.push((Stage::Denoise, why.to_string()));
     }
     Ok(())
 }

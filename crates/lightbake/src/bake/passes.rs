@@ -16,10 +16,11 @@ use crate::progress::{Progress, RayKind};
 use crate::radiosity::hierarchical::CoarseReport;
 use crate::radiosity::{self, Nodes, RadiosityReport, hierarchical_solve};
 use crate::runner::{StageRunner, WorkScope};
+use crate::settings::vpl::MAX_CUT;
 use crate::settings::{BakeSettings, MAX_VPL_DEPTH, Method, SolverChoice};
 use crate::solve::{Solution, Transport};
 use crate::stage::{Stage, StageRun};
-use crate::vpl::{VplReport, instant_radiosity};
+use crate::vpl::{FromVpls, VplReport, instant_radiosity};
 
 /// What the lighting passes produced.
 pub(super) struct Lighting {
@@ -114,7 +115,11 @@ fn indirect(
     light: &mut Lighting,
 ) -> Result<()> {
     if matches!(ctx.settings.method, Method::Vpl | Method::Hybrid) {
-        let (from_vpls, report) = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
+        let FromVpls {
+            irradiance: from_vpls,
+            report,
+            ..
+        } = vpl(ctx, emitters, &light.irradiance, share, stages, warnings)?;
         for (e, v) in light.irradiance.iter_mut().zip(&from_vpls) {
             *e += *v;
         }
@@ -322,11 +327,11 @@ fn vpl(
     share: Option<f64>,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, VplReport)> {
+) -> Result<FromVpls> {
     let settings = ctx.settings;
     let vpl_only = settings.method == Method::Vpl;
     let progress = stages.progress();
-    let (from_vpls, report) = stages.run(Stage::Vpl, ctx.patches.patches.len() as u64, || {
+    let got = stages.run(Stage::Vpl, ctx.patches.patches.len() as u64, || {
         let direct = (!vpl_only).then_some(direct);
         let mut rays = 0;
         let rounds = until_target(
@@ -337,33 +342,41 @@ fn vpl(
                     settings: s,
                     ..*ctx
                 };
-                let (e, report, r) = instant_radiosity(&c, emitters, vpl_only, direct, progress);
-                rays += r;
-                let relative = report.error.relative_rms;
-                Ok(((e, report), Some(relative)))
+                let got = instant_radiosity(&c, emitters, vpl_only, direct, progress);
+                rays += got.rays;
+                let relative = got.report.error.relative_rms;
+                Ok((got, Some(relative)))
             },
-            |s, (_, report), factor| {
+            |s, FromVpls { report, .. }, factor| {
                 let next = scaled(report.particles, factor, 10_000_000);
+                if report.cut_size > 0 {
+                    s.vpl.cut_size = scaled(report.cut_size, factor, MAX_CUT);
+                }
                 s.vpl.particles = next;
                 s.vpl.time_budget_s = None;
                 next != report.particles
             },
         )?;
-        let note = vpl_note(&rounds.value.1, rounds.round);
+        let note = vpl_note(&rounds.value.report, rounds.round);
         Ok((rounds.value, rays, note))
     })?;
-    vpl_warnings(settings, &report, share, warnings);
-    stages.annotate(RayKind::Shadow, Some(report.error.clone()));
-    Ok((from_vpls, report))
+    vpl_warnings(settings, &got.report, share, warnings);
+    stages.annotate(RayKind::Shadow, Some(got.report.error.clone()));
+    Ok(got)
 }
 
 /// The instant-radiosity stage's note after `round` rounds.
 fn vpl_note(report: &VplReport, round: u32) -> String {
     format!(
-        "{} particles, {} VPLs (ρ̄ {:.3}), {:.1}% clamped{}{}",
+        "{} particles, {} VPLs (ρ̄ {:.3}){}, {:.1}% clamped{}{}",
         report.particles,
         report.vpls,
         report.mean_reflectivity,
+        if report.cut_size > 0 {
+            format!(", cuts of {} nodes", report.cut_size)
+        } else {
+            String::new()
+        },
         100.0 * report.clamped_fraction,
         if report.compensated {
             format!(

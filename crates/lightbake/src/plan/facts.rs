@@ -75,7 +75,14 @@ impl Facts<'_> {
                     + 4.0 * s.radiosity.cluster_rays as f64 / cluster
             }
             Method::Vpl | Method::Hybrid => {
-                2.0 * s.vpl.particles as f64
+                // Through cuts a texel traces one ray per node of its cut; Keller's gather
+                // one per VPL (about two per particle).
+                let gather = if s.vpl.cut_size > 0 {
+                    s.vpl.cut_size as f64 + self.lights as f64
+                } else {
+                    2.0 * s.vpl.particles as f64
+                };
+                gather
                     + if s.vpl.bias_compensation {
                         s.vpl.compensation_rays as f64
                     } else {
@@ -286,7 +293,10 @@ impl Facts<'_> {
         let particles = settings.vpl.time_budget_s.map_or_else(
             || format!("{} particles", settings.vpl.particles),
             |t| format!("particles for a {t} s gather"),
-        );
+        ) + &match settings.vpl.cut_size {
+            0 => ", every VPL gathered at every texel".to_string(),
+            c => format!(", gathered through lightcuts of {c} nodes"),
+        };
         let (run, why) = match settings.method {
             Method::Direct if all_black => (
                 false,

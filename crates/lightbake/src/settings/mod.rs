@@ -449,7 +449,7 @@ mod tests {
     #[test]
     fn every_limit_is_checked_at_its_edge() {
         type Edit = fn(&mut BakeSettings, bool);
-        let edges: [(&str, Edit); 14] = [
+        let edges: [(&str, Edit); 15] = [
             ("layout.texel_budget", |s, out| {
                 s.layout.texel_budget = if out { 999 } else { 1_000 }
             }),
@@ -480,6 +480,9 @@ mod tests {
             ("vpl.clamp_distance", |s, out| {
                 s.vpl.clamp_distance = Some(if out { f32::INFINITY } else { 1.0 })
             }),
+            ("vpl.cut_size", |s, out| {
+                s.vpl.cut_size = if out { 65_537 } else { 65_536 }
+            }),
             ("vpl.max_depth", |s, out| {
                 s.vpl.max_depth = if out {
                     MAX_VPL_DEPTH + 1
@@ -507,7 +510,7 @@ mod tests {
                 other => panic!("{name} past its limit: {other:?}"),
             }
         }
-        assert_eq!(BakeSettings::default().rules().len(), 29);
+        assert_eq!(BakeSettings::default().rules().len(), 30);
     }
 
     #[test]

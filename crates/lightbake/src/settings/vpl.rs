@@ -3,7 +3,8 @@
 //!
 //! | field | unit | range | preview | medium | high |
 //! |---|---|---|---|---|---|
-//! | `particles` | particles | 1..=10⁷ | 256 | 1024 | 4096 |
+//! | `particles` | particles | 1..=10⁷ | 16 384 | 65 536 | 262 144 |
+//! | `cut_size` | VPLs per texel | 0 (every VPL) or 1..=65 536 | 64 | 256 | 1024 |
 //! | `time_budget_s` | s | > 0 or none | none | none | none |
 //! | `sequence` | – | [`Sequence`] | scrambled Halton | scrambled Halton | scrambled Halton |
 //! | `clamp_distance` | m | > 0 or none (2% of the diagonal) | none | none | none |
@@ -15,13 +16,21 @@ use serde::{Deserialize, Serialize};
 
 use super::{MAX_VPL_DEPTH, Quality, Rule, Sequence};
 
+/// The largest cut ([`VplSettings::cut_size`]).
+pub const MAX_CUT: u32 = 65_536;
+
 /// How instant radiosity traces and gathers its virtual point lights.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct VplSettings {
     /// Particles started from the lights (N); about N/(1 − ρ̄) VPLs result.
-    /// Range 1..=10⁷. Default 1024 (medium), 256 (preview), 4096 (high).
+    /// Range 1..=10⁷. Default 65 536 (medium), 16 384 (preview), 262 144 (high).
     pub particles: u32,
+    /// Nodes of the VPL tree each texel gathers one VPL from (lightcuts: `vpl::cut`), so a
+    /// texel traces this many shadow rays however many VPLs there are; 0 gathers every VPL at
+    /// every texel (Keller's own gather, for the convergence study). Range 0..=65 536.
+    /// Default 256 (medium), 64 (preview), 1024 (high).
+    pub cut_size: u32,
     /// Choose N to fit this many seconds of gathering instead (measured against a pilot).
     /// Default none.
     pub time_budget_s: Option<f64>,
@@ -49,9 +58,14 @@ impl VplSettings {
     pub fn preset(quality: Quality) -> Self {
         Self {
             particles: match quality {
-                Quality::Preview => 256,
-                Quality::Medium => 1024,
-                Quality::High => 4096,
+                Quality::Preview => 16_384,
+                Quality::Medium => 65_536,
+                Quality::High => 262_144,
+            },
+            cut_size: match quality {
+                Quality::Preview => 64,
+                Quality::Medium => 256,
+                Quality::High => 1024,
             },
             time_budget_s: None,
             sequence: Sequence::ScrambledHalton,
@@ -69,6 +83,10 @@ impl VplSettings {
             (
                 "vpl.particles",
                 Rule::count(self.particles, 1, 10_000_000, ""),
+            ),
+            (
+                "vpl.cut_size",
+                Rule::count(self.cut_size, 0, MAX_CUT as u64, ""),
             ),
             (
                 "vpl.time_budget_s",

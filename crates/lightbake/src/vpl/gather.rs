@@ -20,15 +20,23 @@
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::cut::{Receivers, VplTree};
 use super::walk::{Vpl, VplKind};
 use crate::color::luminance;
 use crate::context::BakeContext;
 use crate::lights::LightSource;
 use crate::progress::Progress;
 use crate::raster::{Patch, SurfacePoint};
+use crate::sampling::{hash_words, unit_float};
 
 /// Texels per gather tile.
 const TILE: usize = 64;
+
+/// Texels that share one cut ([`gather_cut`]): neighbours in space facing about the same way.
+const CUT_TILE: usize = 32;
+
+/// Salt of the cut gather's picks.
+const CUT_SALT: u32 = 0x0c07_11e5;
 
 /// What the gather produced.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -46,6 +54,18 @@ pub struct Gathered {
     pub culled: u64,
 }
 
+impl Gathered {
+    /// No light at `n` patches.
+    fn dark(n: usize) -> Self {
+        Self {
+            irradiance: vec![Vec3::ZERO; n],
+            clamped: vec![Vec3::ZERO; n],
+            standard_error: vec![0.0; n],
+            ..Self::default()
+        }
+    }
+}
+
 /// Gathers `vpls` (made by `particles` particle paths) at every valid patch, with G clamped at
 /// `bound`.
 pub fn gather(
@@ -61,12 +81,7 @@ pub fn gather(
         .par_chunks(TILE)
         .map(|tile| {
             let g = if progress.is_cancelled() {
-                Gathered {
-                    irradiance: vec![Vec3::ZERO; tile.len()],
-                    clamped: vec![Vec3::ZERO; tile.len()],
-                    standard_error: vec![0.0; tile.len()],
-                    ..Gathered::default()
-                }
+                Gathered::dark(tile.len())
             } else {
                 gather_tile(ctx, vpls, particles, bound, tile)
             };
@@ -235,5 +250,205 @@ fn gather_tile(
         standard_error,
         shadow_rays: traced,
         culled,
+    }
+}
+
+/// Gathers `vpls` (made by `particles` particle paths) at every valid patch through cuts of
+/// at most `size` nodes of a [`VplTree`] ([`super::cut`]), G clamped at `bound`; the picks
+/// are indexed by (patch, node, `seed`). Punctual lights are evaluated exactly at every
+/// texel. The standard error per patch adds the picks' noise (one pick per node: adjacent
+/// nodes of the cut taken pairwise, the collapsed-strata estimate, which overstates rather
+/// than understates) and the particle paths' (Σ of each picked VPL's light squared over its
+/// probability: the paths taken as independent, each VPL as its own path).
+pub fn gather_cut(
+    ctx: &BakeContext<'_>,
+    vpls: &[Vpl],
+    particles: u32,
+    bound: f32,
+    size: usize,
+    seed: u32,
+    progress: &Progress,
+) -> Gathered {
+    let tree = VplTree::build(vpls);
+    let exact: Vec<&Vpl> = vpls
+        .iter()
+        .filter(|v| matches!(v.kind, VplKind::Punctual { .. }))
+        .collect();
+    let patches = &ctx.patches.patches;
+    let order = tile_order(patches);
+    let tiles: Vec<Gathered> = order
+        .par_chunks(CUT_TILE)
+        .map(|tile| {
+            let g = if progress.is_cancelled() {
+                Gathered::dark(tile.len())
+            } else {
+                let cut = CutGather {
+                    ctx,
+                    tree: &tree,
+                    exact: &exact,
+                    particles,
+                    bound,
+                    size,
+                    seed,
+                };
+                cut.tile(tile)
+            };
+            progress.advance(tile.len() as u64);
+            g
+        })
+        .collect();
+    let mut out = Gathered::dark(patches.len());
+    for (t, chunk) in tiles.into_iter().zip(order.chunks(CUT_TILE)) {
+        for (k, &i) in chunk.iter().enumerate() {
+            out.irradiance[i as usize] = t.irradiance[k];
+            out.clamped[i as usize] = t.clamped[k];
+            out.standard_error[i as usize] = t.standard_error[k];
+        }
+        out.shadow_rays += t.shadow_rays;
+        out.culled += t.culled;
+    }
+    out
+}
+
+/// The valid patches in the order tiles take them: by the axis their normal faces most, then
+/// along a Morton curve through the scene's box.
+fn tile_order(patches: &[Patch]) -> Vec<u32> {
+    let valid: Vec<u32> = (0..patches.len() as u32)
+        .filter(|&i| patches[i as usize].is_valid())
+        .collect();
+    let (lo, hi) = valid.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &i| {
+            let p = patches[i as usize].representative().position;
+            (lo.min(p), hi.max(p))
+        },
+    );
+    let scale = (hi - lo).max_element().max(1e-20);
+    let spread = |x: u32| -> u64 {
+        let mut v = x as u64 & 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        (v | v << 2) & 0x1249_2492_4924_9249
+    };
+    let key = |i: u32| -> (u8, u64, u32) {
+        let sp = patches[i as usize].representative();
+        let n = sp.normal;
+        let a = n.abs().max_position();
+        let face = (2 * a + usize::from(n[a] < 0.0)) as u8;
+        let q =
+            ((sp.position - lo) / scale * 2_097_151.0).clamp(Vec3::ZERO, Vec3::splat(2_097_151.0));
+        let m = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
+        (face, m, i)
+    };
+    let mut keyed: Vec<(u8, u64, u32)> = valid.into_iter().map(key).collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|k| k.2).collect()
+}
+
+/// What the cut gather of one tile reads.
+struct CutGather<'a> {
+    ctx: &'a BakeContext<'a>,
+    tree: &'a VplTree,
+    exact: &'a [&'a Vpl],
+    particles: u32,
+    bound: f32,
+    size: usize,
+    seed: u32,
+}
+
+impl CutGather<'_> {
+    /// The patches `tile` (indices, all valid) through one cut: node by node, each node's
+    /// picks for every texel of the tile in turn (one run of the VPLs in memory, shadow rays
+    /// from nearby points to nearby VPLs).
+    fn tile(&self, tile: &[u32]) -> Gathered {
+        let ctx = self.ctx;
+        let points: Vec<SurfacePoint> = tile
+            .iter()
+            .map(|&i| ctx.patches.patches[i as usize].representative())
+            .collect();
+        let origins: Vec<Vec3> = points
+            .iter()
+            .map(|sp| ctx.rays.offset(sp.position, sp.geometric_normal))
+            .collect();
+        let receivers = Receivers::around(points.iter().map(|sp| (sp.position, sp.normal)));
+        let cut = self.tree.cut(&receivers, self.size, self.bound);
+        let n = tile.len();
+        let mut out = Gathered::default();
+        let mut e = vec![DVec3::ZERO; n];
+        let mut lost = vec![DVec3::ZERO; n];
+        // Per texel: the picks' light (luminance) for the noise of the picks, paired node by
+        // node, and the paths' (Σ f²/p) with the picks' sum.
+        let mut strata = vec![0.0f64; n];
+        let mut pending: Vec<Option<f64>> = vec![None; n];
+        let mut paths = vec![0.0f64; n];
+        let mut sampled = vec![0.0f64; n];
+        let mut record = |r: &Received| match r {
+            Received::Culled => out.culled += 1,
+            Received::Hidden | Received::Light(..) => out.shadow_rays += 1,
+            Received::Coincident => {}
+        };
+        for v in self.exact {
+            for k in 0..n {
+                let r = receive(ctx, v, &points[k], origins[k], self.bound);
+                record(&r);
+                if let Received::Light(a, _) = r {
+                    e[k] += a.as_dvec3();
+                }
+            }
+        }
+        let mut picked: Vec<(Vpl, f32)> = Vec::with_capacity(n);
+        for &(at, _) in &cut {
+            let leaf = self.tree.is_leaf(at);
+            // Every texel's pick first, then their VPLs copied out: the loads are independent,
+            // so their cache misses overlap instead of each waiting behind a traced ray.
+            picked.clear();
+            picked.extend(tile.iter().map(|&i| {
+                let u = unit_float(hash_words(&[i, at, self.seed, CUT_SALT])) as f64;
+                let (vi, w) = self.tree.pick(at, u);
+                (*self.tree.leaf(vi), w)
+            }));
+            for (k, (v, w)) in picked.iter().enumerate() {
+                let w = *w;
+                let r = receive(ctx, v, &points[k], origins[k], self.bound);
+                record(&r);
+                let y = match r {
+                    Received::Light(a, clamped) => {
+                        e[k] += (a * w).as_dvec3();
+                        if let Some(c) = clamped {
+                            lost[k] += (c * w).as_dvec3();
+                        }
+                        let y = luminance(a) as f64;
+                        paths[k] += y * y * w as f64;
+                        y * w as f64
+                    }
+                    _ => 0.0,
+                };
+                sampled[k] += y;
+                if !leaf {
+                    // Collapsed strata: adjacent nodes of the cut taken as one stratum of two
+                    // picks, (y_a − y_b)² for the variance of their sum.
+                    pending[k] = match pending[k] {
+                        None => Some(y),
+                        Some(x) => {
+                            strata[k] += (x - y) * (x - y);
+                            None
+                        }
+                    };
+                }
+            }
+        }
+        let particles = self.particles.max(1) as f64;
+        out.standard_error = (0..n)
+            .map(|k| {
+                let odd = pending[k].map_or(0.0, |x| x * x);
+                let path_var = (paths[k] - sampled[k] * sampled[k] / particles).max(0.0);
+                (strata[k] + odd + path_var).sqrt() as f32
+            })
+            .collect();
+        out.irradiance = e.into_iter().map(|x| x.as_vec3()).collect();
+        out.clamped = lost.into_iter().map(|x| x.as_vec3()).collect();
+        out
     }
 }
