@@ -207,3 +207,28 @@ fn a_cut_of_zero_is_kellers_gather() {
     assert_eq!(vpl.cut_size, 16);
     assert!(vpl.shadow_rays + vpl.culled <= valid * 16, "{vpl:?}");
 }
+
+/// The memory plan counts the VPLs: ten million particles in the Cornell box (about 2.4 VPLs
+/// each) are refused before anything is traced, and the refusal names them.
+#[test]
+fn the_memory_plan_counts_the_vpls() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut s = common::settings(16.0, 4);
+    s.method = Method::Vpl;
+    s.memory_budget_mib = 2048;
+    s.vpl.particles = 10_000_000;
+    match lightbake::bake(&scene, &s, &Progress::new()) {
+        Err(lightbake::BakeError::OverMemoryBudget {
+            needed_mib,
+            breakdown,
+            ..
+        }) => {
+            println!("refused: {needed_mib:.0} MiB ({breakdown})");
+            assert!(breakdown.contains("virtual point lights"), "{breakdown}");
+            assert!(needed_mib > 2048.0);
+        }
+        other => panic!("not refused: {:?}", other.map(|o| o.report.vpl)),
+    }
+    s.vpl.particles = 65_536;
+    assert!(lightbake::bake(&scene, &s, &Progress::new()).is_ok());
+}

@@ -13,7 +13,7 @@ use crate::probes::VolumeGrid;
 use crate::report::Decision;
 use crate::runner::StageRunner;
 use crate::scene::Scene;
-use crate::settings::BakeSettings;
+use crate::settings::{BakeSettings, Method};
 use crate::stage::Stage;
 use crate::unwrap::{Layout, unwrap_scene};
 
@@ -142,6 +142,12 @@ pub(super) fn admit(
             ));
         }
         None => {}
+    }
+    if plan.runs(Stage::Indirect) && matches!(settings.method, Method::Vpl | Method::Hybrid) {
+        estimate = estimate.with(
+            "virtual point lights",
+            crate::vpl::expected_vpls(scene, settings) * crate::vpl::cut::BYTES_PER_VPL,
+        );
     }
     if previews.is_enabled() {
         // The direct light kept per patch (at most one per page texel, 12 bytes) and two

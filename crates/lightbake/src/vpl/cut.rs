@@ -35,6 +35,10 @@ use glam::Vec3;
 use super::walk::{Vpl, VplKind};
 use crate::color::luminance;
 
+/// Bytes per VPL while the cut gather runs: the VPL itself, its copy in leaf order, two tree
+/// nodes, its index and its prefix sum of power.
+pub const BYTES_PER_VPL: u64 = (2 * size_of::<Vpl>() + 2 * size_of::<Node>() + 4 + 8) as u64;
+
 /// Angles are widened by this much (radians) so rounding never drops a node that can reach.
 const ANGLE_SLACK: f32 = 1e-3;
 

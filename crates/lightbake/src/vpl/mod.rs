@@ -87,6 +87,29 @@ pub fn clamp_distance(ctx: &BakeContext<'_>) -> f32 {
         .max(1e-9)
 }
 
+/// The VPLs Keller's walk leaves for the settings' particles (an upper estimate for the
+/// memory plan): N·Σ ρ̄ᵏ over the reflections followed, ρ̄ the area-weighted mean albedo of
+/// the scene's instances (as [`walk::mean_reflectivity`] weighs it), plus the punctual lights.
+pub fn expected_vpls(scene: &crate::scene::Scene, s: &crate::settings::BakeSettings) -> u64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (i, inst) in scene.instances.iter().enumerate() {
+        let area = scene.instance_area(i) as f64;
+        let albedo = scene
+            .material_of(inst.mesh)
+            .mean_diffuse_albedo(&scene.textures);
+        num += luminance(albedo) as f64 * area;
+        den += area;
+    }
+    let rho = if den > 0.0 {
+        (num / den).clamp(0.0, 0.99)
+    } else {
+        0.0
+    };
+    let depth = s.vpl.max_depth.min(walk::MAX_DEPTH) as i32;
+    let per_particle: f64 = (0..=depth).map(|k| rho.powi(k)).sum();
+    (s.vpl.particles as f64 * per_particle).ceil() as u64 + scene.lights.len() as u64
+}
+
 /// Chooses N: the setting, or what fits the time budget at the measured shadow-ray rate.
 fn particle_count(
     ctx: &BakeContext<'_>,
