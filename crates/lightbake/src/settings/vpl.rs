@@ -4,7 +4,7 @@
 //! | field | unit | range | preview | medium | high |
 //! |---|---|---|---|---|---|
 //! | `particles` | particles | 1..=10⁷ | 16 384 | 65 536 | 262 144 |
-//! | `cut_size` | VPLs per texel | 0 (every VPL) or 1..=65 536 | 64 | 256 | 1024 |
+//! | `cut_size` | nodes (shadow rays per texel) | 0 (every VPL) or 1..=65 536 | 64 | 256 | 1024 |
 //! | `time_budget_s` | s | > 0 or none | none | none | none |
 //! | `sequence` | – | [`Sequence`] | scrambled Halton | scrambled Halton | scrambled Halton |
 //! | `clamp_distance` | m | > 0 or none (2% of the diagonal) | none | none | none |

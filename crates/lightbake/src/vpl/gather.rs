@@ -12,6 +12,10 @@
 //!
 //! Bias compensation restores the clamped energy ([`super::compensation`]).
 //!
+//! [`gather`] is Keller's gather of every VPL at every texel; [`gather_cut`] takes one VPL
+//! per node of a lightcut per texel ([`super::cut`]), 32 texels close in space and facing
+//! about the same way sharing one cut.
+//!
 //! Shadow rays are batched per tile of texels: each tile of 64 neighbouring texels (page
 //! order) visits every VPL in turn, so consecutive rays leave nearby points towards the same
 //! VPL. Before any ray is traced a VPL is culled when it lies behind the texel's surface, the

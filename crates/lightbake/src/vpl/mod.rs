@@ -6,7 +6,7 @@
 //! (`vpl.cut_size` 0, Keller's own gather).
 //!
 //! Measured with `bake --verify 1024` at the medium preset: the Cornell box 18.4% → 3.5% and
-//! the sunlit room 6.1% → 2.9% from the path tracer, in 5.6 → 2.0 s and 3.9 → 3.5 s, against
+//! the sunlit room 6.1% → 2.9% from the path tracer, in 5.9 → 2.1 s and 4.3 → 3.6 s, against
 //! Keller's gather of 1 024 particles (docs/benchmarks.md, "Instant radiosity").
 //!
 //! Two methods use it:
