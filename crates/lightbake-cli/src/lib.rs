@@ -160,7 +160,8 @@ struct Args {
     /// Instant radiosity: VPLs each texel gathers through a lightcut (0: every VPL).
     #[arg(long)]
     vpl_cut: Option<u32>,
-    /// Instant radiosity: choose the particle count to fit this many seconds of gathering.
+    /// Instant radiosity: fit the gather into this many seconds (sets the cut, or the particles
+    /// with --vpl-cut 0).
     #[arg(long)]
     vpl_time_budget: Option<f64>,
     /// Instant radiosity: number pattern of the walks.

@@ -55,6 +55,15 @@ fn through_cuts(prep: &Prepared, set: &VplSet, bound: f32, size: usize, seed: u3
     )
 }
 
+/// Method `vpl` at 16 texels/m with `particles` and cuts of `cut` nodes.
+fn vpl_settings(particles: u32, cut: u32) -> BakeSettings {
+    let mut s = common::settings(16.0, 4);
+    s.method = Method::Vpl;
+    s.vpl.particles = particles;
+    s.vpl.cut_size = cut;
+    s
+}
+
 /// Relative RMS difference of `a` from `b` over the valid patches (luminance).
 fn relative(prep: &Prepared, a: &[Vec3], b: &[Vec3]) -> f64 {
     let (mut num, mut den) = (0.0f64, 0.0f64);
@@ -187,10 +196,7 @@ fn instant_radiosity_at_its_defaults_is_within_five_percent_of_the_path_tracer()
 #[test]
 fn a_cut_of_zero_is_kellers_gather() {
     let scene = cornell_box(CornellLight::Area);
-    let mut s = common::settings(16.0, 4);
-    s.method = Method::Vpl;
-    s.vpl.particles = 256;
-    s.vpl.cut_size = 0;
+    let mut s = vpl_settings(256, 0);
     let out = common::bake(&scene, &s);
     let vpl = out.report.vpl.clone().unwrap();
     assert_eq!(vpl.cut_size, 0);
@@ -213,10 +219,8 @@ fn a_cut_of_zero_is_kellers_gather() {
 #[test]
 fn the_memory_plan_counts_the_vpls() {
     let scene = cornell_box(CornellLight::Area);
-    let mut s = common::settings(16.0, 4);
-    s.method = Method::Vpl;
+    let mut s = vpl_settings(10_000_000, 256);
     s.memory_budget_mib = 2048;
-    s.vpl.particles = 10_000_000;
     match lightbake::bake(&scene, &s, &Progress::new()) {
         Err(lightbake::BakeError::OverMemoryBudget {
             needed_mib,
@@ -231,4 +235,67 @@ fn the_memory_plan_counts_the_vpls() {
     }
     s.vpl.particles = 65_536;
     assert!(lightbake::bake(&scene, &s, &Progress::new()).is_ok());
+}
+
+/// A time budget sets the cut (from a pilot's time per shadow ray); the particles stay as set,
+/// so the memory the plan admitted for the VPLs holds; the report says so.
+#[test]
+fn a_time_budget_sets_the_cut_and_leaves_the_particles() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut s = vpl_settings(65_536, 256);
+    s.vpl.time_budget_s = Some(0.5);
+    let out = common::bake(&scene, &s);
+    let vpl = out.report.vpl.clone().unwrap();
+    println!(
+        "{} particles, cuts of {}: {}",
+        vpl.particles, vpl.cut_size, vpl.particles_reason
+    );
+    assert!(
+        (16..=lightbake::settings::vpl::MAX_CUT).contains(&vpl.cut_size),
+        "{vpl:?}"
+    );
+    assert_eq!(vpl.particles, s.vpl.particles);
+    assert!(
+        vpl.particles_reason.contains("cuts of"),
+        "{}",
+        vpl.particles_reason
+    );
+}
+
+/// A target error raises the cut (not the particles) until the estimate reaches its share;
+/// where the particles' own noise is above the target, the bake says it stopped short.
+#[test]
+fn a_target_error_raises_the_cut() {
+    let scene = cornell_box(CornellLight::Area);
+    let mut s = vpl_settings(65_536, 16);
+    let pilot = common::bake(&scene, &s);
+    let pilot_error = pilot.report.vpl.as_ref().unwrap().error.relative_rms;
+    assert!(pilot_error > 0.1, "the pilot is already at {pilot_error}");
+    s.target_error = Some(0.1);
+    let out = common::bake(&scene, &s);
+    let vpl = out.report.vpl.clone().unwrap();
+    println!(
+        "pilot: cuts of 16, {:.2}%; with the target: cuts of {}, {:.2}%",
+        100.0 * pilot_error,
+        vpl.cut_size,
+        100.0 * vpl.error.relative_rms
+    );
+    assert!(vpl.cut_size > 16 && vpl.particles == 65_536, "{vpl:?}");
+    assert!(vpl.error.relative_rms <= 0.1, "{vpl:?}");
+    assert!(
+        out.report
+            .warnings
+            .iter()
+            .all(|w| !w.contains("above its share"))
+    );
+    // 8 192 particles leave about 6% of noise in their paths, which no cut removes.
+    s.vpl.particles = 8192;
+    s.target_error = Some(0.03);
+    let out = common::bake(&scene, &s);
+    let warned = out
+        .report
+        .warnings
+        .iter()
+        .any(|w| w.contains("above its share"));
+    assert!(warned, "{:?}", out.report.warnings);
 }

@@ -348,12 +348,16 @@ fn vpl(
                 Ok((got, Some(relative)))
             },
             |s, FromVpls { report, .. }, factor| {
-                let next = scaled(report.particles, factor, 10_000_000);
-                if report.cut_size > 0 {
-                    s.vpl.cut_size = scaled(report.cut_size, factor, MAX_CUT);
-                }
-                s.vpl.particles = next;
                 s.vpl.time_budget_s = None;
+                if report.cut_size > 0 {
+                    // Through cuts the picks' noise is raised by the cut alone: more
+                    // particles would outgrow the memory the plan admitted for the VPLs.
+                    let next = scaled(report.cut_size, factor, MAX_CUT);
+                    s.vpl.cut_size = next;
+                    return next != report.cut_size;
+                }
+                let next = scaled(report.particles, factor, 10_000_000);
+                s.vpl.particles = next;
                 next != report.particles
             },
         )?;

@@ -31,8 +31,8 @@ pub struct VplSettings {
     /// every texel (Keller's own gather, for the convergence study). Range 0..=65 536.
     /// Default 256 (medium), 64 (preview), 1024 (high).
     pub cut_size: u32,
-    /// Choose N to fit this many seconds of gathering instead (measured against a pilot).
-    /// Default none.
+    /// Fit the gather into this many seconds (measured against a pilot): through cuts it sets
+    /// the cut and leaves N as set; with `cut_size` 0 it chooses N. Default none.
     pub time_budget_s: Option<f64>,
     /// The number pattern of the walks. Default [`Sequence::ScrambledHalton`] (plain Halton
     /// converges as fast but its higher bases are correlated at small N).

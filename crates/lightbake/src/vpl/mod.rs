@@ -110,15 +110,21 @@ pub fn expected_vpls(scene: &crate::scene::Scene, s: &crate::settings::BakeSetti
     (s.vpl.particles as f64 * per_particle).ceil() as u64 + scene.lights.len() as u64
 }
 
-/// Chooses N: the setting, or what fits the time budget at the measured shadow-ray rate.
+/// Chooses N and the cut: the settings, or what fits the time budget at the measured
+/// shadow-ray rate. Through cuts the budget sets the cut alone (a texel's rays), and N stays
+/// as set, so the memory the plan admitted for the VPLs holds.
 fn particle_count(
     ctx: &BakeContext<'_>,
     emitters: &Emitters,
     first_generation: bool,
-) -> (u32, String) {
+) -> (u32, u32, String) {
     let s = ctx.settings;
     let Some(budget) = s.vpl.time_budget_s else {
-        return (s.vpl.particles, "set in the settings".into());
+        return (
+            s.vpl.particles,
+            s.vpl.cut_size,
+            "set in the settings".into(),
+        );
     };
     // Pilot: a small walk and a gather over a sample of texels.
     let pilot = walk::walk(
@@ -154,16 +160,15 @@ fn particle_count(
     );
     let seconds = start.elapsed().as_secs_f64().max(1e-6);
     if s.vpl.cut_size > 0 {
-        // Through cuts a texel costs a ray per node of its cut however many VPLs there are:
-        // the budget sets the cut, and the particles follow at the preset's ratio.
+        // Through cuts a texel costs a ray per node of its cut however many VPLs there are.
         let per_ray = seconds / g.shadow_rays.max(1) as f64;
         let cut = (budget / (per_ray * patches.len().max(1) as f64)).floor();
         let cut = cut.clamp(16.0, crate::settings::vpl::MAX_CUT as f64) as u32;
-        let n = particles_for_cut(s.vpl.particles, s.vpl.cut_size, cut);
         return (
-            n,
+            s.vpl.particles,
+            cut,
             format!(
-                "time budget {budget} s at {:.1} ns per shadow ray: cuts of {cut} nodes",
+                "set in the settings; time budget {budget} s at {:.1} ns per shadow ray of Keller's gather: cuts of {cut} nodes",
                 per_ray * 1e9
             ),
         );
@@ -175,28 +180,13 @@ fn particle_count(
     let n = n.clamp(16.0, 1e7) as u32;
     (
         n,
+        0,
         format!(
             "time budget {budget} s at {:.2} µs per VPL–texel pair ({} shadow rays in the pilot)",
             seconds_per_pair * 1e6,
             g.shadow_rays
         ),
     )
-}
-
-/// The particles that go with a cut of `cut` nodes when the settings pair `particles` with
-/// `cut_size` (the same ratio).
-fn particles_for_cut(particles: u32, cut_size: u32, cut: u32) -> u32 {
-    (particles as f64 * cut as f64 / cut_size.max(1) as f64).clamp(16.0, 1e7) as u32
-}
-
-/// The cut the gather uses for `particles` particles: the setting, or, when a time budget
-/// chose the particles, the setting scaled as they were.
-fn cut_size(s: &crate::settings::BakeSettings, particles: u32) -> u32 {
-    if s.vpl.cut_size == 0 || s.vpl.time_budget_s.is_none() {
-        return s.vpl.cut_size;
-    }
-    let scaled = s.vpl.cut_size as f64 * particles as f64 / s.vpl.particles.max(1) as f64;
-    (scaled.round() as u32).clamp(16, crate::settings::vpl::MAX_CUT)
 }
 
 /// What instant radiosity gives the bake.
@@ -221,7 +211,7 @@ pub fn instant_radiosity(
     progress: &Progress,
 ) -> FromVpls {
     let s = ctx.settings;
-    let (particles, reason) = particle_count(ctx, emitters, first_generation);
+    let (particles, cut_size, reason) = particle_count(ctx, emitters, first_generation);
     let set = walk::walk(
         ctx.scene,
         ctx.rays,
@@ -237,7 +227,6 @@ pub fn instant_radiosity(
     let d_c = clamp_distance(ctx);
     let bound = 1.0 / (d_c * d_c);
     let start = Instant::now();
-    let cut_size = cut_size(s, particles);
     let gathered = if cut_size > 0 {
         gather::gather_cut(
             ctx,
