@@ -263,9 +263,8 @@ impl VplTree {
     }
 
     /// The cut for the group `r`: at most `size` nodes (or every leaf that can reach),
-    /// in leaf order, each with its bound (luminance, lux); `clamp` bounds the geometric
-    /// term (1/m²).
-    pub fn cut(&self, r: &Receivers, size: usize, clamp: f32) -> Vec<(u32, f32)> {
+    /// in leaf order; `clamp` bounds the geometric term (1/m²).
+    pub fn cut(&self, r: &Receivers, size: usize, clamp: f32) -> Vec<u32> {
         #[derive(PartialEq)]
         struct Entry(f32, u32);
         impl Eq for Entry {}
@@ -288,12 +287,12 @@ impl VplTree {
             }
         }
         while done.len() + heap.len() < size.max(1) {
-            let Some(Entry(b, at)) = heap.pop() else {
+            let Some(Entry(_, at)) = heap.pop() else {
                 break;
             };
             let node = &self.nodes[at as usize];
             if node.right == u32::MAX {
-                done.push((at, b));
+                done.push(at);
                 continue;
             }
             for child in [at + 1, node.right] {
@@ -303,8 +302,8 @@ impl VplTree {
                 }
             }
         }
-        done.extend(heap.into_iter().map(|e| (e.1, e.0)));
-        done.sort_unstable_by_key(|&(at, _)| self.nodes[at as usize].start);
+        done.extend(heap.into_iter().map(|e| e.1));
+        done.sort_unstable_by_key(|&at| self.nodes[at as usize].start);
         done
     }
 
@@ -372,10 +371,10 @@ mod tests {
             (0..4).map(|k| (Vec3::new(1.0, 0.5 + 0.1 * k as f32, 1.0), Vec3::NEG_X)),
         );
         let cut = tree.cut(&r, 10_000, 1e6);
-        assert!(cut.iter().all(|&(at, _)| tree.is_leaf(at)));
+        assert!(cut.iter().all(|&at| tree.is_leaf(at)));
         let mut seen: Vec<u32> = cut
             .iter()
-            .map(|&(at, _)| tree.original(tree.pick(at, 0.5).0))
+            .map(|&at| tree.original(tree.pick(at, 0.5).0))
             .collect();
         seen.sort_unstable();
         // Every wall VPL (in front, facing the texels) is in the cut.

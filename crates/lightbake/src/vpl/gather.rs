@@ -403,7 +403,7 @@ impl CutGather<'_> {
             }
         }
         let mut picked: Vec<(Vpl, f32)> = Vec::with_capacity(n);
-        for &(at, _) in &cut {
+        for &at in &cut {
             let leaf = self.tree.is_leaf(at);
             // Every texel's pick first, then their VPLs copied out: the loads are independent,
             // so their cache misses overlap instead of each waiting behind a traced ray.

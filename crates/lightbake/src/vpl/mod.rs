@@ -91,13 +91,11 @@ pub fn clamp_distance(ctx: &BakeContext<'_>) -> f32 {
 /// memory plan): N·Σ ρ̄ᵏ over the reflections followed, ρ̄ the area-weighted mean albedo of
 /// the scene's instances (as [`walk::mean_reflectivity`] weighs it), plus the punctual lights.
 pub fn expected_vpls(scene: &crate::scene::Scene, s: &crate::settings::BakeSettings) -> u64 {
+    let of_instance = walk::instance_reflectivity(scene);
     let (mut num, mut den) = (0.0f64, 0.0f64);
-    for (i, inst) in scene.instances.iter().enumerate() {
+    for i in 0..scene.instances.len() {
         let area = scene.instance_area(i) as f64;
-        let albedo = scene
-            .material_of(inst.mesh)
-            .mean_diffuse_albedo(&scene.textures);
-        num += luminance(albedo) as f64 * area;
+        num += of_instance(i) * area;
         den += area;
     }
     let rho = if den > 0.0 {

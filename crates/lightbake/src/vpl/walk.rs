@@ -103,22 +103,29 @@ pub fn albedo_at(scene: &Scene, rays: &RayScene, hit: &Hit) -> Vec3 {
 /// Keller's ρ̄: the area-weighted mean of the albedo's luminance over every triangle (each
 /// material's albedo averaged over its texture).
 pub fn mean_reflectivity(scene: &Scene, rays: &RayScene) -> f32 {
-    // Each material's mean albedo once (a textured material's mean reads its whole texture);
-    // meshes without a material take the default one.
+    let of_instance = instance_reflectivity(scene);
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for info in &rays.triangles {
+        num += of_instance(info.instance as usize) * info.area as f64;
+        den += info.area as f64;
+    }
+    if den > 0.0 { (num / den) as f32 } else { 0.0 }
+}
+
+/// The luminance of each instance's mean diffuse albedo, by instance index: each material's
+/// mean taken once (a textured material's mean reads its whole texture); meshes without a
+/// material take the default one.
+pub fn instance_reflectivity(scene: &Scene) -> impl Fn(usize) -> f64 + '_ {
     let of_material =
         |m: &crate::scene::Material| luminance(m.mean_diffuse_albedo(&scene.textures)) as f64;
     let materials: Vec<f64> = scene.materials.iter().map(of_material).collect();
     let default = of_material(&crate::scene::Material::default());
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for info in &rays.triangles {
-        let mesh = scene.instances[info.instance as usize].mesh;
-        let albedo = scene.meshes[mesh]
+    move |instance| {
+        let mesh = scene.instances[instance].mesh;
+        scene.meshes[mesh]
             .material
-            .map_or(default, |i| materials[i]);
-        num += albedo * info.area as f64;
-        den += info.area as f64;
+            .map_or(default, |i| materials[i])
     }
-    if den > 0.0 { (num / den) as f32 } else { 0.0 }
 }
 
 /// What drives the walk.
