@@ -24,7 +24,7 @@ pub const BYTES_PER_PATCH: u64 = size_of::<Patch>() as u64 + 2 * 4 + 4 + 12 + 12
 /// fill state.
 pub const BYTES_PER_PAGE_TEXEL: u64 = 4 + 12 + 1 + 1;
 /// Bytes per triangle in the ray-tracing structures: triangle data (36) and info (40), the
-/// four-wide BVH's nodes and leaf packets, and the binary builder's temporaries (312, from
+/// eight-wide BVH's nodes and leaf packets, and the binary builder's temporaries (312, from
 /// the peak RSS of a million-triangle bake in `benches/scale.rs`).
 pub const BYTES_PER_TRIANGLE: u64 = 36 + 40 + 312;
 /// The program itself: code, thread stacks and the allocator's own (the peak resident memory

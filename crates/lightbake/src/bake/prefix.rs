@@ -173,9 +173,10 @@ pub(super) fn bvh(
         let rays = early.unwrap_or_else(|| RayScene::build(baked_scene));
         let (nodes, packets, bytes) = rays.bvh_size();
         let note = format!(
-            "{} triangles, {nodes} nodes, {packets} leaf packets, {:.1} MiB{}",
+            "{} triangles, {nodes} eight-wide nodes, {packets} leaf packets, {:.1} MiB, traced with {}{}",
             rays.bvh_triangle_count(),
             bytes as f64 / 1048576.0,
+            if rays.traces_with_avx2() { "AVX2" } else { "SSE" },
             if reused {
                 " (built for the density pilot)"
             } else {

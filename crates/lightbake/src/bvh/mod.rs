@@ -1,7 +1,8 @@
 //! Ray queries against the world-space triangles of every instance: obvhs builds a binary
 //! PLOC tree (Meister & Bittner 2018) and optimises it by reinsertion; [`wide`] collapses it
-//! into a four-wide BVH traversed with SSE, testing four triangles at a time, so hits come back
-//! with barycentrics and the side that was hit.
+//! into an eight-wide BVH traversed with AVX2 where the CPU has it (SSE otherwise, with the
+//! same bits), testing four triangles at a time ([`packet`]), so hits come back with
+//! barycentrics and the side that was hit.
 //!
 //! Closest hit ([`RayScene::closest_hit`]) and any hit ([`RayScene::occluded`]) are
 //! single-ray calls; callers parallelise over texels with rayon.
@@ -11,6 +12,7 @@
 //! with the scene extent and with the magnitude of the coordinates (the float spacing there),
 //! so a 1 mm scene and a 10 km scene both trace without self-intersection or visible gaps.
 
+pub mod packet;
 pub mod watertight;
 pub mod wide;
 pub mod workload;
@@ -20,9 +22,14 @@ use std::time::Duration;
 use glam::Vec3;
 use obvhs::{BvhBuildParams, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
 
-use wide::{Bvh4, Ray4};
+use packet::Ray4;
+use wide::Bvh8;
 
 use crate::scene::{Scene, closest_on_triangle};
+
+/// The bit of a leaf lane's tag that marks a triangle of a mirroring instance (the bits below
+/// hold its global index).
+const MIRRORED: u32 = 1 << 31;
 
 /// What the baker knows about each world-space triangle (global order: instance by instance,
 /// triangles in mesh order).
@@ -78,13 +85,12 @@ pub struct Hit {
 
 /// The ray-tracing view of a scene.
 pub struct RayScene {
-    bvh: Bvh4,
-    /// Triangle vertices in BVH primitive order.
+    bvh: Bvh8,
+    /// World vertices per global triangle (zero for zero-area triangles, which are not in
+    /// the BVH).
     accel: Vec<[Vec3; 3]>,
-    /// BVH primitive order → global triangle index.
-    bvh_to_global: Vec<u32>,
-    /// Global triangle index → BVH primitive order (`u32::MAX` for zero-area triangles).
-    global_to_bvh: Vec<u32>,
+    /// Triangles in the BVH.
+    live_count: usize,
     /// Per global triangle.
     pub triangles: Vec<TriangleInfo>,
     /// First global triangle of each instance (length = instances + 1).
@@ -155,9 +161,24 @@ impl RayScene {
         let live: Vec<u32> = (0..triangles.len() as u32)
             .filter(|&i| triangles[i as usize].area > 0.0)
             .collect();
-        // Primitive k of the four-wide tree is live triangle k.
+        // Primitive k of the tree is live triangle k; its leaf lane holds its global index
+        // and whether its instance mirrors, so a hit needs no lookup to name the triangle and
+        // the side hit.
+        assert!(
+            triangles.len() < MIRRORED as usize,
+            "more than 2³¹ triangles for the BVH"
+        );
         let live_tris: Vec<[Vec3; 3]> = live.iter().map(|&g| world_tris[g as usize]).collect();
         drop(world_tris);
+        let tags: Vec<u32> = live
+            .iter()
+            .map(|&g| {
+                let inst = &scene.instances[triangles[g as usize].instance as usize];
+                let mirrored = inst.transform.matrix3.determinant() < 0.0;
+                g | if mirrored { MIRRORED } else { 0 }
+            })
+            .collect();
+        let live_count = live.len();
         let obvhs_tris: Vec<obvhs::triangle::Triangle> = live_tris
             .iter()
             .map(|p| obvhs::triangle::Triangle {
@@ -177,19 +198,17 @@ impl RayScene {
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         drop(obvhs_tris);
-        let bvh = Bvh4::collapse(&bvh2, &live_tris);
+        let bvh = Bvh8::collapse(&bvh2, &live_tris, &tags);
         let build_time = start.elapsed();
-        let bvh_to_global = live;
-        let accel = live_tris;
-        let mut global_to_bvh = vec![u32::MAX; triangles.len()];
-        for (k, &g) in bvh_to_global.iter().enumerate() {
-            global_to_bvh[g as usize] = k as u32;
+        drop(bvh2);
+        let mut accel = vec![[Vec3::ZERO; 3]; triangles.len()];
+        for (&g, tri) in live.iter().zip(live_tris) {
+            accel[g as usize] = tri;
         }
         Self {
             bvh,
             accel,
-            bvh_to_global,
-            global_to_bvh,
+            live_count,
             triangles,
             instance_first_triangle,
             bounds,
@@ -201,21 +220,27 @@ impl RayScene {
     /// World vertices of global triangle `g` (zero for zero-area triangles, which are not in
     /// the BVH).
     pub fn triangle_vertices(&self, g: u32) -> [Vec3; 3] {
-        match self.global_to_bvh.get(g as usize).copied() {
-            Some(k) if k != u32::MAX => self.accel[k as usize],
-            _ => [Vec3::ZERO; 3],
-        }
+        self.accel
+            .get(g as usize)
+            .copied()
+            .unwrap_or([Vec3::ZERO; 3])
     }
 
-    /// Four-wide nodes, leaf packets and bytes of the BVH.
+    /// Eight-wide nodes, leaf packets and bytes of the BVH.
     pub fn bvh_size(&self) -> (usize, usize, usize) {
         let (nodes, packets) = self.bvh.sizes();
         (nodes, packets, self.bvh.bytes())
     }
 
+    /// Whether rays are traced with AVX2 (this CPU has it) rather than SSE; both give the
+    /// same bits.
+    pub fn traces_with_avx2(&self) -> bool {
+        self.bvh.uses_avx2()
+    }
+
     /// Number of triangles in the BVH (zero-area ones excluded).
     pub fn bvh_triangle_count(&self) -> usize {
-        self.accel.len()
+        self.live_count
     }
 
     /// Distance to push a ray origin at `p` off its surface: 1e-6 of the scene extent plus
@@ -242,15 +267,16 @@ impl RayScene {
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let mut ray = Ray4::new(origin, dir, tmin, tmax);
-        let (k, t, u, v) = self.bvh.closest_hit(&mut ray)?;
-        let triangle = self.bvh_to_global[k as usize];
-        let normal = self.triangles[triangle as usize].normal;
+        let hit = self.bvh.closest_hit(&mut ray)?;
+        // The front is the counter-clockwise side of the mesh's own winding, which a
+        // mirroring instance turns over in the world.
+        let mirrored = hit.tag & MIRRORED != 0;
         Some(Hit {
-            t,
-            triangle,
-            u,
-            v,
-            front_face: normal.dot(dir) < 0.0,
+            t: hit.t,
+            triangle: hit.tag & !MIRRORED,
+            u: hit.u,
+            v: hit.v,
+            front_face: hit.ccw != mirrored,
         })
     }
 
@@ -271,11 +297,19 @@ impl RayScene {
         radius: f32,
         mut accept: impl FnMut(&[Vec3; 3]) -> bool,
     ) -> bool {
-        self.bvh.any_in_ball(center, radius, |k| {
-            let t = &self.accel[k as usize];
+        self.bvh.any_in_ball(center, radius, |tag| {
+            let t = &self.accel[(tag & !MIRRORED) as usize];
             accept(t)
                 && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
         })
+    }
+
+    /// Whether global triangle `g`'s instance mirrors (its stored normal is its world
+    /// winding's, turned over). For the checks.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
+    fn mirrored(&self, g: usize) -> bool {
+        let [a, b, c] = self.accel[g];
+        self.triangles[g].normal.dot((b - a).cross(c - a)) < 0.0
     }
 
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
@@ -289,17 +323,20 @@ impl RayScene {
     ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let shear = watertight::Shear::new(dir);
-        for (k, tri) in self.accel.iter().enumerate() {
+        for (g, tri) in self.accel.iter().enumerate() {
+            if self.triangles[g].area <= 0.0 {
+                continue;
+            }
             let limit = best.map_or(tmax, |b| b.t);
-            if let Some((t, u, v)) = watertight::intersect(tri, origin, &shear, tmin, limit) {
+            if let Some((t, u, v, ccw)) = watertight::intersect(tri, origin, &shear, tmin, limit) {
                 if best.is_none_or(|b| t < b.t) {
-                    let triangle = self.bvh_to_global[k];
+                    let triangle = g as u32;
                     best = Some(Hit {
                         t,
                         triangle,
                         u,
                         v,
-                        front_face: self.triangles[triangle as usize].normal.dot(dir) < 0.0,
+                        front_face: ccw != self.mirrored(g),
                     });
                 }
             }
@@ -314,20 +351,15 @@ impl RayScene {
     /// When an invariant is broken.
     #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
     pub fn validate(&self) {
-        self.bvh.validate(self.accel.len());
-        assert_eq!(self.bvh_to_global.len(), self.accel.len());
-        let mut seen = vec![false; self.triangles.len()];
-        for &g in &self.bvh_to_global {
-            assert!(!seen[g as usize], "triangle {g} appears twice in the BVH");
-            seen[g as usize] = true;
-        }
-        for (g, info) in self.triangles.iter().enumerate() {
-            assert_eq!(
-                seen[g],
-                info.area > 0.0,
-                "triangle {g} missing from the BVH"
-            );
-        }
+        let tags: Vec<u32> = self
+            .triangles
+            .iter()
+            .enumerate()
+            .filter(|(_, info)| info.area > 0.0)
+            .map(|(g, _)| g as u32 | if self.mirrored(g) { MIRRORED } else { 0 })
+            .collect();
+        assert_eq!(tags.len(), self.live_count);
+        self.bvh.validate(&tags);
     }
 }
 
@@ -352,6 +384,16 @@ mod tests {
             Affine3A::from_rotation_translation(
                 glam::Quat::from_rotation_x(0.7),
                 Vec3::new(0.05, 0.25, 0.0),
+            ),
+        ));
+        // And a mirrored copy: its front is the side its own winding names.
+        s.instances.push(Instance::new(
+            "mirrored grid",
+            g,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(-1.0, 1.0, 1.0),
+                glam::Quat::from_rotation_x(-0.9),
+                Vec3::new(-0.1, 0.35, 0.1),
             ),
         ));
         s
@@ -390,7 +432,7 @@ mod tests {
         let rs = RayScene::build(&s);
         rs.validate();
         let (lo, hi) = rs.bounds;
-        let mut hits = 0;
+        let (mut hits, mut mirrored_hits) = (0, 0);
         for i in 0..4000u32 {
             let r = |k: u32| unit_float(hash_words(&[i, k]));
             let origin = lo + (hi - lo) * Vec3::new(r(0), r(1), r(2));
@@ -413,6 +455,13 @@ mod tests {
                         assert!((a.u - b.u).abs() < 1e-5 && (a.v - b.v).abs() < 1e-5);
                         assert_eq!(a.front_face, b.front_face);
                     }
+                    // The side comes from the test's own sign; it agrees with the stored
+                    // normal wherever the ray is not grazing.
+                    let cos = rs.triangles[a.triangle as usize].normal.dot(dir);
+                    if cos.abs() > 1e-4 {
+                        assert_eq!(a.front_face, cos < 0.0, "ray {i}: {a:?}");
+                        mirrored_hits += usize::from(rs.mirrored(a.triangle as usize));
+                    }
                 }
                 (None, None) => {}
                 (a, b) => panic!("ray {i}: bvh {a:?} vs brute force {b:?}"),
@@ -420,6 +469,40 @@ mod tests {
             assert_eq!(rs.occluded(origin, dir, 0.0, tmax), b.is_some(), "ray {i}");
         }
         assert!(hits > 1000, "{hits} hits");
+        assert!(
+            mirrored_hits > 20,
+            "{mirrored_hits} hits on the mirrored grid"
+        );
+    }
+
+    /// The AVX2 traversal and the one for any x86-64 run the same operations in the same
+    /// order: the same hits to the bit.
+    #[test]
+    fn the_avx2_traversal_gives_the_portable_bits() {
+        let rs = RayScene::build(&random_scene());
+        let portable = rs.bvh.clone().without_avx2();
+        if !rs.bvh.uses_avx2() {
+            eprintln!("this CPU has no AVX2: nothing to compare");
+            return;
+        }
+        let (lo, hi) = rs.bounds;
+        let mut hits = 0;
+        for i in 0..20_000u32 {
+            let r = |k: u32| unit_float(hash_words(&[i, k, 5]));
+            let origin = lo + (hi - lo) * Vec3::new(r(0), r(1), r(2));
+            let dir = crate::sampling::uniform_cone(Vec3::Y, -1.0, sobol_02(i, 3));
+            let tmax = if i % 4 == 0 { 0.3 } else { f32::INFINITY };
+            let a = rs.bvh.closest_hit(&mut Ray4::new(origin, dir, 0.0, tmax));
+            let b = portable.closest_hit(&mut Ray4::new(origin, dir, 0.0, tmax));
+            let bits = |h: Option<packet::Hit4>| {
+                h.map(|h| (h.tag, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.ccw))
+            };
+            assert_eq!(bits(a), bits(b), "ray {i}");
+            hits += usize::from(a.is_some());
+            let occluded = |bvh: &Bvh8| bvh.occluded(&mut Ray4::new(origin, dir, 0.0, tmax));
+            assert_eq!(occluded(&rs.bvh), occluded(&portable), "ray {i}");
+        }
+        assert!(hits > 5000, "{hits} hits");
     }
 
     /// Gather ray 80 818 of the ray benchmark's workload crosses the shared edge of two of

@@ -1,8 +1,15 @@
-//! A four-wide BVH (the layout of Embree's SSE `BVH4`; Wald et al., "Embree: a kernel
-//! framework for efficient CPU ray tracing", 2014) collapsed from obvhs' binary PLOC tree,
-//! traversed four child boxes and four triangles at a time with glam's `Vec4` (SSE on x86-64,
-//! no `unsafe`); the triangles are tested with the watertight test of
-//! [`super::watertight`].
+//! An eight-wide BVH (the node layout of Embree's `BVH8`; Wald et al., "Embree: a kernel
+//! framework for efficient CPU ray tracing", 2014) collapsed from obvhs' binary PLOC tree:
+//! each node holds eight child boxes as structure of arrays, and leaves hold packets of four
+//! triangles tested with the watertight test of [`super::packet`].
+//!
+//! The traversal is written once, lane by lane over the eight boxes, and compiled twice: for
+//! any x86-64 (two SSE halves) and, where `is_x86_feature_detected!` finds AVX2, with AVX2
+//! (one 256-bit operation per step; chosen when the tree is built, so the build stays
+//! `x86-64-v2`). Both run the same IEEE operations in the same order (Rust never fuses a
+//! multiply and an add), so they give the same hits to the bit; a unit test in `bvh` checks
+//! it. When a node enters several children, the leaf packets among them are prefetched, so
+//! their cache misses overlap.
 //!
 //! Why not obvhs' own compressed wide BVH: its child boxes are quantised to bytes for GPUs,
 //! and decoding them (48 byte-to-float conversions per node) cost more than the slab tests on
@@ -15,10 +22,10 @@
 //! direction component inverts to ±`f32::MAX`, not to a small constant, so rays nearly along
 //! an axis keep their true slab distances.
 
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 use obvhs::bvh2::Bvh2;
 
-use super::watertight::{Shear, edge_functions_f64};
+use super::packet::{Hit4, Ray4, Tri4, intersect4, lane_vertices, pack};
 
 /// Most triangles in a leaf (in packets of four).
 pub const LEAF_SIZE: usize = 8;
@@ -29,8 +36,9 @@ const PACKET_BITS: u32 = 28;
 
 /// Stack entries a traversal needs on the machine stack; deeper trees use a heap stack.
 const INLINE_STACK: usize = 192;
-/// A smaller machine stack for shallow trees (see [`Bvh4::with_stack`]).
+/// Smaller machine stacks for shallower trees (see [`Bvh8::with_stack`]).
 const SMALL_STACK: usize = 16;
+const MEDIUM_STACK: usize = 48;
 
 /// Child reference: an inner node index, a leaf (`LEAF_BIT` | packet index) or `EMPTY`.
 const LEAF_BIT: u32 = 1 << 31;
@@ -39,93 +47,46 @@ const EMPTY: u32 = u32::MAX;
 /// Exit-distance scale 1 + 2γ₃ rounded up (γₙ = nε / (1 − nε), ε = 2⁻²⁴).
 const EXIT_SCALE: f32 = 1.0 + 4.0 * f32::EPSILON;
 
-/// Four child boxes, structure of arrays, and their references.
+/// Children per node.
+pub const WIDTH: usize = 8;
+
+/// `WIDTH` child boxes, structure of arrays, and their references.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub struct Node4 {
-    /// Lower corners of the four child boxes (x, y, z rows); `+∞` for an empty slot.
-    lo: [Vec4; 3],
+pub struct Node8 {
+    /// Lower corners of the child boxes (x, y, z rows); `+∞` for an empty slot.
+    lo: [[f32; WIDTH]; 3],
     /// Upper corners; `−∞` for an empty slot.
-    hi: [Vec4; 3],
+    hi: [[f32; WIDTH]; 3],
     /// Child references.
-    child: [u32; 4],
+    child: [u32; WIDTH],
 }
 
-/// Four triangles, structure of arrays: their three vertices, exactly as given (the
-/// watertight test needs the bits two triangles share on an edge to be the same).
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
-pub struct Tri4 {
-    v: [[Vec4; 3]; 3],
-    /// Primitive index of each lane (`u32::MAX` for padding lanes, whose vertices are zero).
-    id: [u32; 4],
-}
-
-/// A ray prepared for the slab tests and the watertight triangle test.
-#[derive(Clone, Copy, Debug)]
-pub struct Ray4 {
-    /// 1 / direction; ±`f32::MAX` where that overflows.
-    inv: [Vec4; 3],
-    org: [Vec4; 3],
-    /// The ray's frame for the triangle test.
-    shear: Shear,
-    /// The shear's factors, splatted.
-    s4: [Vec4; 3],
-    /// Per axis: the direction is negative (near planes are the upper corners).
-    neg: [bool; 3],
-    /// Entry bound.
-    pub tmin: f32,
-    /// Exit bound (shrinks as closer hits are found).
-    pub tmax: f32,
-}
-
-impl Ray4 {
-    /// A ray from `origin` along unit `dir` for t in [tmin, tmax].
-    #[inline]
-    pub fn new(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
-        let inv = |d: f32| {
-            let i = 1.0 / d;
-            if i.is_finite() {
-                i
-            } else {
-                f32::MAX.copysign(d)
-            }
-        };
-        let shear = Shear::new(dir);
-        Self {
-            inv: [dir.x, dir.y, dir.z].map(|d| Vec4::splat(inv(d))),
-            org: [origin.x, origin.y, origin.z].map(Vec4::splat),
-            shear,
-            s4: shear.s.map(Vec4::splat),
-            neg: [dir.x < 0.0, dir.y < 0.0, dir.z < 0.0],
-            tmin,
-            tmax,
-        }
-    }
-}
-
-/// The four-wide BVH over a triangle list (primitive ids index that list).
+/// The eight-wide BVH over a triangle list.
 #[derive(Clone, Debug, Default)]
-pub struct Bvh4 {
-    nodes: Vec<Node4>,
+pub struct Bvh8 {
+    nodes: Vec<Node8>,
     tris: Vec<Tri4>,
     /// Root reference (a leaf when the whole scene fits in one, `EMPTY` with no triangles).
     root: u32,
     /// Largest number of stack entries a traversal can need.
     stack_need: usize,
+    /// Traverse with AVX2 (the CPU has it, and [`Self::without_avx2`] was not called).
+    avx2: bool,
 }
 
-/// A hit in a [`Bvh4`]: (primitive id, t, u, v).
-pub type Hit4 = (u32, f32, f32, f32);
-
-impl Bvh4 {
-    /// Collapses obvhs' binary tree into four-wide nodes: each node opens the largest-area
-    /// inner child of its current set until it has four (the greedy surface-area collapse of
+impl Bvh8 {
+    /// Collapses obvhs' binary tree into eight-wide nodes: each node opens the largest-area
+    /// inner child of its current set until it has eight (the greedy surface-area collapse of
     /// Wald et al. 2008, "Getting rid of packets"); subtrees of at most [`LEAF_SIZE`] triangles
-    /// become one leaf packet. `tris[k]` are the vertices of primitive `k`.
-    pub fn collapse(bvh2: &Bvh2, tris: &[[Vec3; 3]]) -> Self {
+    /// become one leaf packet. `tris[k]` are the vertices of primitive `k`, and a hit on it
+    /// returns `tags[k]` (any value but `u32::MAX`), so the caller needs no lookup of its own.
+    pub fn collapse(bvh2: &Bvh2, tris: &[[Vec3; 3]], tags: &[u32]) -> Self {
+        assert_eq!(tris.len(), tags.len(), "one tag per triangle");
         let mut out = Self {
             root: EMPTY,
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::arch::is_x86_feature_detected!("avx2"),
             ..Self::default()
         };
         if bvh2.nodes.is_empty() || tris.is_empty() {
@@ -137,7 +98,7 @@ impl Bvh4 {
         out.nodes.reserve(tris.len() / 2 + 1);
         out.tris.reserve(tris.len() / 2 + 1);
         let mut need = 0;
-        out.root = out.emit(bvh2, &count, tris, 0, 1, &mut need);
+        out.root = out.emit(bvh2, &count, (tris, tags), 0, 1, &mut need);
         out.stack_need = need + 1;
         out
     }
@@ -148,7 +109,7 @@ impl Bvh4 {
         &mut self,
         bvh2: &Bvh2,
         count: &[u32],
-        tris: &[[Vec3; 3]],
+        tris: (&[[Vec3; 3]], &[u32]),
         b: usize,
         pending: usize,
         need: &mut usize,
@@ -158,15 +119,15 @@ impl Bvh4 {
             collect_prims(bvh2, b, &mut prims);
             let first = self.tris.len() as u32;
             assert!(first < 1 << PACKET_BITS, "too many triangles for the BVH");
-            let packets = prims.chunks(4).map(|chunk| pack(chunk, tris));
+            let packets = prims.chunks(4).map(|chunk| pack(chunk, tris.0, tris.1));
             self.tris.extend(packets);
             let count = self.tris.len() as u32 - first;
             return LEAF_BIT | ((count - 1) << PACKET_BITS) | first;
         }
-        // Open the largest-area inner child until there are four.
+        // Open the largest-area inner child until there are eight.
         let n = &bvh2.nodes[b];
         let mut kids = vec![n.first_index as usize, n.first_index as usize + 1];
-        while kids.len() < 4 {
+        while kids.len() < WIDTH {
             let open = kids
                 .iter()
                 .enumerate()
@@ -182,10 +143,10 @@ impl Bvh4 {
             kids.extend([first, first + 1]);
         }
         let index = self.nodes.len();
-        self.nodes.push(Node4 {
-            lo: [Vec4::INFINITY; 3],
-            hi: [Vec4::NEG_INFINITY; 3],
-            child: [EMPTY; 4],
+        self.nodes.push(Node8 {
+            lo: [[f32::INFINITY; WIDTH]; 3],
+            hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+            child: [EMPTY; WIDTH],
         });
         *need = (*need).max(pending + kids.len() - 1);
         for (lane, &k) in kids.iter().enumerate() {
@@ -209,14 +170,38 @@ impl Bvh4 {
         &self.tris[first..first + count]
     }
 
-    /// Number of four-wide nodes and leaf packets.
+    /// Asks the CPU to start loading child reference `r`'s node or first leaf packet.
+    #[inline(always)]
+    fn prefetch(&self, r: u32) {
+        if r & LEAF_BIT != 0 {
+            let first = (r & ((1 << PACKET_BITS) - 1)) as usize;
+            let count = ((r & !LEAF_BIT) >> PACKET_BITS) as usize + 1;
+            prefetch_lines(&self.tris[first], count * size_of::<Tri4>());
+        } else {
+            prefetch_lines(&self.nodes[r as usize], size_of::<Node8>());
+        }
+    }
+
+    /// The same tree traversed without AVX2 (to check that both paths give the same bits).
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
+    pub fn without_avx2(mut self) -> Self {
+        self.avx2 = false;
+        self
+    }
+
+    /// Whether queries use the AVX2 traversal.
+    pub fn uses_avx2(&self) -> bool {
+        self.avx2
+    }
+
+    /// Number of eight-wide nodes and leaf packets.
     pub fn sizes(&self) -> (usize, usize) {
         (self.nodes.len(), self.tris.len())
     }
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        self.nodes.len() * size_of::<Node4>() + self.tris.len() * size_of::<Tri4>()
+        self.nodes.len() * size_of::<Node8>() + self.tris.len() * size_of::<Tri4>()
     }
 
     /// Calls `leaf` on every triangle packet of the leaves the ray enters (closest hit when
@@ -227,8 +212,36 @@ impl Bvh4 {
         &self,
         ray: &mut Ray4,
         ordered: bool,
-        stack: &mut [(u32, f32)],
         mut leaf: impl FnMut(&Tri4, &mut Ray4) -> bool,
+    ) {
+        // The stack is zeroed on every ray, so it is no larger than the tree needs (zeroing
+        // `INLINE_STACK` entries for a shallow tree is a measurable share of a bake). No
+        // closure stands between here and the callers, so the AVX2 entry points compile all
+        // of it with AVX2.
+        if self.stack_need <= SMALL_STACK {
+            self.traverse_in(ray, ordered, &mut [(0, 0.0); SMALL_STACK], &mut leaf);
+        } else if self.stack_need <= MEDIUM_STACK {
+            self.traverse_in(ray, ordered, &mut [(0, 0.0); MEDIUM_STACK], &mut leaf);
+        } else if self.stack_need <= INLINE_STACK {
+            self.traverse_in(ray, ordered, &mut [(0, 0.0); INLINE_STACK], &mut leaf);
+        } else {
+            self.traverse_in(
+                ray,
+                ordered,
+                &mut vec![(0, 0.0); self.stack_need],
+                &mut leaf,
+            );
+        }
+    }
+
+    /// [`Self::traverse`] with a stack of at least `stack_need` entries.
+    #[inline(always)]
+    fn traverse_in(
+        &self,
+        ray: &mut Ray4,
+        ordered: bool,
+        stack: &mut [(u32, f32)],
+        leaf: &mut impl FnMut(&Tri4, &mut Ray4) -> bool,
     ) {
         if self.root == EMPTY {
             return;
@@ -248,10 +261,19 @@ impl Bvh4 {
                 let node = &self.nodes[r as usize];
                 let (near, mask) = node_hits(node, ray);
                 if mask != 0 {
-                    let near = near.to_array();
                     if mask.count_ones() == 1 {
                         r = node.child[mask.trailing_zeros() as usize];
                         continue;
+                    }
+                    // Start loading every child entered, so their cache misses overlap
+                    // instead of following one another.
+                    let mut m = mask;
+                    while m != 0 {
+                        let c = node.child[m.trailing_zeros() as usize];
+                        if c & LEAF_BIT != 0 {
+                            self.prefetch(c);
+                        }
+                        m &= m - 1;
                     }
                     if ordered && mask.count_ones() == 2 {
                         // The common case: two children, nearer one first.
@@ -262,9 +284,9 @@ impl Bvh4 {
                         sp += 1;
                         r = node.child[first];
                     } else if ordered {
-                        let mut order = [(0f32, 0u32); 4];
+                        let mut order = [(0f32, 0u32); WIDTH];
                         let mut k = 0;
-                        for lane in 0..4 {
+                        for lane in 0..WIDTH {
                             if mask & (1 << lane) != 0 {
                                 let item = (near[lane], node.child[lane]);
                                 let mut j = k;
@@ -321,6 +343,8 @@ impl Bvh4 {
         }
         if self.stack_need <= SMALL_STACK {
             on_stack::<SMALL_STACK, R>(f)
+        } else if self.stack_need <= MEDIUM_STACK {
+            on_stack::<MEDIUM_STACK, R>(f)
         } else if self.stack_need <= INLINE_STACK {
             on_stack::<INLINE_STACK, R>(f)
         } else {
@@ -330,29 +354,64 @@ impl Bvh4 {
 
     /// The closest hit with t in [ray.tmin, ray.tmax].
     #[inline]
+    #[allow(unsafe_code)] // the call to the AVX2 path
     pub fn closest_hit(&self, ray: &mut Ray4) -> Option<Hit4> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where `is_x86_feature_detected!` found AVX2.
+            return unsafe { self.closest_hit_avx2(ray) };
+        }
+        self.closest_hit_portable(ray)
+    }
+
+    /// [`Self::closest_hit`] compiled for AVX2: eight child boxes per instruction.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn closest_hit_avx2(&self, ray: &mut Ray4) -> Option<Hit4> {
+        self.closest_hit_portable(ray)
+    }
+
+    /// [`Self::occluded`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2(&self, ray: &mut Ray4) -> bool {
+        self.occluded_portable(ray)
+    }
+
+    /// [`Self::closest_hit`] for any x86-64 (two SSE halves per eight boxes); the AVX2 path
+    /// runs the same operations in the same order, so both give the same bits.
+    #[inline(always)]
+    fn closest_hit_portable(&self, ray: &mut Ray4) -> Option<Hit4> {
         let mut best = None;
-        self.with_stack(|stack| {
-            self.traverse(ray, true, stack, |tri, ray| {
-                if let Some(h) = intersect4(tri, ray) {
-                    ray.tmax = h.1;
-                    best = Some(h);
-                }
-                false
-            })
+        self.traverse(ray, true, |tri, ray| {
+            if let Some(h) = intersect4(tri, ray) {
+                ray.tmax = h.t;
+                best = Some(h);
+            }
+            false
         });
         best
     }
 
     /// Whether any primitive has a hit with t in [ray.tmin, ray.tmax].
     #[inline]
+    #[allow(unsafe_code)] // the call to the AVX2 path
     pub fn occluded(&self, ray: &mut Ray4) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where `is_x86_feature_detected!` found AVX2.
+            return unsafe { self.occluded_avx2(ray) };
+        }
+        self.occluded_portable(ray)
+    }
+
+    /// [`Self::occluded`] without AVX2.
+    #[inline(always)]
+    fn occluded_portable(&self, ray: &mut Ray4) -> bool {
         let mut hit = false;
-        self.with_stack(|stack| {
-            self.traverse(ray, false, stack, |tri, ray| {
-                hit = intersect4(tri, ray).is_some();
-                hit
-            })
+        self.traverse(ray, false, |tri, ray| {
+            hit = intersect4(tri, ray).is_some();
+            hit
         });
         hit
     }
@@ -364,10 +423,10 @@ impl Bvh4 {
         if self.root == EMPTY {
             return false;
         }
-        let c = [center.x, center.y, center.z].map(Vec4::splat);
-        let r2 = Vec4::splat(radius * radius);
+        let c = [center.x, center.y, center.z];
+        let r2 = radius * radius;
         // As in `traverse`: the current node is kept out of the stack, and of the children a
-        // node test enters, one becomes current and the others (at most three) are pushed.
+        // node test enters, one becomes current and the others (at most seven) are pushed.
         self.with_stack(|stack| {
             let mut sp = 0usize;
             let mut r = self.root;
@@ -384,14 +443,17 @@ impl Bvh4 {
                     let node = &self.nodes[r as usize];
                     // Squared distance from the centre to each child box (0 inside it; an
                     // empty slot's inverted box gives a distance beyond any radius).
-                    let mut d2 = Vec4::ZERO;
-                    for axis in 0..3 {
-                        let below = (node.lo[axis] - c[axis]).max(Vec4::ZERO);
-                        let above = (c[axis] - node.hi[axis]).max(Vec4::ZERO);
-                        let d = below + above;
-                        d2 += d * d;
+                    let mut mask = 0u32;
+                    for lane in 0..WIDTH {
+                        let mut d2 = 0.0;
+                        for axis in 0..3 {
+                            let below = (node.lo[axis][lane] - c[axis]).max(0.0);
+                            let above = (c[axis] - node.hi[axis][lane]).max(0.0);
+                            let d = below + above;
+                            d2 += d * d;
+                        }
+                        mask |= u32::from(d2 <= r2) << lane;
                     }
-                    let mut mask = d2.cmple(r2).bitmask();
                     if mask != 0 {
                         r = node.child[mask.trailing_zeros() as usize];
                         mask &= mask - 1;
@@ -418,8 +480,8 @@ impl Bvh4 {
     /// # Panics
     /// When an invariant is broken.
     #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
-    pub fn validate(&self, prim_count: usize) {
-        let mut seen = vec![false; prim_count];
+    pub fn validate(&self, tags: &[u32]) {
+        let mut seen = Vec::with_capacity(tags.len());
         if self.root != EMPTY {
             let (lo, hi, depth) = self.check(self.root, &mut seen, 1);
             assert!(lo.cmple(hi).all(), "root box is empty");
@@ -429,15 +491,25 @@ impl Bvh4 {
                 self.stack_need
             );
         }
-        for (k, s) in seen.iter().enumerate() {
-            assert!(s, "primitive {k} is in no leaf");
+        let mut want = tags.to_vec();
+        want.sort_unstable();
+        seen.sort_unstable();
+        assert_eq!(
+            seen.len(),
+            want.len(),
+            "{} lanes for {} triangles",
+            seen.len(),
+            want.len()
+        );
+        for (s, w) in seen.iter().zip(&want) {
+            assert_eq!(s, w, "a triangle is in no leaf or in two");
         }
     }
 
     /// Bounds of subtree `r` (checked against its parent by the caller) and the stack entries
     /// it needs with `pending` entries already waiting.
     #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
-    fn check(&self, r: u32, seen: &mut [bool], pending: usize) -> (Vec3, Vec3, usize) {
+    fn check(&self, r: u32, seen: &mut Vec<u32>, pending: usize) -> (Vec3, Vec3, usize) {
         if r & LEAF_BIT != 0 {
             let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
             for (t, lane) in self
@@ -449,8 +521,7 @@ impl Bvh4 {
                 if id == u32::MAX {
                     continue;
                 }
-                assert!(!seen[id as usize], "primitive {id} is in two leaves");
-                seen[id as usize] = true;
+                seen.push(id);
                 for v in lane_vertices(t, lane) {
                     lo = lo.min(v);
                     hi = hi.max(v);
@@ -462,7 +533,7 @@ impl Bvh4 {
         let live = node.child.iter().filter(|&&c| c != EMPTY).count();
         assert!(live >= 2, "node {r} has {live} children");
         let (mut lo, mut hi, mut depth) = (Vec3::INFINITY, Vec3::NEG_INFINITY, pending);
-        for lane in 0..4 {
+        for lane in 0..WIDTH {
             let c = node.child[lane];
             if c == EMPTY {
                 continue;
@@ -508,135 +579,71 @@ fn collect_prims(bvh2: &Bvh2, b: usize, out: &mut Vec<u32>) {
     }
 }
 
-/// Packs up to four triangles; unused lanes have zero vertices (their edge functions are all
-/// zero, so they never hit).
-fn pack(prims: &[u32], tris: &[[Vec3; 3]]) -> Tri4 {
-    debug_assert!(!prims.is_empty() && prims.len() <= LEAF_SIZE);
-    let mut t = Tri4 {
-        v: [[Vec4::ZERO; 3]; 3],
-        id: [u32::MAX; 4],
-    };
-    for (lane, &p) in prims.iter().enumerate() {
-        for (k, vertex) in tris[p as usize].iter().enumerate() {
-            for axis in 0..3 {
-                t.v[k][axis][lane] = vertex[axis];
-            }
+/// Asks the CPU to start loading the `bytes` bytes at `item` into its caches (a hint:
+/// nothing is read, so nothing can fault).
+#[inline(always)]
+#[allow(unsafe_code)]
+fn prefetch_lines<T>(item: &T, bytes: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (item as *const T).cast::<i8>();
+        let mut offset = 0;
+        while offset < bytes {
+            // SAFETY: PREFETCHT0 is a hint that never faults and reads no memory
+            // architecturally; the addresses are within `item`'s `bytes`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(offset)) };
+            offset += 64;
         }
-        t.id[lane] = p;
     }
-    t
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (item, bytes);
 }
 
-/// World vertices of lane `lane`.
-fn lane_vertices(t: &Tri4, lane: usize) -> [Vec3; 3] {
-    t.v.map(|v| Vec3::new(v[0][lane], v[1][lane], v[2][lane]))
-}
-
-/// Slab test of the four child boxes: entry distances and the mask of boxes whose
+/// Slab test of the child boxes: entry distances and the mask of boxes whose
 /// [entry, exit] meets [tmin, tmax].
 #[inline(always)]
-fn node_hits(node: &Node4, ray: &Ray4) -> (Vec4, u32) {
-    let slab = |axis: usize| {
-        let (near, far) = if ray.neg[axis] {
-            (node.hi[axis], node.lo[axis])
+fn node_hits(node: &Node8, ray: &Ray4) -> ([f32; WIDTH], u32) {
+    // `maxps`/`minps` semantics (the second operand when either is NaN), lane by lane.
+    let max = |a: f32, b: f32| if a > b { a } else { b };
+    let min = |a: f32, b: f32| if a < b { a } else { b };
+    let pick = |axis: usize| {
+        if ray.neg[axis] {
+            (&node.hi[axis], &node.lo[axis])
         } else {
-            (node.lo[axis], node.hi[axis])
-        };
-        (
-            (near - ray.org[axis]) * ray.inv[axis],
-            (far - ray.org[axis]) * ray.inv[axis],
-        )
-    };
-    let (nx, fx) = slab(0);
-    let (ny, fy) = slab(1);
-    let (nz, fz) = slab(2);
-    let enter = nx.max(ny).max(nz).max(Vec4::splat(ray.tmin));
-    let exit = (fx.min(fy).min(fz) * EXIT_SCALE).min(Vec4::splat(ray.tmax));
-    (enter, enter.cmple(exit).bitmask())
-}
-
-/// The watertight test ([`super::watertight`]) against four triangles at once: the nearest
-/// hit with t in [tmin, tmax], as (primitive id, t, u, v).
-#[inline(always)]
-fn intersect4(tri: &Tri4, ray: &Ray4) -> Option<Hit4> {
-    let [kx, ky, kz] = ray.shear.axes;
-    let [sx, sy, sz] = ray.s4;
-    // The vertices relative to the origin, sheared into the ray's frame.
-    let rel = |k: usize| {
-        let v = &tri.v[k];
-        let z = v[kz] - ray.org[kz];
-        (
-            v[kx] - ray.org[kx] - sx * z,
-            v[ky] - ray.org[ky] - sy * z,
-            z,
-        )
-    };
-    let (ax, ay, az) = rel(0);
-    let (bx, by, bz) = rel(1);
-    let (cx, cy, cz) = rel(2);
-    // The edge functions; exact zeros (a ray through an edge or a vertex) are redone in
-    // double precision.
-    let mut u = cx * by - cy * bx;
-    let mut v = ax * cy - ay * cx;
-    let mut w = bx * ay - by * ax;
-    let zero = (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask();
-    if zero != 0 {
-        (u, v, w) = redo_in_f64(tri, ray, zero, (u, v, w));
-    }
-    let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
-    let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
-    let det = u + v + w;
-    // t·det, compared scaled by |det| (signs folded in), so only lanes that hit pay for the
-    // division (as Embree's intersectors do).
-    let t = (u * az + v * bz + w * cz) * sz;
-    let sign = det.signum();
-    let abs_det = det.abs();
-    let t_abs = t * sign;
-    let inside = (negative & positive).bitmask() ^ 0b1111;
-    let ok = abs_det.cmpgt(Vec4::ZERO)
-        & abs_det.cmplt(Vec4::INFINITY)
-        & t_abs.cmpge(abs_det * ray.tmin)
-        & t_abs.cmple(abs_det * ray.tmax);
-    let mask = ok.bitmask() & inside;
-    if mask == 0 {
-        return None;
-    }
-    let inv = Vec4::ONE / det;
-    let (t, u, v) = (
-        (t * inv).to_array(),
-        (v * inv).to_array(),
-        (w * inv).to_array(),
-    );
-    let mut best: Option<Hit4> = None;
-    for lane in 0..4 {
-        if mask & (1 << lane) != 0 && best.is_none_or(|b| t[lane] < b.1) {
-            // The division may round just outside the interval the scaled test accepted.
-            let t = t[lane].clamp(ray.tmin, ray.tmax);
-            best = Some((tri.id[lane], t, u[lane], v[lane]));
+            (&node.lo[axis], &node.hi[axis])
         }
+    };
+    let (nx, fx) = pick(0);
+    let (ny, fy) = pick(1);
+    let (nz, fz) = pick(2);
+    let o = ray.o;
+    let inv = ray.inv;
+    let mut enter = [0f32; WIDTH];
+    let mut hit = [false; WIDTH];
+    for lane in 0..WIDTH {
+        let e = max(
+            max(
+                max((nx[lane] - o[0]) * inv[0], (ny[lane] - o[1]) * inv[1]),
+                (nz[lane] - o[2]) * inv[2],
+            ),
+            ray.tmin,
+        );
+        let x = min(
+            min(
+                min((fx[lane] - o[0]) * inv[0], (fy[lane] - o[1]) * inv[1]),
+                (fz[lane] - o[2]) * inv[2],
+            ) * EXIT_SCALE,
+            ray.tmax,
+        );
+        enter[lane] = e;
+        hit[lane] = e <= x;
     }
-    best
-}
-
-/// The edge functions of the lanes in `lanes` (a bit mask) recomputed in double precision;
-/// padding lanes keep theirs (zero: they never hit).
-#[cold]
-#[inline(never)]
-fn redo_in_f64(tri: &Tri4, ray: &Ray4, lanes: u32, uvw: (Vec4, Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
-    let (mut u, mut v, mut w) = (uvw.0.to_array(), uvw.1.to_array(), uvw.2.to_array());
-    let origin = Vec3::new(ray.org[0].x, ray.org[1].x, ray.org[2].x);
-    for lane in 0..4 {
-        if lanes & (1 << lane) == 0 || tri.id[lane] == u32::MAX {
-            continue;
-        }
-        let [a, b, c] = lane_vertices(tri, lane).map(|p| p - origin);
-        [u[lane], v[lane], w[lane]] = edge_functions_f64(&ray.shear, a, b, c);
+    let mut mask = 0;
+    for (lane, &h) in hit.iter().enumerate() {
+        mask |= u32::from(h) << lane;
     }
-    (
-        Vec4::from_array(u),
-        Vec4::from_array(v),
-        Vec4::from_array(w),
-    )
+    (enter, mask)
 }
 
 #[cfg(test)]
@@ -644,68 +651,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn packet_test_matches_one_triangle_at_a_time() {
-        let tris = [
-            [Vec3::ZERO, Vec3::X, Vec3::Y],
-            [
-                Vec3::new(0.0, 0.0, 1.0),
-                Vec3::new(1.0, 0.0, 1.0),
-                Vec3::new(0.0, 1.0, 1.0),
-            ],
-            [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO],
-        ];
-        let packet = pack(&[0, 1, 2], &tris);
-        // From below, the nearer triangle (z = 0) wins.
-        let ray = Ray4::new(Vec3::new(0.2, 0.3, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        let (id, t, u, v) = intersect4(&packet, &ray).unwrap();
-        assert_eq!(id, 0);
-        assert!((t - 1.0).abs() < 1e-6 && (u - 0.2).abs() < 1e-6 && (v - 0.3).abs() < 1e-6);
-        // From above, the z = 1 triangle; a short ray misses both; the degenerate lane never hits.
-        let ray = Ray4::new(Vec3::new(0.2, 0.3, 2.0), -Vec3::Z, 0.0, f32::INFINITY);
-        assert_eq!(intersect4(&packet, &ray).unwrap().0, 1);
-        let ray = Ray4::new(Vec3::new(0.2, 0.3, 2.0), -Vec3::Z, 0.0, 0.5);
-        assert!(intersect4(&packet, &ray).is_none());
-        let ray = Ray4::new(Vec3::new(0.0, 0.0, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        assert!(intersect4(&packet, &ray).is_some_and(|h| h.0 != 2));
-    }
-
-    #[test]
     fn axis_aligned_rays_keep_true_slab_distances() {
         // A ray along x with a tiny y component passes 1e-6 below a box's top face; obvhs'
         // inverse (±1/ε for |d| ≤ ε) would make the y slab end after 8 m and miss the box at
         // 20 m.
         let ray = Ray4::new(Vec3::ZERO, Vec3::new(1.0, 1e-9, 0.0), 0.0, f32::INFINITY);
-        let node = Node4 {
-            lo: [
-                Vec4::new(20.0, f32::INFINITY, f32::INFINITY, f32::INFINITY),
-                Vec4::new(-1.0, f32::INFINITY, f32::INFINITY, f32::INFINITY),
-                Vec4::new(-1.0, f32::INFINITY, f32::INFINITY, f32::INFINITY),
-            ],
-            hi: [
-                Vec4::new(
-                    21.0,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                ),
-                Vec4::new(
-                    1e-6,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                ),
-                Vec4::new(1.0, f32::NEG_INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY),
-            ],
-            child: [0, EMPTY, EMPTY, EMPTY],
+        // One child box in lane 0, the other lanes empty.
+        let one_box = |lo: [f32; 3], hi: [f32; 3]| {
+            let mut node = Node8 {
+                lo: [[f32::INFINITY; WIDTH]; 3],
+                hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+                child: [EMPTY; WIDTH],
+            };
+            for axis in 0..3 {
+                node.lo[axis][0] = lo[axis];
+                node.hi[axis][0] = hi[axis];
+            }
+            node.child[0] = 0;
+            node
         };
+        let node = one_box([20.0, -1.0, -1.0], [21.0, 1e-6, 1.0]);
         assert_eq!(node_hits(&node, &ray).1, 0b0001);
         // Exactly along an axis (zero components) and a flat box (zero thickness in x).
         let ray = Ray4::new(Vec3::new(-5.0, 0.5, 0.5), Vec3::X, 0.0, f32::INFINITY);
-        let mut flat = node;
-        flat.lo[0] = Vec4::new(3.0, f32::INFINITY, f32::INFINITY, f32::INFINITY);
-        flat.hi[0] = Vec4::new(3.0, f32::NEG_INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY);
-        flat.lo[1][0] = 0.0;
-        flat.hi[1][0] = 1.0;
+        let flat = one_box([3.0, 0.0, -1.0], [3.0, 1.0, 1.0]);
         assert_eq!(node_hits(&flat, &ray).1, 0b0001);
     }
 }
