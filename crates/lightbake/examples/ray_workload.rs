@@ -2,11 +2,15 @@
 //! `benches/trace.rs`, 100 000 incoherent gather rays and 100 000 shadow rays towards the
 //! ceiling light) as raw little-endian f32 files, and times our BVH on exactly those rays on
 //! one thread, so `benches/embree_compare.py` can trace the same triangles and rays with
-//! Embree 4 and print the ratio.
+//! Embree 4 and print the ratio. With a glTF scene as the second argument the workload is that
+//! scene's triangles (every instance), 100 000 gather rays from area-weighted surface points
+//! and 100 000 shadow rays between two such points.
 //!
 //! ```text
 //! cargo run --release -p lightbake --example ray_workload -- /tmp/rays
 //! python3 crates/lightbake/benches/embree_compare.py /tmp/rays
+//! cargo run --release -p lightbake --example ray_workload -- /tmp/office assets/corpus/office.gltf
+//! python3 crates/lightbake/benches/embree_compare.py /tmp/office
 //! ```
 //!
 //! Files: `triangles.f32` (9 floats per triangle: three vertices), `gather.f32` and
@@ -17,7 +21,8 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use lightbake::bvh::workload::{BenchRay, cornell_workload};
+use lightbake::LightConvention;
+use lightbake::bvh::workload::{BenchRay, cornell_workload, scene_workload};
 
 const RAYS: usize = 100_000;
 const REPEATS: usize = 20;
@@ -63,10 +68,19 @@ fn main() -> std::io::Result<()> {
             .unwrap_or_else(|| "ray_workload".into()),
     );
     std::fs::create_dir_all(&dir)?;
-    let (rs, gather, shadow) = cornell_workload(RAYS);
+    let (rs, gather, shadow) = match std::env::args().nth(2) {
+        Some(scene) => {
+            let imported = lightbake::import_gltf(scene.as_ref(), LightConvention::GltfSpec)
+                .map_err(|e| std::io::Error::other(format!("{scene}: {e}")))?;
+            scene_workload(&imported.scene, RAYS)
+        }
+        None => cornell_workload(RAYS),
+    };
+    let (nodes, packets, bytes) = rs.bvh_size();
     println!(
-        "BVH build {:.3} s (single thread)",
-        rs.build_time.as_secs_f64()
+        "BVH build {:.3} s (single thread): {nodes} nodes, {packets} leaf packets, {:.1} MiB",
+        rs.build_time.as_secs_f64(),
+        bytes as f64 / 1048576.0
     );
     let n = rs.triangles.len() as u32;
     write_f32(

@@ -27,10 +27,6 @@ use wide::Bvh8;
 
 use crate::scene::{Scene, closest_on_triangle};
 
-/// The bit of a leaf lane's tag that marks a triangle of a mirroring instance (the bits below
-/// hold its global index).
-const MIRRORED: u32 = 1 << 31;
-
 /// What the baker knows about each world-space triangle (global order: instance by instance,
 /// triangles in mesh order).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -161,23 +157,14 @@ impl RayScene {
         let live: Vec<u32> = (0..triangles.len() as u32)
             .filter(|&i| triangles[i as usize].area > 0.0)
             .collect();
-        // Primitive k of the tree is live triangle k; its leaf lane holds its global index
-        // and whether its instance mirrors, so a hit needs no lookup to name the triangle and
-        // the side hit.
+        // Primitive k of the tree is live triangle k; its leaf lane holds its global index, so
+        // a hit names its triangle without a lookup (`u32::MAX` marks padding lanes).
         assert!(
-            triangles.len() < MIRRORED as usize,
-            "more than 2³¹ triangles for the BVH"
+            triangles.len() < u32::MAX as usize,
+            "more than 2³² − 1 triangles for the BVH"
         );
         let live_tris: Vec<[Vec3; 3]> = live.iter().map(|&g| world_tris[g as usize]).collect();
         drop(world_tris);
-        let tags: Vec<u32> = live
-            .iter()
-            .map(|&g| {
-                let inst = &scene.instances[triangles[g as usize].instance as usize];
-                let mirrored = inst.transform.matrix3.determinant() < 0.0;
-                g | if mirrored { MIRRORED } else { 0 }
-            })
-            .collect();
         let live_count = live.len();
         let obvhs_tris: Vec<obvhs::triangle::Triangle> = live_tris
             .iter()
@@ -198,7 +185,7 @@ impl RayScene {
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         drop(obvhs_tris);
-        let bvh = Bvh8::collapse(&bvh2, &live_tris, &tags);
+        let bvh = Bvh8::collapse(&bvh2, &live_tris, &live);
         let build_time = start.elapsed();
         drop(bvh2);
         let mut accel = vec![[Vec3::ZERO; 3]; triangles.len()];
@@ -268,15 +255,13 @@ impl RayScene {
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let mut ray = Ray4::new(origin, dir, tmin, tmax);
         let hit = self.bvh.closest_hit(&mut ray)?;
-        // The front is the counter-clockwise side of the mesh's own winding, which a
-        // mirroring instance turns over in the world.
-        let mirrored = hit.tag & MIRRORED != 0;
+        let normal = self.triangles[hit.tag as usize].normal;
         Some(Hit {
             t: hit.t,
-            triangle: hit.tag & !MIRRORED,
+            triangle: hit.tag,
             u: hit.u,
             v: hit.v,
-            front_face: hit.ccw != mirrored,
+            front_face: normal.dot(dir) < 0.0,
         })
     }
 
@@ -298,18 +283,10 @@ impl RayScene {
         mut accept: impl FnMut(&[Vec3; 3]) -> bool,
     ) -> bool {
         self.bvh.any_in_ball(center, radius, |tag| {
-            let t = &self.accel[(tag & !MIRRORED) as usize];
+            let t = &self.accel[tag as usize];
             accept(t)
                 && closest_on_triangle(center, *t).0.distance_squared(center) <= radius * radius
         })
-    }
-
-    /// Whether global triangle `g`'s instance mirrors (its stored normal is its world
-    /// winding's, turned over). For the checks.
-    #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
-    fn mirrored(&self, g: usize) -> bool {
-        let [a, b, c] = self.accel[g];
-        self.triangles[g].normal.dot((b - a).cross(c - a)) < 0.0
     }
 
     /// Reference implementation of [`RayScene::closest_hit`]: tests every triangle. For tests.
@@ -328,7 +305,7 @@ impl RayScene {
                 continue;
             }
             let limit = best.map_or(tmax, |b| b.t);
-            if let Some((t, u, v, ccw)) = watertight::intersect(tri, origin, &shear, tmin, limit) {
+            if let Some((t, u, v)) = watertight::intersect(tri, origin, &shear, tmin, limit) {
                 if best.is_none_or(|b| t < b.t) {
                     let triangle = g as u32;
                     best = Some(Hit {
@@ -336,7 +313,7 @@ impl RayScene {
                         triangle,
                         u,
                         v,
-                        front_face: ccw != self.mirrored(g),
+                        front_face: self.triangles[g].normal.dot(dir) < 0.0,
                     });
                 }
             }
@@ -356,7 +333,7 @@ impl RayScene {
             .iter()
             .enumerate()
             .filter(|(_, info)| info.area > 0.0)
-            .map(|(g, _)| g as u32 | if self.mirrored(g) { MIRRORED } else { 0 })
+            .map(|(g, _)| g as u32)
             .collect();
         assert_eq!(tags.len(), self.live_count);
         self.bvh.validate(&tags);
@@ -455,13 +432,8 @@ mod tests {
                         assert!((a.u - b.u).abs() < 1e-5 && (a.v - b.v).abs() < 1e-5);
                         assert_eq!(a.front_face, b.front_face);
                     }
-                    // The side comes from the test's own sign; it agrees with the stored
-                    // normal wherever the ray is not grazing.
-                    let cos = rs.triangles[a.triangle as usize].normal.dot(dir);
-                    if cos.abs() > 1e-4 {
-                        assert_eq!(a.front_face, cos < 0.0, "ray {i}: {a:?}");
-                        mirrored_hits += usize::from(rs.mirrored(a.triangle as usize));
-                    }
+                    let instance = rs.triangles[a.triangle as usize].instance as usize;
+                    mirrored_hits += usize::from(s.instances[instance].name == "mirrored grid");
                 }
                 (None, None) => {}
                 (a, b) => panic!("ray {i}: bvh {a:?} vs brute force {b:?}"),
@@ -495,7 +467,7 @@ mod tests {
             let a = rs.bvh.closest_hit(&mut Ray4::new(origin, dir, 0.0, tmax));
             let b = portable.closest_hit(&mut Ray4::new(origin, dir, 0.0, tmax));
             let bits = |h: Option<packet::Hit4>| {
-                h.map(|h| (h.tag, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.ccw))
+                h.map(|h| (h.tag, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
             };
             assert_eq!(bits(a), bits(b), "ray {i}");
             hits += usize::from(a.is_some());

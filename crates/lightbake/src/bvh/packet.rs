@@ -1,7 +1,9 @@
-//! Four triangles at a time: the leaf packets of [`super::wide`], the ray prepared for them,
-//! and the watertight test of [`super::watertight`] on four lanes with glam's `Vec4` (SSE on
-//! x86-64). A packet keeps its triangles' exact vertices (the test needs the bits two triangles
-//! share on an edge to be the same) and a caller's tag per lane, which a hit returns.
+//! The leaf packets of [`super::wide`] (four triangles each, structure of arrays), the ray
+//! prepared for them, and the watertight test of [`super::watertight`] on the eight lanes of
+//! two packets at once, written lane by lane so the compiler runs each step on all lanes (two
+//! SSE halves, or one AVX2 operation where the traversal is compiled for it). A packet keeps
+//! its triangles' exact vertices (the test needs the bits two triangles share on an edge to be
+//! the same) and a caller's tag per lane, which a hit returns.
 
 use glam::{Vec3, Vec4};
 
@@ -20,15 +22,12 @@ pub struct Tri4 {
 /// A ray prepared for the slab tests and the watertight triangle test.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray4 {
-    /// Origin and 1 / direction (±`f32::MAX` where that overflows), for the node tests.
+    /// Origin.
     pub(super) o: [f32; 3],
+    /// 1 / direction, ±`f32::MAX` where that overflows (for the node tests).
     pub(super) inv: [f32; 3],
-    /// The origin splatted, for the triangle tests.
-    pub(super) org: [Vec4; 3],
     /// The ray's frame for the triangle test.
     pub(super) shear: Shear,
-    /// The shear's factors, splatted.
-    pub(super) s4: [Vec4; 3],
     /// Per axis: the direction is negative (near planes are the upper corners).
     pub(super) neg: [bool; 3],
     /// Entry bound.
@@ -53,9 +52,7 @@ impl Ray4 {
         Self {
             o: origin.to_array(),
             inv: [dir.x, dir.y, dir.z].map(inv),
-            org: [origin.x, origin.y, origin.z].map(Vec4::splat),
             shear,
-            s4: shear.s.map(Vec4::splat),
             neg: [dir.x < 0.0, dir.y < 0.0, dir.z < 0.0],
             tmin,
             tmax,
@@ -74,17 +71,15 @@ pub struct Hit4 {
     pub u: f32,
     /// Barycentric weight of the third vertex.
     pub v: f32,
-    /// The ray met the side that the vertices' counter-clockwise order faces (the sign of the
-    /// edge functions' sum, so it agrees with the test that found the hit).
-    pub ccw: bool,
 }
 
-/// Packs up to four triangles with their tags; unused lanes have zero vertices (their edge
-/// functions are all zero, so they never hit) and the tag `u32::MAX`.
+/// Packs up to four triangles with their tags; unused lanes have NaN vertices (every test on
+/// them fails, so they never hit and never ask for the double-precision redo) and the tag
+/// `u32::MAX`.
 pub(super) fn pack(prims: &[u32], tris: &[[Vec3; 3]], tags: &[u32]) -> Tri4 {
     debug_assert!(!prims.is_empty() && prims.len() <= 4);
     let mut t = Tri4 {
-        v: [[Vec4::ZERO; 3]; 3],
+        v: [[Vec4::NAN; 3]; 3],
         id: [u32::MAX; 4],
     };
     for (lane, &p) in prims.iter().enumerate() {
@@ -104,97 +99,146 @@ pub(super) fn lane_vertices(t: &Tri4, lane: usize) -> [Vec3; 3] {
     t.v.map(|v| Vec3::new(v[0][lane], v[1][lane], v[2][lane]))
 }
 
-/// The watertight test ([`super::watertight`]) against four triangles at once: the nearest
-/// hit with t in [tmin, tmax], as (primitive id, t, u, v).
+/// A packet of padding lanes, to test a lone packet eight lanes wide.
+static PADDING: Tri4 = Tri4 {
+    v: [[Vec4::NAN; 3]; 3],
+    id: [u32::MAX; 4],
+};
+
+/// The watertight test ([`super::watertight`]) against the eight triangles of two packets at
+/// once (one 256-bit operation per step where the caller is compiled for AVX2): the nearest
+/// hit with t in [tmin, tmax], lanes of `a` winning ties.
 #[inline(always)]
-pub(super) fn intersect4(tri: &Tri4, ray: &Ray4) -> Option<Hit4> {
-    let [kx, ky, kz] = ray.shear.axes;
-    let [sx, sy, sz] = ray.s4;
-    // The vertices relative to the origin, sheared into the ray's frame.
-    let rel = |k: usize| {
-        let v = &tri.v[k];
-        let z = v[kz] - ray.org[kz];
-        (
-            v[kx] - ray.org[kx] - sx * z,
-            v[ky] - ray.org[ky] - sy * z,
-            z,
-        )
+pub(super) fn intersect8(a: &Tri4, b: &Tri4, ray: &Ray4) -> Option<Hit4> {
+    let join = |p: Vec4, q: Vec4| {
+        let (p, q) = (p.to_array(), q.to_array());
+        [p[0], p[1], p[2], p[3], q[0], q[1], q[2], q[3]]
     };
-    let (ax, ay, az) = rel(0);
-    let (bx, by, bz) = rel(1);
-    let (cx, cy, cz) = rel(2);
-    // The edge functions; exact zeros (a ray through an edge or a vertex) are redone in
-    // double precision.
-    let mut u = cx * by - cy * bx;
-    let mut v = ax * cy - ay * cx;
-    let mut w = bx * ay - by * ax;
-    let zero = (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask();
-    if zero != 0 {
-        (u, v, w) = redo_in_f64(tri, ray, zero, (u, v, w));
+    let lanes: Lanes<8> =
+        std::array::from_fn(|k| std::array::from_fn(|axis| join(a.v[k][axis], b.v[k][axis])));
+    let (i, j) = (a.id, b.id);
+    let id = [i[0], i[1], i[2], i[3], j[0], j[1], j[2], j[3]];
+    intersect_lanes(&lanes, &id, &[a, b], ray)
+}
+
+/// The nearest hit of a leaf's packets, two at a time.
+#[inline(always)]
+pub(super) fn intersect_leaf(packets: &[Tri4], ray: &Ray4) -> Option<Hit4> {
+    let mut best: Option<Hit4> = None;
+    for pair in packets.chunks(2) {
+        let hit = match pair {
+            [a, b] => intersect8(a, b, ray),
+            [a] => intersect8(a, &PADDING, ray),
+            _ => None,
+        };
+        if let Some(h) = hit
+            && best.is_none_or(|b| h.t < b.t)
+        {
+            best = Some(h);
+        }
     }
-    let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
-    let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
-    let det = u + v + w;
+    best
+}
+
+/// Vertices of `N` lanes: per vertex, x, y and z rows.
+type Lanes<const N: usize> = [[[f32; N]; 3]; 3];
+
+/// The watertight test on `N` lanes of `packets` (lane `i` is lane `i % 4` of packet `i / 4`),
+/// written lane by lane so the compiler runs each step on all lanes at once (as two SSE
+/// halves, or one AVX2 operation).
+#[inline(always)]
+fn intersect_lanes<const N: usize>(
+    lanes: &Lanes<N>,
+    id: &[u32; N],
+    packets: &[&Tri4],
+    ray: &Ray4,
+) -> Option<Hit4> {
+    let [kx, ky, kz] = ray.shear.axes;
+    let [sx, sy, sz] = ray.shear.s;
+    let o = ray.o;
+    // The vertices relative to the origin, sheared into the ray's frame, and the edge
+    // functions; exact zeros (a ray through an edge or a vertex) are redone in double
+    // precision.
+    let (mut u, mut v, mut w) = ([0f32; N], [0f32; N], [0f32; N]);
+    let mut z = [[0f32; N]; 3];
+    let mut zero = [false; N];
+    for i in 0..N {
+        let rel = |k: usize| {
+            let p = &lanes[k];
+            let pz = p[kz][i] - o[kz];
+            (p[kx][i] - o[kx] - sx * pz, p[ky][i] - o[ky] - sy * pz, pz)
+        };
+        let (ax, ay, az) = rel(0);
+        let (bx, by, bz) = rel(1);
+        let (cx, cy, cz) = rel(2);
+        u[i] = cx * by - cy * bx;
+        v[i] = ax * cy - ay * cx;
+        w[i] = bx * ay - by * ax;
+        z[0][i] = az;
+        z[1][i] = bz;
+        z[2][i] = cz;
+        zero[i] = (u[i] == 0.0) | (v[i] == 0.0) | (w[i] == 0.0);
+    }
+    if zero.contains(&true) {
+        redo_in_f64(packets, ray, &zero, (&mut u, &mut v, &mut w));
+    }
     // t·det, compared scaled by |det| (signs folded in), so only lanes that hit pay for the
     // division (as Embree's intersectors do).
-    let t = (u * az + v * bz + w * cz) * sz;
-    let sign = det.signum();
-    let abs_det = det.abs();
-    let t_abs = t * sign;
-    let inside = (negative & positive).bitmask() ^ 0b1111;
-    let ok = abs_det.cmpgt(Vec4::ZERO)
-        & abs_det.cmplt(Vec4::INFINITY)
-        & t_abs.cmpge(abs_det * ray.tmin)
-        & t_abs.cmple(abs_det * ray.tmax);
-    let mask = ok.bitmask() & inside;
-    if mask == 0 {
+    let mut t = [0f32; N];
+    let mut det = [0f32; N];
+    let mut hit = [false; N];
+    for i in 0..N {
+        let negative = (u[i] < 0.0) | (v[i] < 0.0) | (w[i] < 0.0);
+        let positive = (u[i] > 0.0) | (v[i] > 0.0) | (w[i] > 0.0);
+        det[i] = u[i] + v[i] + w[i];
+        t[i] = (u[i] * z[0][i] + v[i] * z[1][i] + w[i] * z[2][i]) * sz;
+        let abs_det = det[i].abs();
+        let t_abs = t[i] * 1f32.copysign(det[i]);
+        hit[i] = !(negative & positive)
+            & (abs_det > 0.0)
+            & (abs_det < f32::INFINITY)
+            & (t_abs >= abs_det * ray.tmin)
+            & (t_abs <= abs_det * ray.tmax);
+    }
+    if !hit.contains(&true) {
         return None;
     }
-    // The edge functions' sum is the triangle's signed area seen along the ray: positive
-    // where the counter-clockwise normal faces back along it.
-    let det_positive = det.cmpgt(Vec4::ZERO).bitmask();
-    let inv = Vec4::ONE / det;
-    let (t, u, v) = (
-        (t * inv).to_array(),
-        (v * inv).to_array(),
-        (w * inv).to_array(),
-    );
     let mut best: Option<Hit4> = None;
-    for lane in 0..4 {
-        if mask & (1 << lane) != 0 && best.is_none_or(|b| t[lane] < b.t) {
+    for lane in (0..N).filter(|&lane| hit[lane]) {
+        let inv = 1.0 / det[lane];
+        let tl = t[lane] * inv;
+        if best.is_none_or(|b| tl < b.t) {
             // The division may round just outside the interval the scaled test accepted.
-            let t = t[lane].clamp(ray.tmin, ray.tmax);
             best = Some(Hit4 {
-                tag: tri.id[lane],
-                t,
-                u: u[lane],
-                v: v[lane],
-                ccw: det_positive & (1 << lane) != 0,
+                tag: id[lane],
+                t: tl.clamp(ray.tmin, ray.tmax),
+                u: v[lane] * inv,
+                v: w[lane] * inv,
             });
         }
     }
     best
 }
 
-/// The edge functions of the lanes in `lanes` (a bit mask) recomputed in double precision;
-/// padding lanes keep theirs (zero: they never hit).
+/// The edge functions of the lanes marked in `lanes` recomputed in double precision; padding
+/// lanes keep theirs (they never hit).
 #[cold]
 #[inline(never)]
-fn redo_in_f64(tri: &Tri4, ray: &Ray4, lanes: u32, uvw: (Vec4, Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
-    let (mut u, mut v, mut w) = (uvw.0.to_array(), uvw.1.to_array(), uvw.2.to_array());
-    let origin = Vec3::new(ray.org[0].x, ray.org[1].x, ray.org[2].x);
-    for lane in 0..4 {
-        if lanes & (1 << lane) == 0 || tri.id[lane] == u32::MAX {
+fn redo_in_f64<const N: usize>(
+    packets: &[&Tri4],
+    ray: &Ray4,
+    lanes: &[bool; N],
+    (u, v, w): (&mut [f32; N], &mut [f32; N], &mut [f32; N]),
+) {
+    let origin = Vec3::from_array(ray.o);
+    for (i, _) in lanes.iter().enumerate().filter(|(_, redo)| **redo) {
+        let (tri, lane) = (packets[i / 4], i % 4);
+        if tri.id[lane] == u32::MAX {
             continue;
         }
         let [a, b, c] = lane_vertices(tri, lane).map(|p| p - origin);
-        [u[lane], v[lane], w[lane]] = edge_functions_f64(&ray.shear, a, b, c);
+        [u[i], v[i], w[i]] = edge_functions_f64(&ray.shear, a, b, c);
     }
-    (
-        Vec4::from_array(u),
-        Vec4::from_array(v),
-        Vec4::from_array(w),
-    )
 }
 
 #[cfg(test)]
@@ -215,19 +259,15 @@ mod tests {
         let packet = pack(&[0, 1, 2], &tris, &[0, 1, 2]);
         // From below, the nearer triangle (z = 0) wins.
         let ray = Ray4::new(Vec3::new(0.2, 0.3, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        let Hit4 { tag, t, u, v, ccw } = intersect4(&packet, &ray).unwrap();
+        let Hit4 { tag, t, u, v } = intersect_leaf(&[packet], &ray).unwrap();
         assert_eq!(tag, 0);
-        // From below: the counter-clockwise normal (+z) faces away from the ray.
-        assert!(!ccw);
         assert!((t - 1.0).abs() < 1e-6 && (u - 0.2).abs() < 1e-6 && (v - 0.3).abs() < 1e-6);
         // From above, the z = 1 triangle; a short ray misses both; the degenerate lane never hits.
         let ray = Ray4::new(Vec3::new(0.2, 0.3, 2.0), -Vec3::Z, 0.0, f32::INFINITY);
-        let hit = intersect4(&packet, &ray).unwrap();
-        assert_eq!(hit.tag, 1);
-        assert!(hit.ccw);
+        assert_eq!(intersect_leaf(&[packet], &ray).unwrap().tag, 1);
         let ray = Ray4::new(Vec3::new(0.2, 0.3, 2.0), -Vec3::Z, 0.0, 0.5);
-        assert!(intersect4(&packet, &ray).is_none());
+        assert!(intersect_leaf(&[packet], &ray).is_none());
         let ray = Ray4::new(Vec3::new(0.0, 0.0, -1.0), Vec3::Z, 0.0, f32::INFINITY);
-        assert!(intersect4(&packet, &ray).is_some_and(|h| h.tag != 2));
+        assert!(intersect_leaf(&[packet], &ray).is_some_and(|h| h.tag != 2));
     }
 }

@@ -9,8 +9,8 @@
 //! paper prescribes, so the tie on an edge is decided by exact signs.
 //!
 //! This module holds the per-ray shear ([`Shear`]), the scalar test ([`intersect`], the
-//! brute-force reference) and the double-precision edge functions both it and the four-lane
-//! test of [`super::packet`] fall back on.
+//! brute-force reference) and the double-precision edge functions both it and the lane test
+//! of [`super::packet`] fall back on.
 
 use glam::{DVec3, Vec3};
 
@@ -68,9 +68,8 @@ pub fn edge_functions_f64(shear: &Shear, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] 
 }
 
 /// The watertight test of the ray from `origin` with frame `shear` against the triangle
-/// `v`: (t, u, v, ccw) for a hit with t in [tmin, tmax], u and v the barycentric weights of
-/// the second and third vertices, ccw whether the ray met the side the vertices'
-/// counter-clockwise order faces.
+/// `v`: (t, u, v) for a hit with t in [tmin, tmax], u and v the barycentric weights of the
+/// second and third vertices.
 #[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the tests and benchmarks
 #[inline]
 pub fn intersect(
@@ -79,7 +78,7 @@ pub fn intersect(
     shear: &Shear,
     tmin: f32,
     tmax: f32,
-) -> Option<(f32, f32, f32, bool)> {
+) -> Option<(f32, f32, f32)> {
     let [kx, ky, kz] = shear.axes;
     let [sx, sy, sz] = shear.s;
     let (a, b, c) = (v[0] - origin, v[1] - origin, v[2] - origin);
@@ -106,9 +105,7 @@ pub fn intersect(
         return None;
     }
     let inv = 1.0 / det;
-    // The edge functions' sum is the triangle's signed area seen along the ray: positive
-    // where the counter-clockwise normal faces back along it.
-    Some(((t * inv).clamp(tmin, tmax), ev * inv, ew * inv, det > 0.0))
+    Some(((t * inv).clamp(tmin, tmax), ev * inv, ew * inv))
 }
 
 #[cfg(test)]
@@ -152,14 +149,12 @@ mod tests {
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
         for dir in [Vec3::Z, Vec3::new(0.1, -0.2, 1.0).normalize()] {
             let origin = Vec3::new(0.2, 0.3, 0.0) - dir * 2.0;
-            let (t, u, v, ccw) = intersect(&tri, origin, &Shear::new(dir), 0.0, 10.0).unwrap();
+            let (t, u, v) = intersect(&tri, origin, &Shear::new(dir), 0.0, 10.0).unwrap();
             assert!((t - 2.0).abs() < 1e-5, "{t}");
-            // The counter-clockwise normal is +z, facing away from this ray.
-            assert!(!ccw);
             assert!((u - 0.2).abs() < 1e-5 && (v - 0.3).abs() < 1e-5, "{u} {v}");
             // From behind, and out of range.
             let back = Vec3::new(0.2, 0.3, 0.0) + dir * 2.0;
-            assert!(intersect(&tri, back, &Shear::new(-dir), 0.0, 10.0).is_some_and(|h| h.3));
+            assert!(intersect(&tri, back, &Shear::new(-dir), 0.0, 10.0).is_some());
             assert!(intersect(&tri, origin, &Shear::new(dir), 0.0, 1.5).is_none());
             assert!(intersect(&tri, origin, &Shear::new(dir), 2.5, 10.0).is_none());
         }

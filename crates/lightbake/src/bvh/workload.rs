@@ -217,3 +217,17 @@ pub fn cornell_workload(count: usize) -> (RayScene, Vec<BenchRay>, Vec<BenchRay>
     let shadow = shadow_rays(&rays, count, 2, |g| (lo..hi).contains(&g));
     (rays, gather, shadow)
 }
+
+/// A real-scene workload: the triangles of every instance of `scene`, `count` gather rays
+/// (seed 1) and `count` shadow rays between two area-weighted surface points (seed 2; the
+/// visibility queries of a form factor or a validity probe).
+#[cfg_attr(not(feature = "internals"), allow(dead_code))] // for the benchmarks
+pub fn scene_workload(
+    scene: &crate::scene::Scene,
+    count: usize,
+) -> (RayScene, Vec<BenchRay>, Vec<BenchRay>) {
+    let rays = RayScene::build(scene);
+    let gather = gather_rays(&rays, count, 1);
+    let shadow = shadow_rays(&rays, count, 2, |_| true);
+    (rays, gather, shadow)
+}
