@@ -244,6 +244,61 @@ fn redo_in_f64<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::watertight::intersect;
+    use crate::sampling::{hash_words, unit_float};
+
+    /// Two packets tested as eight lanes give the scalar test's hit to the bit: the nearest,
+    /// the first lane winning ties.
+    #[test]
+    fn eight_lanes_give_the_scalar_tests_bits() {
+        let mut hits = 0;
+        for case in 0..2000u32 {
+            let r = |k: u32| unit_float(hash_words(&[case, k])) * 2.0 - 1.0;
+            let count = 5 + (case % 4) as usize;
+            let tris: Vec<[Vec3; 3]> = (0..count as u32)
+                .map(|t| {
+                    let c = Vec3::new(r(10 * t), r(10 * t + 1), r(10 * t + 2));
+                    [0, 1, 2].map(|k| {
+                        c + 0.6
+                            * Vec3::new(
+                                r(10 * t + 3 + 3 * k),
+                                r(10 * t + 4 + 3 * k),
+                                r(10 * t + 5 + 3 * k),
+                            )
+                    })
+                })
+                .collect();
+            let prims: Vec<u32> = (0..count as u32).collect();
+            let tags: Vec<u32> = (100..100 + count as u32).collect();
+            let packets = [
+                pack(&prims[..4], &tris, &tags),
+                pack(&prims[4..], &tris, &tags),
+            ];
+            let origin = 3.0 * Vec3::new(r(90), r(91), r(92));
+            let dir = (Vec3::new(r(93), r(94), r(95)) * 0.3 - origin).normalize();
+            let tmax = if case % 5 == 0 { 2.5 } else { f32::INFINITY };
+            let ray = Ray4::new(origin, dir, 0.0, tmax);
+            let lanes = intersect_leaf(&packets, &ray);
+            let mut scalar: Option<Hit4> = None;
+            for (k, tri) in tris.iter().enumerate() {
+                if let Some((t, u, v)) = intersect(tri, origin, &ray.shear, 0.0, tmax)
+                    && scalar.is_none_or(|b| t < b.t)
+                {
+                    scalar = Some(Hit4 {
+                        tag: tags[k],
+                        t,
+                        u,
+                        v,
+                    });
+                }
+            }
+            let bits =
+                |h: Option<Hit4>| h.map(|h| (h.tag, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()));
+            assert_eq!(bits(lanes), bits(scalar), "case {case}");
+            hits += usize::from(lanes.is_some());
+        }
+        assert!(hits > 300, "{hits} hits");
+    }
 
     #[test]
     fn packet_test_matches_one_triangle_at_a_time() {

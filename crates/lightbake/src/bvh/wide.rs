@@ -218,7 +218,6 @@ impl Bvh8 {
     /// [`Self::traverse`] with a stack of at least `stack_need` entries.
     #[inline(always)]
     fn traverse_in(&self, ray: &mut Ray4, closest: bool, stack: &mut Stack<'_>) -> Option<Hit4> {
-        let ordered = closest;
         let mut best = None;
         if self.root == EMPTY {
             return best;
@@ -254,14 +253,14 @@ impl Bvh8 {
                         }
                         m &= m - 1;
                     }
-                    if ordered && mask.count_ones() == 2 {
+                    if closest && mask.count_ones() == 2 {
                         // The common case: two children, nearer one first.
                         let a = mask.trailing_zeros() as usize;
                         let b = (mask & (mask - 1)).trailing_zeros() as usize;
                         let (first, second) = if near[b] < near[a] { (b, a) } else { (a, b) };
                         stack.push((node.child[second], near[second]));
                         r = node.child[first];
-                    } else if ordered {
+                    } else if closest {
                         let mut order = [(0f32, 0u32); WIDTH];
                         let mut k = 0;
                         for lane in 0..WIDTH {
