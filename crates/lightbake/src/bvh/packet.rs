@@ -14,8 +14,9 @@ use super::watertight::{Shear, edge_functions_f64};
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 pub struct Tri4 {
+    /// Per vertex, its x, y and z over the four lanes.
     pub(super) v: [[Vec4; 3]; 3],
-    /// The caller's tag of each lane (`u32::MAX` for padding lanes, whose vertices are zero).
+    /// The caller's tag of each lane (`u32::MAX` for padding lanes, whose vertices are NaN).
     pub(super) id: [u32; 4],
 }
 
