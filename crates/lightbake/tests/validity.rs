@@ -203,3 +203,33 @@ fn texels_in_an_open_plane_skip_only_probes_that_find_nothing() {
         );
     }
 }
+
+/// Most hidden texels skip the search of their footprint: their centre's fan sees back faces
+/// in at least three quarters of its directions, their footprint lies on its side of every
+/// surface and nearer than any face it saw. Traced anyway, the search finds an open point in
+/// almost none of them, and in those only a point that its own fan's noise lets through
+/// (the bake's second search and the check above, with more rays, see none of them).
+#[test]
+fn hidden_texels_that_skip_the_search_are_those_the_search_finds_hidden() {
+    let mut scenes = vec![("house", house()), ("sunlit room", sunlit_room())];
+    for file in ["openarena/oa_bases3.gltf", "openarena/kaos.gltf"] {
+        scenes.push((file, common::corpus_scene(file)));
+    }
+    for (name, scene) in scenes {
+        let prep = Prepared::new(&scene, &BakeSettings::preview()).unwrap();
+        let patches = &prep.patches;
+        let [sealed, open] = patches.sealed_check(&prep.scene, &prep.layout, &prep.rays);
+        println!(
+            "{name}: {} hidden, {sealed} without a search (the bake's count: {}), {open} of them with an open point",
+            patches.invalid, patches.sealed
+        );
+        assert_eq!(sealed, patches.sealed, "{name}");
+        assert!(
+            sealed * 4 > patches.invalid,
+            "{name}: {sealed} of {}",
+            patches.invalid
+        );
+        assert!(open * 500 <= sealed, "{name}: {open} of {sealed}");
+        assert_eq!(patches.visible_unlit, 0, "{name}");
+    }
+}

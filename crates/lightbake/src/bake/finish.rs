@@ -66,10 +66,11 @@ pub(super) fn texel_patches(
             stages.run(Stage::Validity, patches.patches.len() as u64, || {
                 patches.fix_validity(scene, layout, rays);
                 let note = format!(
-                    "{} moved ({} seen only in part), {} hidden, {} visible but unlit; {}",
+                    "{} moved ({} seen only in part), {} hidden ({} without a search), {} visible but unlit; {}",
                     patches.moved,
                     patches.rescued,
                     patches.invalid,
+                    patches.sealed,
                     patches.visible_unlit,
                     patches.ray_steps
                 );

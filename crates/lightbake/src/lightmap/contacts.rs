@@ -41,7 +41,7 @@ use serde::Serialize;
 use super::least_squares::{LeastSquares, Unknowns, relative_weight};
 use super::{Assembly, bilinear_taps};
 use crate::bvh::RayScene;
-use crate::raster::validity::gap_probe;
+use crate::raster::footprint::gap_probe;
 use crate::raster::{Patch, Patches, Surface, SurfacePoint};
 use crate::sampling::sobol_02;
 use crate::scene::Scene;

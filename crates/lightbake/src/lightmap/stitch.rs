@@ -24,7 +24,7 @@ use super::least_squares::{LeastSquares, Unknowns, holds_value, relative_weight}
 use super::seams::{Seam, SeamJumps, seam_jumps};
 use super::{Assembly, bilinear_taps};
 use crate::bvh::RayScene;
-use crate::raster::validity::{Gap, gap_probe};
+use crate::raster::footprint::{Gap, gap_probe};
 use crate::raster::{Patches, SurfacePoint};
 
 /// Weight of a texel's own value.

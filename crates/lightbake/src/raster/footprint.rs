@@ -1,7 +1,8 @@
 //! The points of a texel's footprint that the lighting passes sample (direct light, texel
 //! albedo): stratified by an Owen-scrambled (0,2)-sequence over the texel square, each mapped
 //! onto the surface, and kept only where that surface is open (not hidden under geometry from
-//! the texel's representative point).
+//! the texel's representative point); and what makes a point of a footprint open surface
+//! ([`Patches::sees`], [`Patches::open_point`], [`gap_probe`]).
 
 use glam::Vec2;
 
@@ -131,5 +132,95 @@ impl<'a> Footprint<'a> {
             return sp;
         }
         rep
+    }
+}
+
+/// What lies within `reach` along a surface point's normal (see [`gap_probe`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gap {
+    /// Nothing.
+    Open,
+    /// The front of a surface (or a double-sided one): the point is in a thin gap.
+    Covered,
+    /// The back of a single-sided surface: the point faces the inside of a solid.
+    Back,
+}
+
+/// What lies within `reach` above surface point `sp`, along its geometric normal.
+pub fn gap_probe(rays: &RayScene, sp: &SurfacePoint, reach: f32) -> Gap {
+    let from = rays.offset(sp.position, sp.geometric_normal);
+    match rays.closest_hit(from, sp.geometric_normal, 0.0, reach) {
+        None => Gap::Open,
+        Some(h) if h.front_face || rays.triangles[h.triangle as usize].double_sided => Gap::Covered,
+        Some(_) => Gap::Back,
+    }
+}
+
+impl Patches {
+    /// Whether a point of patch `p`'s footprint is open surface (always, for patches not near
+    /// geometry): it is not hidden from the representative point by geometry (a floor texel
+    /// half under a wall), it does not face the back of a single-sided surface within a texel
+    /// (a ceiling texel sandwiched above a lamp hung just below it), and it lies in a gap
+    /// thinner than a texel exactly when the representative point does ([`Patch::COVERED`]:
+    /// the floor under a rug is not the floor beside it).
+    pub fn sees(&self, p: &Patch, sp: &SurfacePoint, rays: &RayScene) -> bool {
+        if p.flags & Patch::NEAR_GEOMETRY == 0 {
+            return true;
+        }
+        let probe = gap_probe(rays, sp, p.texel_size);
+        self.sees_probed(p, sp, probe, rays)
+    }
+
+    /// [`Self::sees`] with the point's [`gap_probe`] already traced.
+    pub fn sees_probed(&self, p: &Patch, sp: &SurfacePoint, probe: Gap, rays: &RayScene) -> bool {
+        if p.flags & Patch::NEAR_GEOMETRY == 0 {
+            return true;
+        }
+        Self::gap_agrees(p, probe) && !Self::hidden_from(p, sp, rays)
+    }
+
+    /// Whether a point's [`gap_probe`] finds what `p`'s representative point finds: no back
+    /// face, and a gap thinner than a texel exactly when `p` lies in one.
+    pub(super) fn gap_agrees(p: &Patch, probe: Gap) -> bool {
+        match probe {
+            Gap::Back => false,
+            Gap::Covered => p.flags & Patch::COVERED != 0,
+            Gap::Open => p.flags & Patch::COVERED == 0,
+        }
+    }
+
+    /// Whether geometry stands between `p`'s representative point and `sp` (one shadow ray).
+    pub(super) fn hidden_from(p: &Patch, sp: &SurfacePoint, rays: &RayScene) -> bool {
+        let a = rays.offset(p.position, p.geometric_normal);
+        let b = rays.offset(sp.position, sp.geometric_normal);
+        let d = b - a;
+        let len = d.length();
+        len > 0.0 && rays.occluded(a, d / len, 0.0, len)
+    }
+
+    /// Whether a point `sp` in the footprint of texel `texel` is open surface, for the node
+    /// `anchor` whose support it is sampled for: for a valid texel, [`Patches::sees`]; for an
+    /// invalid one (its own point is inside geometry) the point must see `anchor`'s point and
+    /// face no back of a single-sided surface within a texel (the visible rim of a ceiling
+    /// texel whose centre lies above a lamp, but not a floor under a block).
+    pub fn open_point(
+        &self,
+        texel: &Patch,
+        sp: &SurfacePoint,
+        anchor: &Patch,
+        rays: &RayScene,
+    ) -> bool {
+        if texel.is_valid() {
+            return self.sees(texel, sp, rays);
+        }
+        let a = rays.offset(anchor.position, anchor.geometric_normal);
+        let b = rays.offset(sp.position, sp.geometric_normal);
+        let d = b - a;
+        let len = d.length();
+        if len > 0.0 && rays.occluded(a, d / len, 0.0, len) {
+            return false;
+        }
+        rays.closest_hit(b, sp.geometric_normal, 0.0, texel.texel_size)
+            .is_none()
     }
 }

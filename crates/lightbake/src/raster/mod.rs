@@ -141,6 +141,10 @@ pub struct Patches {
     pub rescued: usize,
     /// Patches marked invalid: no point of their footprint is open surface (*hidden*).
     pub invalid: usize,
+    /// Hidden patches found so without searching their footprint: every ray of their
+    /// centre's fan saw a back face, and their footprint lies on the centre's side of every
+    /// surface (zero for patches read from a file; see [`validity`]).
+    pub sealed: usize,
     /// Hidden patches in which a second, independent search of the footprint found open
     /// surface (visible, yet not lit by the bake; see [`validity`]).
     pub visible_unlit: usize,

@@ -1,5 +1,7 @@
-//! The validity pass's fast path: whether a texel's short probes can hit anything, answered
-//! by ball queries of the BVH instead of the rays (see [`short_probes_meet_nothing`]).
+//! The validity pass's fast paths, answered by ball queries of the BVH instead of rays:
+//! whether a texel's short probes can hit anything ([`short_probes_meet_nothing`]), and
+//! whether the points of a hidden texel's footprint lie on its centre's side of every surface
+//! ([`footprint_beside`]).
 
 use glam::Vec3;
 
@@ -60,4 +62,40 @@ pub(super) fn short_probes_meet_nothing(
     !rays.any_triangle_within(mid, radius + 2.0 * lift, |t| {
         heights(t, c, n).iter().any(|&h| h > 0.2 * lift)
     })
+}
+
+/// Whether every point of `points` (a texel's footprint, on its surface), lifted off the
+/// surface as a ray from it would be, lies on the same side of every surface as `centre`
+/// (lifted along its normal `n` in the same way) and within `within` of it: the points lie
+/// on the centre's plane, and no triangle within the ball holding the segments from the
+/// lifted centre to the lifted points crosses the heights they run at.
+///
+/// As in [`short_probes_meet_nothing`], the lifted points sit at heights within ℓ ± 0.5ℓ over
+/// the plane (ℓ the ray offset, [`RayScene::offset`]), so the segments do too, and only a
+/// triangle whose vertices' heights span (0.2ℓ, 1.8ℓ) can meet them: the surface the texel
+/// lies on, the bottom of a crate standing on it and everything below are never candidates.
+/// Where none lies in the ball, each point can be reached from the centre without crossing
+/// a surface: it is in the same empty space, or inside the same solid.
+pub(super) fn footprint_beside(
+    rays: &RayScene,
+    (centre, n): (Vec3, Vec3),
+    points: &[SurfacePoint],
+    within: f32,
+) -> bool {
+    let lift = rays.epsilon(centre);
+    let from = rays.offset(centre, n);
+    let mut radius = 0.0f32;
+    for sp in points {
+        let lifted = rays.offset(sp.position, sp.geometric_normal);
+        let height = (lifted - centre).dot(n);
+        if sp.geometric_normal.dot(n) < 0.999 || (height - lift).abs() > 0.5 * lift {
+            return false;
+        }
+        radius = radius.max(lifted.distance(from));
+    }
+    radius <= within
+        && !rays.any_triangle_within(from, radius + 2.0 * lift, |t| {
+            let h = t.map(|v| (v - centre).dot(n));
+            h.iter().any(|&h| h > 0.2 * lift) && h.iter().any(|&h| h < 1.8 * lift)
+        })
 }
