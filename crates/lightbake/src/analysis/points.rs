@@ -3,8 +3,9 @@
 //! but the same surface.
 //!
 //! * **Points.** Random points of the baked surfaces, weighted by area × the instance's
-//!   texel-density scale² (so by texels, as the bake's own estimates are: a ground plane
-//!   baked at an eighth of the density carries a 64th of the weight), keeping those that are
+//!   texel-density scale² (a ground plane baked at an eighth of the density carries a 64th
+//!   of the weight; the bake's texel-grid estimate weights its points so too, whatever
+//!   density the density pass gave each chart), keeping those that are
 //!   open surface: a cosine fan of 16 rays from the point sees the back of a single-sided
 //!   surface at most twice (points inside solids and in the crack where a wall meets the
 //!   floor are left out; the bake leaves them out too).
