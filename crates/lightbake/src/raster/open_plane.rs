@@ -76,10 +76,10 @@ pub(super) fn short_probes_meet_nothing(
 /// lies on, the bottom of a crate standing on it and everything below are never candidates.
 /// Where none lies in the ball, each point can be reached from the centre without crossing
 /// a surface: it is in the same empty space, or inside the same solid.
-pub(super) fn footprint_beside(
+pub(super) fn footprint_beside<'a>(
     rays: &RayScene,
     (centre, n): (Vec3, Vec3),
-    points: &[SurfacePoint],
+    points: impl IntoIterator<Item = &'a SurfacePoint>,
     within: f32,
 ) -> bool {
     let lift = rays.epsilon(centre);

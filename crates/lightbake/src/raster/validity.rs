@@ -568,15 +568,10 @@ impl Patches {
                 let reach = 1.5 * p.texel_size;
                 let fan = back_faces(p, p.position, rays, reach, &mut near, &mut used);
                 let key = p.rng(VALIDITY_SEED, 0x0e5c);
+                let ctx = (layout, &surface, rays);
+                let (_, sealed) =
+                    self.open_footprint_point(p, ctx, key, (p.position, fan), &mut used);
                 let points = self.footprint_points(p, (layout, &surface), key, 0..RESCUE_POINTS);
-                let on_surface: Vec<SurfacePoint> = points.iter().map(|&(_, sp)| sp).collect();
-                let sealed = fan.closed
-                    && footprint_beside(
-                        rays,
-                        (p.position, p.geometric_normal),
-                        &on_surface,
-                        fan.nearest,
-                    );
                 let open = sealed
                     && points.iter().any(|&(s, sp)| {
                         let fan = hash_words(&[key, s]);
@@ -678,8 +673,8 @@ impl Patches {
             let first = range.start == 0;
             let points = self.footprint_points(p, (layout, surface), key, range);
             if first {
-                let on_surface: Vec<SurfacePoint> = points.iter().map(|&(_, sp)| sp).collect();
-                beside = footprint_beside(rays, (at, p.geometric_normal), &on_surface, fan.nearest);
+                let on_surface = points.iter().map(|(_, sp)| sp);
+                beside = footprint_beside(rays, (at, p.geometric_normal), on_surface, fan.nearest);
                 if beside && fan.closed {
                     return (None, true);
                 }
