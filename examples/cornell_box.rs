@@ -77,7 +77,13 @@ fn setup_camera(mut commands: Commands, target: Res<CameraTarget>) {
         Exposure { ev100: 7.5 },
     ));
     if let Some(image) = &target.0 {
-        camera.insert((RenderTarget::Image(image.clone().into()), Tonemapping::None));
+        // No camera draws to a window: this one places the shadow maps' detail.
+        camera.insert((
+            RenderTarget::Image(image.clone().into()),
+            Tonemapping::None,
+            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
+            bevy::camera::ShadowLodOrigin,
+        ));
     } else {
         commands.spawn((
             Text::new(""),
@@ -176,6 +182,7 @@ fn arm_capture(
 fn report_frame_times(
     mut exits: MessageReader<AppExit>,
     times: Res<FrameTimes>,
+    status: Res<BakeStatus>,
     capture: Option<Res<FrameCapture>>,
 ) {
     if exits.read().next().is_none() {
@@ -191,6 +198,10 @@ fn report_frame_times(
     };
     let (nb, mb, pb, xb) = stats(&times.baking);
     let (ni, mi, pi, xi) = stats(&times.idle);
+    println!(
+        "bake in the app: {:.2} s (the last of {})",
+        status.elapsed_seconds, status.completed
+    );
     println!(
         "frame time while baking: {mb:.1} ms mean, {pb:.1} ms p95, {xb:.1} ms max over {nb} frames"
     );

@@ -93,7 +93,13 @@ fn setup(
     ));
     match &headless.0 {
         Some(image) => {
-            camera.insert((RenderTarget::Image(image.clone().into()), Tonemapping::None));
+            // No camera draws to a window: this one places the shadow maps' detail.
+            camera.insert((
+                RenderTarget::Image(image.clone().into()),
+                Tonemapping::None,
+                bevy::core_pipeline::tonemapping::DebandDither::Disabled,
+                bevy::camera::ShadowLodOrigin,
+            ));
         }
         None => {
             commands.spawn((

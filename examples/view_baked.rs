@@ -110,7 +110,13 @@ fn frame_scene(
         Exposure { ev100: 6.0 },
     ));
     if let Some(image) = &viewer.target {
-        camera.insert((RenderTarget::Image(image.clone().into()), Tonemapping::None));
+        // No camera draws to a window: this one places the shadow maps' detail.
+        camera.insert((
+            RenderTarget::Image(image.clone().into()),
+            Tonemapping::None,
+            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
+            bevy::camera::ShadowLodOrigin,
+        ));
     }
 }
 

@@ -48,6 +48,8 @@ fn rendered_cornell_box_shows_the_bake() {
         Camera3d::default(),
         Transform::from_xyz(0.0, 0.2744, 1.35).looking_at(Vec3::new(0.0, 0.2744, 0.0), Vec3::Y),
         RenderTarget::Image(target.into()),
+        bevy::camera::ShadowLodOrigin,
+        bevy::core_pipeline::tonemapping::DebandDither::Disabled,
         Tonemapping::None,
         Msaa::Off,
         Exposure { ev100: EV100 },

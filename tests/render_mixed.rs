@@ -94,6 +94,8 @@ fn a_mixed_bake_renders_like_a_full_bake() {
             // From above: the ceiling faces down, so Bevy culls it.
             Transform::from_xyz(0.0, 1.2, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
             RenderTarget::Image(target.into()),
+            bevy::camera::ShadowLodOrigin,
+            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
             Tonemapping::None,
             Msaa::Off,
             Exposure::default(),

@@ -89,6 +89,8 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
         // Looking down -Y with -Z up in the image: image x = world x, image y = world z.
         Transform::from_xyz(0.0, 3.0, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
         RenderTarget::Image(target.into()),
+        bevy::camera::ShadowLodOrigin,
+        bevy::core_pipeline::tonemapping::DebandDither::Disabled,
         Tonemapping::None,
         Msaa::Off,
         Exposure { ev100: 1.0 },

@@ -71,6 +71,8 @@ fn plates_against_floor(
             camera.0,
             camera.1,
             RenderTarget::Image(target.into()),
+            bevy::camera::ShadowLodOrigin,
+            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
             Tonemapping::None,
             Msaa::Off,
             Exposure::default(),

@@ -41,10 +41,6 @@ pub fn headless_app(assets: &Path, watch: bool) -> App {
             .disable::<bevy::winit::WinitPlugin>()
             .disable::<bevy::log::LogPlugin>(),
     )
-    // Bevy 0.19 without a render world still puts render-synced components on entities, and
-    // their removal hooks need `PendingSyncEntity`, which only the render world's plugin
-    // adds: despawning a glTF scene (a hot reload re-spawns it) would panic without this.
-    .add_plugins(bevy::render::sync_world::SyncWorldPlugin)
     .add_plugins(LightbakePlugin);
     while app.plugins_state() == PluginsState::Adding {
         bevy::tasks::tick_global_task_pools_on_main_thread();

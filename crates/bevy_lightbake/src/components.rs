@@ -69,7 +69,7 @@ pub enum BakeMode {
     Full,
     /// Only the light it sends after a reflection (Bevy's mixed lighting): the light stays
     /// real time on lightmapped meshes too, with Bevy's shadows, and the lightmaps add what it
-    /// reflects. The default for `RectLight`: Bevy 0.19 has no switch to stop a rect light
+    /// reflects. The default for `RectLight`: Bevy 0.20 has no switch to stop a rect light
     /// lighting lightmapped meshes (its shader always adds their diffuse light), so its
     /// direct light cannot be baked without showing twice.
     IndirectOnly,

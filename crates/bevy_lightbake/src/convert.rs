@@ -1,6 +1,6 @@
 //! The marked Bevy world → the core's [`Scene`], and the unit conversions between the two.
 //!
-//! | Bevy 0.19 | core scene | conversion |
+//! | Bevy 0.20 | core scene | conversion |
 //! |---|---|---|
 //! | `PointLight::intensity`, `SpotLight::intensity` (lumens) | candela | I = Φ / 4π (Bevy's own shading divides by 4π) |
 //! | `PointLight::range`, `SpotLight::range` (m) | `range` | same; Bevy's window (1 − (d/r)⁴)² |
@@ -609,7 +609,7 @@ fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMappi
         let bake = light_bake(mode, BakeMode::IndirectOnly);
         if bake == LightBake::Full {
             scene.warnings.push(format!(
-                "{name}: a RectLight baked with BakeMode::Full still lights lightmapped meshes in Bevy 0.19 (it has no affects_lightmapped_mesh_diffuse): hide it after the bake, or bake it IndirectOnly"
+                "{name}: a RectLight baked with BakeMode::Full still lights lightmapped meshes in Bevy 0.20 (it has no affects_lightmapped_mesh_diffuse): hide it after the bake, or bake it IndirectOnly"
             ));
         }
         let core = light(

@@ -1,6 +1,6 @@
 //! # bevy_lightbake
 //!
-//! Bake lightmaps inside a Bevy 0.19 game with the [`lightbake`] baker, and show lightmaps
+//! Bake lightmaps inside a Bevy 0.20 game with the [`lightbake`] baker, and show lightmaps
 //! baked by the `bake` command.
 //!
 //! * Mark static meshes with [`Lightbaked`]. Every `PointLight`, `SpotLight` and
@@ -28,7 +28,7 @@
 //!   says which.
 //! * A light with [`BakeMode::IndirectOnly`] stays real time, with Bevy's shadows; the
 //!   lightmaps add only what it reflects (mixed lighting). `RectLight`s are baked that way
-//!   by default, since Bevy 0.19 cannot stop them lighting lightmapped meshes.
+//!   by default, since Bevy 0.20 cannot stop them lighting lightmapped meshes.
 //!
 //! Texels store irradiance / π, shown by Bevy with `lightmap_exposure = 1` (the default);
 //! units are Bevy's (lumens, lux, nits). See `docs/units.md`.

@@ -309,7 +309,7 @@ pub(crate) fn sync_lightmaps(
 ) {
     let mut attached = false;
     for (entity, wanted, current, wait, mut mesh) in &mut query {
-        // Bevy 0.19 chooses a mesh's pipeline (lightmapped or not) only when the mesh entity
+        // Bevy 0.20 chooses a mesh's pipeline (lightmapped or not) only when the mesh entity
         // changes (`check_entities_needing_specialization`), not when a `Lightmap` comes or
         // goes; a stale choice draws with the wrong bind group layout, a validation error.
         // So every insertion and removal also marks `Mesh3d` changed (this set runs before

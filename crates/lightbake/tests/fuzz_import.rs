@@ -74,10 +74,10 @@ fn edit_nth(json: &mut Value, k: usize, pred: impl Fn(&Value) -> bool, f: impl F
     let (mut i, target, mut f) = (0, k % n.max(1), Some(f));
     visit(json, &mut |v| {
         if pred(v) {
-            if i == target {
-                if let Some(f) = f.take() {
-                    f(v);
-                }
+            if i == target
+                && let Some(f) = f.take()
+            {
+                f(v);
             }
             i += 1;
         }
@@ -116,10 +116,10 @@ fn settings() -> BakeSettings {
 
 /// Imports `path`; if that works, validates and prepares the scene. Any panic fails the case.
 fn import_and_prepare(path: &Path) {
-    if let Ok(imported) = import_gltf(path, LightConvention::GltfSpec) {
-        if imported.scene.validate().is_ok() {
-            let _ = Prepared::new(&imported.scene, &settings());
-        }
+    if let Ok(imported) = import_gltf(path, LightConvention::GltfSpec)
+        && imported.scene.validate().is_ok()
+    {
+        let _ = Prepared::new(&imported.scene, &settings());
     }
 }
 

@@ -125,7 +125,7 @@ impl Doc {
 
     /// Appends bytes to buffer 0 (4-byte aligned) as a new view; returns its index.
     pub fn add_view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -317,11 +317,11 @@ impl Doc {
         let mut json = self.json.clone();
         json["buffers"][0] = json!({ "byteLength": self.bin.len() });
         let mut text = serde_json::to_vec(&json).unwrap();
-        while text.len() % 4 != 0 {
+        while !text.len().is_multiple_of(4) {
             text.push(b' ');
         }
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + text.len() + 8 + bin.len();

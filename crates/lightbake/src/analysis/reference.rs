@@ -46,12 +46,12 @@ fn next_event(
     let mut e = Vec3::ZERO;
     let mut realtime = Vec3::ZERO;
     for light in &ctx.scene.lights {
-        if let Some(incident) = light.incident(sp, Vec2::new(u[0], u[1]), ctx.rays) {
-            if incident.visible(ctx.rays, origin) {
-                e += incident.irradiance;
-                if !light.direct_is_baked() {
-                    realtime += incident.irradiance;
-                }
+        if let Some(incident) = light.incident(sp, Vec2::new(u[0], u[1]), ctx.rays)
+            && incident.visible(ctx.rays, origin)
+        {
+            e += incident.irradiance;
+            if !light.direct_is_baked() {
+                realtime += incident.irradiance;
             }
         }
     }

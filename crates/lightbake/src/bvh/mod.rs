@@ -305,17 +305,17 @@ impl RayScene {
                 continue;
             }
             let limit = best.map_or(tmax, |b| b.t);
-            if let Some((t, u, v)) = watertight::intersect(tri, origin, &shear, tmin, limit) {
-                if best.is_none_or(|b| t < b.t) {
-                    let triangle = g as u32;
-                    best = Some(Hit {
-                        t,
-                        triangle,
-                        u,
-                        v,
-                        front_face: self.triangles[g].normal.dot(dir) < 0.0,
-                    });
-                }
+            if let Some((t, u, v)) = watertight::intersect(tri, origin, &shear, tmin, limit)
+                && best.is_none_or(|b| t < b.t)
+            {
+                let triangle = g as u32;
+                best = Some(Hit {
+                    t,
+                    triangle,
+                    u,
+                    v,
+                    front_face: self.triangles[g].normal.dot(dir) < 0.0,
+                });
             }
         }
         best

@@ -4,7 +4,7 @@
 //!
 //! # What a texel stores
 //! Irradiance over π, E/π, in Bevy's light units (lux/π), linear RGB. Bevy's PBR shader adds
-//! `lightmap × lightmap_exposure × diffuse_color` (`pbr_functions.wgsl`), and a Lambertian
+//! `lightmap × lightmap_exposure × diffuse_color` (`pbr_functions.wesl`), and a Lambertian
 //! surface of albedo ρ under irradiance E reflects radiance ρ·E/π; so with
 //! `lightmap_exposure = 1` the game shows exactly the baked light. A white floor 1 m under a
 //! 1 cd point light stores 1/π ≈ 0.318.

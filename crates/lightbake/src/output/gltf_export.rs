@@ -41,7 +41,7 @@ fn err(path: &Path, message: impl Into<String>) -> BakeError {
 
 /// Appends `bytes` to the blob (4-byte aligned) and returns a new bufferView index.
 fn push_view(json: &mut Value, blob: &mut Vec<u8>, bytes: &[u8], target: Option<u32>) -> usize {
-    while blob.len() % 4 != 0 {
+    while !blob.len().is_multiple_of(4) {
         blob.push(0);
     }
     let offset = blob.len();

@@ -9,7 +9,7 @@
 //! gathered there; a probe with no such way out is *filled*: the mean of its open
 //! neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
 //!
-//! **Texture layout**, as Bevy 0.19's shader reads it (`irradiance_volume.wgsl`): a volume of
+//! **Texture layout**, as Bevy 0.20's shader reads it (`irradiance_volume.wesl`): a volume of
 //! resolution (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel
 //! (x, y, z) is at s = x, t = y (+ Ry for −X, −Y, −Z: the shader adds half the height for a
 //! negative normal component), p = z (+ Rz for ±Y, + 2Rz for ±Z). The module docs of
@@ -101,7 +101,7 @@ impl IrradianceVolume {
     }
 
     /// What Bevy's shader gives a surface at `position` with unit normal `normal` from this
-    /// volume (`irradiance_volume.wgsl`): each axis' side facing the normal, trilinearly
+    /// volume (`irradiance_volume.wesl`): each axis' side facing the normal, trilinearly
     /// filtered between probe centres (clamped at the outer ones), weighted by the squared
     /// normal's components. E/π, linear RGB.
     pub fn sample(&self, position: Vec3, normal: Vec3) -> Vec3 {
@@ -164,7 +164,7 @@ mod tests {
         assert_eq!(at(1, 0, 8), v.voxels[i][5]);
     }
 
-    /// Bevy 0.19's `irradiance_volume_light` on the texture, step by step: the unit cube's
+    /// Bevy 0.20's `irradiance_volume_light` on the texture, step by step: the unit cube's
     /// point scaled to voxels and clamped, the half for a negative normal component added to
     /// v, the third of each axis added to w, each read with trilinear filtering (texel
     /// centres at (i + ½)/size), weighted by N².

@@ -271,7 +271,10 @@ impl Lattice<'_> {
             let p = &self.ctx.patches.patches[pi as usize];
             let starts = |v: u32| {
                 let s = v / spacing * spacing;
-                [Some(s), (v % spacing == 0 && v > 0).then(|| v - spacing)]
+                [
+                    Some(s),
+                    (v.is_multiple_of(spacing) && v > 0).then(|| v - spacing),
+                ]
             };
             for y in starts(p.y).into_iter().flatten() {
                 for x in starts(p.x).into_iter().flatten() {

@@ -139,7 +139,7 @@ struct Probed {
 /// takes the answer of the grid texels around it when they are all clearly open
 /// ([`Patches::fix_validity`]).
 fn on_fan_grid(p: &Patch) -> bool {
-    p.x % 2 == 0 && p.y % 2 == 0
+    p.x.is_multiple_of(2) && p.y.is_multiple_of(2)
 }
 
 /// The nearest single-sided back face within `reach` along the surface (rays slightly
@@ -225,14 +225,15 @@ fn is_open(
         }
         let dir = cosine_hemisphere(g, sobol_02(s, key));
         *used += 1;
-        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY) {
-            if !h.front_face && !rays.triangles[h.triangle as usize].double_sided {
-                back += 1;
-                if back > max_back {
-                    return Openness::Closed {
-                        late: s + 1 >= LATE_CLOSED_RAYS,
-                    };
-                }
+        if let Some(h) = rays.closest_hit(origin, dir, 0.0, f32::INFINITY)
+            && !h.front_face
+            && !rays.triangles[h.triangle as usize].double_sided
+        {
+            back += 1;
+            if back > max_back {
+                return Openness::Closed {
+                    late: s + 1 >= LATE_CLOSED_RAYS,
+                };
             }
         }
     }

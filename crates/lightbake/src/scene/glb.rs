@@ -3,11 +3,11 @@
 
 /// A binary glTF container: header, JSON chunk (space padded), BIN chunk (zero padded).
 pub fn glb(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();

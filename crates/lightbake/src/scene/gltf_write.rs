@@ -13,7 +13,7 @@ use super::extras::{self, LightExtras, NodeExtras, SceneExtras};
 use super::{LightKind, Scene, Wrap};
 
 fn pad4(bin: &mut Vec<u8>) {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
 }

@@ -99,10 +99,10 @@ impl Light {
                 self.intensity
             )));
         }
-        if let Some(r) = self.range {
-            if !(r.is_finite() && r > 0.0) {
-                return Err(bad(format!("range {r} must be positive")));
-            }
+        if let Some(r) = self.range
+            && !(r.is_finite() && r > 0.0)
+        {
+            return Err(bad(format!("range {r} must be positive")));
         }
         if !self.position.is_finite() {
             return Err(bad(format!("position {:?} is not finite", self.position)));

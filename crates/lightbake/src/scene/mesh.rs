@@ -136,7 +136,7 @@ impl Mesh {
     /// [`BakeError::PartialTriangle`], [`BakeError::IndexOutOfRange`],
     /// [`BakeError::NonFiniteVertex`] naming the mesh and the vertex or triangle.
     pub fn validate(&self) -> Result<()> {
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err(BakeError::PartialTriangle {
                 mesh: self.name.clone(),
                 count: self.indices.len(),

@@ -171,15 +171,15 @@ impl Scene {
     pub fn validate(&self) -> Result<()> {
         for m in &self.meshes {
             m.validate()?;
-            if let Some(mat) = m.material {
-                if mat >= self.materials.len() {
-                    return Err(BakeError::BadReference {
-                        what: format!(
-                            "mesh '{}' uses material {mat}, which does not exist",
-                            m.name
-                        ),
-                    });
-                }
+            if let Some(mat) = m.material
+                && mat >= self.materials.len()
+            {
+                return Err(BakeError::BadReference {
+                    what: format!(
+                        "mesh '{}' uses material {mat}, which does not exist",
+                        m.name
+                    ),
+                });
             }
         }
         for inst in &self.instances {

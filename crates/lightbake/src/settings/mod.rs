@@ -189,7 +189,7 @@ impl Default for OutputFormats {
 /// How punctual-light parameters the glTF leaves open are read.
 ///
 /// The glTF specification says `KHR_lights_punctual` colours are linear and a light without
-/// `range` reaches infinitely far. Bevy 0.19's glTF loader reads the colour as sRGB and gives
+/// `range` reaches infinitely far. Bevy 0.20's glTF loader reads the colour as sRGB and gives
 /// such a light a range of 20 m. See `docs/units.md`.
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -200,7 +200,7 @@ pub enum LightConvention {
     #[default]
     #[cfg_attr(feature = "clap", value(name = "gltf"))]
     GltfSpec,
-    /// Match what Bevy 0.19's glTF loader does, so a baked light equals Bevy's real-time one:
+    /// Match what Bevy 0.20's glTF loader does, so a baked light equals Bevy's real-time one:
     /// sRGB light colours, no range = 20 m.
     #[cfg_attr(feature = "clap", value(name = "bevy"))]
     BevyGltfLoader,

@@ -216,7 +216,7 @@ pub fn cg_on_symmetric(system: &System<'_>, options: &SolveOptions) -> Solution 
         }
         rz = rz_new;
         iteration += 1;
-        if iteration % check_every == 0 {
+        if iteration.is_multiple_of(check_every) {
             let res = system.relative_residual(&full(&x));
             rec.record(iteration as f64, res, None);
             if res < options.tolerance {

@@ -190,7 +190,7 @@ pub fn shoot_columns(
             heap.set(i, power(i, &unshot));
         }
         shots += 1;
-        if shots % record_every == 0 {
+        if shots.is_multiple_of(record_every) {
             let residual = norm(&unshot, system.area) / s_norm;
             rec.record(shots as f64 / n as f64, residual, None);
             if residual < options.tolerance {

@@ -304,10 +304,10 @@ fn walk_one(
             path: i,
         }),
     };
-    if settings.first_generation {
-        if let Some(v) = first {
-            push(set, v);
-        }
+    if settings.first_generation
+        && let Some(v) = first
+    {
+        push(set, v);
     }
     // Reflections.
     let mut origin = origin;

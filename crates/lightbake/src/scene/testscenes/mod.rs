@@ -193,7 +193,7 @@ pub fn merge(name: &str, parts: impl IntoIterator<Item = Mesh>) -> Mesh {
 /// quads (2n² triangles per quad), keeping positions, normals and UV0 bilinear.
 pub fn subdivide_quads(mesh: &Mesh, n: u32) -> Mesh {
     assert!(
-        mesh.indices.len() % 6 == 0,
+        mesh.indices.len().is_multiple_of(6),
         "expects quads made of two triangles"
     );
     let mut out = Mesh {
