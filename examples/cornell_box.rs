@@ -199,7 +199,7 @@ fn report_frame_times(
     let (nb, mb, pb, xb) = stats(&times.baking);
     let (ni, mi, pi, xi) = stats(&times.idle);
     println!(
-        "bake in the app: {:.2} s (the last of {})",
+        "last bake in the app: {:.2} s ({} completed)",
         status.elapsed_seconds, status.completed
     );
     println!(
