@@ -565,17 +565,7 @@ fn write_and_print(
     print!("{}", output.report.table());
     println!("{}", output.report.texels.summary());
     if let Some(v) = &output.report.vpl {
-        println!(
-            "instant radiosity: {} particles ({}), {} VPLs, {} shadow rays in {:.2} s ({:.2} Mrays/s), {:.1}% of the VPL light clamped{}",
-            v.particles,
-            v.particles_reason,
-            v.vpls,
-            v.shadow_rays,
-            v.gather_seconds,
-            v.shadow_rays_per_second / 1e6,
-            100.0 * v.clamped_fraction,
-            if v.compensated { " and restored" } else { "" }
-        );
+        println!("{}", v.summary());
     }
     if let Some(ind) = &output.report.radiosity {
         println!(
@@ -592,6 +582,9 @@ fn write_and_print(
     }
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
+    }
+    for (i, e) in written.bc6h.iter().enumerate() {
+        println!("{}", e.summary(i));
     }
     println!("wrote {} files to {}:", written.files.len(), dir.display());
     for f in &written.files {

@@ -28,18 +28,22 @@ pub struct PageFiles {
     /// KTX2 file, if written.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ktx2: Option<String>,
+    /// KTX2 file of BC6H blocks, if written.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ktx2_bc6h: Option<String>,
     /// Tonemapped PNG preview, if written.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preview: Option<String>,
 }
 
 impl PageFiles {
-    /// The file a game should load (EXR, else KTX2, else HDR).
+    /// The file a game should load (EXR, else KTX2, else HDR, else BC6H).
     pub fn primary(&self) -> Option<&str> {
         self.exr
             .as_deref()
             .or(self.ktx2.as_deref())
             .or(self.hdr.as_deref())
+            .or(self.ktx2_bc6h.as_deref())
     }
 }
 

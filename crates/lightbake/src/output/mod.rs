@@ -8,6 +8,7 @@
 //! OUT_DIR/
 //!   <scene>.gltf + <scene>.bin   (or <scene>.glb)   input + TEXCOORD_1 + node extras
 //!   lightmaps/lightmap_<page>.exr|.hdr|.ktx2         E/π, linear RGB
+//!   lightmaps/lightmap_<page>.bc6h.ktx2              the same in BC6H blocks (on request)
 //!   lightmaps/lightmap_<page>.preview.png            tonemapped, to look at
 //!   irradiance_volumes/volume_0.ktx2                 ambient cubes for dynamic objects (on request)
 //!   manifest.json                                    instance → page file + uv_rect
@@ -15,6 +16,7 @@
 //! ```
 
 internal!(gltf_export, images);
+pub mod bc6h;
 pub mod manifest;
 
 use std::path::{Path, PathBuf};
@@ -36,6 +38,8 @@ pub use manifest::{
 pub struct Written {
     /// Every file, absolute or relative to where the output directory was given.
     pub files: Vec<PathBuf>,
+    /// Per BC6H page written, what the compression changed (empty without BC6H pages).
+    pub bc6h: Vec<bc6h::Bc6hError>,
 }
 
 fn encode_err(path: &Path) -> impl FnOnce(String) -> BakeError + '_ {
@@ -60,6 +64,7 @@ pub fn page_files(output: &BakeOutput, settings: &BakeSettings) -> Vec<PageFiles
                 exr: f("exr", settings.formats.exr),
                 hdr: f("hdr", settings.formats.hdr),
                 ktx2: f("ktx2", settings.formats.ktx2),
+                ktx2_bc6h: f("bc6h.ktx2", settings.formats.ktx2_bc6h),
                 preview: f("preview.png", settings.formats.png_preview),
             }
         })
@@ -84,7 +89,7 @@ pub fn write_outputs(
     }
     let mut staged = StagedFiles::new(dir);
     let pages = page_files(output, settings);
-    stage_pages(&mut staged, dir, output, &pages)?;
+    let compressed = stage_pages(&mut staged, dir, output, &pages)?;
     for (i, volume) in output.irradiance_volume.iter().enumerate() {
         let (size, texels) = volume.texture();
         if texels.iter().any(|t| !t.is_finite()) {
@@ -138,7 +143,10 @@ pub fn write_outputs(
         .into_iter()
         .map(|p| p.strip_prefix(&root).map_or(p.clone(), |rel| dir.join(rel)))
         .collect();
-    Ok(Written { files })
+    Ok(Written {
+        files,
+        bc6h: compressed,
+    })
 }
 
 /// Refuses an output folder that is the scene's own (its outputs would sit among, and may
@@ -168,12 +176,14 @@ fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// Stages every page in every format asked for.
+/// Stages every page file; returns what BC6H did to each page written as BC6H.
 fn stage_pages(
     staged: &mut StagedFiles,
     dir: &Path,
     output: &BakeOutput,
     pages: &[PageFiles],
-) -> Result<()> {
+) -> Result<Vec<bc6h::Bc6hError>> {
+    let mut compressed = Vec::new();
     for (page, files) in output.pages.iter().zip(pages) {
         // A lightmap never holds a NaN or an infinity (every stage checks its output; this is
         // the last line).
@@ -199,13 +209,19 @@ fn stage_pages(
         if let Some(f) = &files.ktx2 {
             staged.stage(&dir.join(f), &images::encode_ktx2(page))?;
         }
+        if let Some(f) = &files.ktx2_bc6h {
+            let path = dir.join(f);
+            let bytes = bc6h::encode_ktx2_bc6h(page).map_err(encode_err(&path))?;
+            compressed.push(bc6h::measure(page, &bytes).map_err(encode_err(&path))?);
+            staged.stage(&path, &bytes)?;
+        }
         if let Some(f) = &files.preview {
             let path = dir.join(f);
             let bytes = images::encode_preview_png(page).map_err(encode_err(&path))?;
             staged.stage(&path, &bytes)?;
         }
     }
-    Ok(())
+    Ok(compressed)
 }
 
 /// Stages the baked glTF (and its buffer and images); returns its file name.

@@ -148,6 +148,10 @@ pub enum ImageFormat {
     Hdr,
     /// KTX2, `R16G16B16A16_SFLOAT` (Bevy loads it as `Rgba16Float`).
     Ktx2,
+    /// KTX2, BC6H unsigned half float blocks (`lightmap_N.bc6h.ktx2`, 1 byte per texel; Bevy
+    /// loads it as `Bc6hRgbUfloat` on a GPU with BC compression). Instances and charts then
+    /// start on 4×4 blocks.
+    Ktx2Bc6h,
 }
 
 /// Which lightmap files are written per atlas page.
@@ -159,6 +163,10 @@ pub struct OutputFormats {
     pub hdr: bool,
     /// KTX2, `R16G16B16A16_SFLOAT`, uncompressed (`lightmap_N.ktx2`). Default off.
     pub ktx2: bool,
+    /// KTX2, BC6H blocks (`lightmap_N.bc6h.ktx2`); the layout then aligns charts to 4×4
+    /// blocks. Default off.
+    #[serde(default)]
+    pub ktx2_bc6h: bool,
     /// A tonemapped sRGB PNG to look at (`lightmap_N.preview.png`). Default on.
     pub png_preview: bool,
 }
@@ -170,6 +178,7 @@ impl OutputFormats {
             exr: hdr.contains(&ImageFormat::Exr),
             hdr: hdr.contains(&ImageFormat::Hdr),
             ktx2: hdr.contains(&ImageFormat::Ktx2),
+            ktx2_bc6h: hdr.contains(&ImageFormat::Ktx2Bc6h),
             png_preview,
         }
     }
@@ -181,6 +190,7 @@ impl Default for OutputFormats {
             exr: true,
             hdr: false,
             ktx2: false,
+            ktx2_bc6h: false,
             png_preview: true,
         }
     }

@@ -109,6 +109,8 @@ pub(super) fn xatlas_unwrap(
         max_chart_size: max_page
             .saturating_sub(2 * settings.layout.padding + 2)
             .max(1),
+        // BC6H pages: each chart on its own 4×4 blocks.
+        block_align: settings.formats.ktx2_bc6h,
         ..xatlas::PackOptions::default()
     };
     let mut scaled = false;
@@ -162,6 +164,18 @@ pub(super) fn xatlas_unwrap(
             texels_per_metre: request.texels_per_metre * achieved / request.texels_per_unit,
             scaled_to_fit: scaled,
         });
+    }
+    if pack.block_align {
+        // Charts on their own 4×4 blocks fit no page: pack them as for the other formats, and
+        // say so.
+        let mut plain = settings.clone();
+        plain.formats.ktx2_bc6h = false;
+        let out = xatlas_unwrap(mesh, request, &plain, warnings, raised)?;
+        warnings.push(format!(
+            "mesh '{}': its charts on their own 4×4 blocks fit no {max_page}² page; packed without, so a BC6H block may hold two of its charts",
+            mesh.name
+        ));
+        return Ok(out);
     }
     Err(BakeError::Unwrap {
         mesh: mesh.name.clone(),

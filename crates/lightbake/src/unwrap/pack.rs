@@ -6,9 +6,13 @@ use crate::settings::BakeSettings;
 
 /// Shelf packing of every baked instance's rectangle into pages (tallest first, stable
 /// order). Shelves wrap at a width chosen for a roughly square page (the square root of the
-/// total rectangle area, at least the widest rectangle, at most `max_page_size`).
+/// total rectangle area, at least the widest rectangle, at most `max_page_size`). For BC6H
+/// pages every rectangle starts on a 4×4 block and the next one starts on the first block past
+/// its padding, so no block holds texels of two instances.
 pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mut Layout) {
     let gap = settings.layout.padding;
+    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
+    let up = |v: u32| v.next_multiple_of(block);
     let max = settings.layout.max_page_size;
     let mut order: Vec<(usize, u32, u32)> = scene
         .instances
@@ -46,16 +50,16 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
             for shelf in &mut page.shelves {
                 if h <= shelf.height && shelf.x + w <= shelf_width {
                     placed = Some((pi, shelf.x, shelf.y));
-                    shelf.x += w + gap;
+                    shelf.x += up(w + gap);
                     break 'pages;
                 }
             }
-            let next_y = page.shelves.last().map_or(0, |s| s.y + s.height + gap);
+            let next_y = page.shelves.last().map_or(0, |s| up(s.y + s.height + gap));
             if next_y + h <= max {
                 page.shelves.push(Shelf {
                     y: next_y,
                     height: h,
-                    x: w + gap,
+                    x: up(w + gap),
                 });
                 placed = Some((pi, 0, next_y));
                 break;
@@ -66,7 +70,7 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
                 shelves: vec![Shelf {
                     y: 0,
                     height: h,
-                    x: w + gap,
+                    x: up(w + gap),
                 }],
                 used_w: 0,
                 used_h: 0,

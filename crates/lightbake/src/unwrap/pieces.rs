@@ -316,6 +316,8 @@ fn xatlas_item(
         texels_per_unit: (tpu / unit as f64) as f32,
         padding: settings.layout.padding,
         max_chart_size: max_chart,
+        // BC6H pages: each chart on its own 4×4 blocks.
+        block_align: settings.formats.ktx2_bc6h,
         ..xatlas::PackOptions::default()
     };
     let out = xatlas::generate(&input, &xatlas::ChartOptions::default(), &pack).map_err(|e| {
@@ -356,9 +358,16 @@ fn xatlas_item(
     Ok(item)
 }
 
-/// Shelf-packs items (tallest first) with `gap` texels between them; returns each item's
-/// corner and the rectangle's size.
-pub(super) fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>, u32, u32) {
+/// Shelf-packs items (tallest first) with `gap` texels between them, each starting on a
+/// multiple of `block` texels (4 for BC6H pages, else 1); returns each item's corner and the
+/// rectangle's size.
+pub(super) fn pack(
+    items: &[Item],
+    gap: u32,
+    block: u32,
+    max_page: u32,
+) -> (Vec<(u32, u32)>, u32, u32) {
+    let up = |v: u32| v.next_multiple_of(block);
     let mut order: Vec<usize> = (0..items.len()).collect();
     order.sort_by(|&a, &b| items[b].height.cmp(&items[a].height).then(a.cmp(&b)));
     let area: f64 = items
@@ -374,14 +383,14 @@ pub(super) fn pack(items: &[Item], gap: u32, max_page: u32) -> (Vec<(u32, u32)>,
     for i in order {
         let it = &items[i];
         if x > 0 && x + it.width > shelf_width {
-            y += shelf_h + gap;
+            y += up(shelf_h + gap);
             x = 0;
             shelf_h = 0;
         }
         corners[i] = (x, y);
-        x += it.width + gap;
+        width = width.max(x + it.width);
+        x += up(it.width + gap);
         shelf_h = shelf_h.max(it.height);
-        width = width.max(x - gap);
     }
     (corners, width.max(1), (y + shelf_h).max(1))
 }
@@ -429,6 +438,7 @@ pub(super) fn unwrap_in_pieces(
         .saturating_sub(2 * settings.layout.padding + 2)
         .max(1);
     let gap = settings.layout.padding + 1;
+    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
     let requested = request.texels_per_unit as f64;
     let mut tpu = requested;
     for _attempt in 0..8 {
@@ -459,7 +469,7 @@ pub(super) fn unwrap_in_pieces(
                 ),
             });
         }
-        let (corners, width, height) = pack(&items, gap, max_page);
+        let (corners, width, height) = pack(&items, gap, block, max_page);
         if width.max(height) > max_page {
             tpu *= shrink_to_page(width, height, max_page);
             continue;
@@ -474,6 +484,18 @@ pub(super) fn unwrap_in_pieces(
         return Ok(assemble(
             mesh, &items, &corners, width, height, request, tpu,
         ));
+    }
+    if block > 1 {
+        // Charts on their own 4×4 blocks fit no page: pack them as for the other formats, and
+        // say so.
+        let mut plain = settings.clone();
+        plain.formats.ktx2_bc6h = false;
+        let out = unwrap_in_pieces(mesh, request, &plain, min_planar, warnings, raised)?;
+        warnings.push(format!(
+            "mesh '{}': its charts on their own 4×4 blocks fit no {max_page}² page; packed without, so a BC6H block may hold two of its charts",
+            mesh.name
+        ));
+        return Ok(out);
     }
     Err(BakeError::Unwrap {
         mesh: mesh.name.clone(),

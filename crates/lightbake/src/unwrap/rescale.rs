@@ -40,6 +40,7 @@ pub(crate) fn rescale_charts(
         members[c.min(charts)].push((t as u32, corners));
     }
     let gap = settings.layout.padding + 1;
+    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
     let max_page = settings.layout.max_page_size;
     let mut fit = 1.0f32;
     for _attempt in 0..8 {
@@ -58,7 +59,7 @@ pub(crate) fn rescale_charts(
                 )
             })
             .collect();
-        let (corners, width, height) = pack(&items, gap, max_page);
+        let (corners, width, height) = pack(&items, gap, block, max_page);
         if width.max(height) > max_page {
             fit *= shrink_to_page(width, height, max_page) as f32;
             continue;

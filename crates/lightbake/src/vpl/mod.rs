@@ -78,6 +78,27 @@ pub struct VplReport {
     pub error: ErrorEstimate,
 }
 
+impl VplReport {
+    /// One line for a terminal: particles, VPLs, the gather's shadow rays and the clamp.
+    pub fn summary(&self) -> String {
+        format!(
+            "instant radiosity: {} particles ({}), {} VPLs, {} shadow rays in {:.2} s ({:.2} Mrays/s), {:.1}% of the VPL light clamped{}",
+            self.particles,
+            self.particles_reason,
+            self.vpls,
+            self.shadow_rays,
+            self.gather_seconds,
+            self.shadow_rays_per_second / 1e6,
+            100.0 * self.clamped_fraction,
+            if self.compensated {
+                " and restored"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
 /// The clamp distance for a scene: the setting, or 2% of the scene's diagonal.
 pub fn clamp_distance(ctx: &BakeContext<'_>) -> f32 {
     ctx.settings
