@@ -175,8 +175,8 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Stages every page in every format asked for.
-/// Stages every page file; returns what BC6H did to each page written as BC6H.
+/// Stages every page in every format asked for; returns what BC6H did to each page written as
+/// BC6H.
 fn stage_pages(
     staged: &mut StagedFiles,
     dir: &Path,
