@@ -69,7 +69,6 @@ fn bake_bc6h(scene: &Scene, s: &BakeSettings) -> (Vec<Vec<u8>>, Vec<bc6h::Bc6hEr
                     .filter(|&k| read[k] && owner[k] != usize::MAX)
                     .map(|k| owner[k])
                     .collect();
-                owners.dedup();
                 owners.sort_unstable();
                 owners.dedup();
                 assert!(

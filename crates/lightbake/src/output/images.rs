@@ -10,7 +10,7 @@ use half::f16;
 use crate::lightmap::{HALF_MAX, LightmapPage};
 
 /// Converts to half, clamping to [0, 65504].
-fn to_half(v: f32) -> f16 {
+pub(crate) fn to_half(v: f32) -> f16 {
     f16::from_f32(v.clamp(0.0, HALF_MAX))
 }
 
