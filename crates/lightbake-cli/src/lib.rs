@@ -27,6 +27,7 @@ use lightbake::{
 };
 
 mod convergence;
+mod lights;
 mod plot;
 mod split;
 
@@ -268,11 +269,19 @@ struct Args {
     /// shadows; Bevy's mixed lighting). Applies to every light, or to those named by
     /// `--indirect-only`. Sky and emissive surfaces are always baked in full.
     #[arg(long, value_enum, default_value = "full")]
-    lighting: Lighting,
+    lighting: lights::Lighting,
     /// Bake only these lights (glTF light names, comma-separated) indirect only; the rest in
     /// full. Implies `--lighting indirect` for them.
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
     indirect_only: Vec<String>,
+    /// A light group, baked into lightmaps of its own (`lightmaps/groups/NAME/`, listed in
+    /// manifest.json) so a game can switch and blend it at run time: `NAME=MEMBER,...`, each
+    /// member a light name, an emissive material name or `sky` (`light:NAME` and
+    /// `material:NAME` when a light and a material share a name). Repeat for more groups;
+    /// what no group names bakes into the group `ungrouped`; the bake's own pages are the
+    /// sum. Replaces the groups the glTF's extras give.
+    #[arg(long, value_name = "NAME=MEMBER,...", value_parser = lights::parse_group)]
+    group: Vec<lightbake::settings::LightGroup>,
     /// Uniform sky luminance in nits, linear RGB (overrides the scene's).
     #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
@@ -447,43 +456,8 @@ fn settings_from(args: &Args) -> BakeSettings {
         s.checks.verify_points = v;
     }
     set(&mut s.checks.verify_paths, args.verify_paths);
+    s.groups = args.group.clone();
     s
-}
-
-/// The `--lighting` values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum Lighting {
-    /// Direct and indirect light.
-    Full,
-    /// Indirect light only: the lights stay real-time.
-    Indirect,
-}
-
-/// Marks the lights `--lighting` / `--indirect-only` choose as baked indirect only.
-fn choose_lighting(args: &Args, scene: &mut lightbake::scene::Scene) -> Result<(), CliError> {
-    use lightbake::scene::LightBake;
-    for name in &args.indirect_only {
-        if !scene.lights.iter().any(|l| &l.name == name) {
-            let names: Vec<&str> = scene.lights.iter().map(|l| l.name.as_str()).collect();
-            return Err(format!(
-                "--indirect-only: the scene has no light named '{name}' (its lights: {})",
-                if names.is_empty() {
-                    "none".to_string()
-                } else {
-                    names.join(", ")
-                }
-            )
-            .into());
-        }
-    }
-    for l in &mut scene.lights {
-        if args.indirect_only.contains(&l.name)
-            || (args.indirect_only.is_empty() && args.lighting == Lighting::Indirect)
-        {
-            l.bake = LightBake::IndirectOnly;
-        }
-    }
-    Ok(())
 }
 
 /// `on` or `off`.
@@ -505,7 +479,8 @@ fn load(args: &Args) -> Result<(BakeSettings, lightbake::ImportedScene), CliErro
     if let Some(sky) = args.sky {
         imported.scene.sky = glam::Vec3::from_array(sky);
     }
-    choose_lighting(args, &mut imported.scene)?;
+    lights::choose_lighting(args, &mut imported.scene)?;
+    let settings = lights::with_groups(settings, args, &imported)?;
     Ok((settings, imported))
 }
 
@@ -740,6 +715,7 @@ mod tests {
             "--verify=64",
             "--verify-paths=256",
             "--light-convention=bevy",
+            "--group=night=lamp,sky",
         ])
         .unwrap();
         let args = cli.bake.expect("the bare form is a bake");

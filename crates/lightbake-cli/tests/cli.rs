@@ -448,3 +448,75 @@ fn mixed_lighting_and_an_irradiance_volume_from_the_command_line() {
         "{line}"
     );
 }
+
+#[test]
+fn light_groups_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let scene = asset("sunlit_room.gltf");
+    let run = |extra: &[&str]| {
+        let mut a = vec![
+            scene.to_str().unwrap(),
+            "-o",
+            out_dir.to_str().unwrap(),
+            "--quality",
+            "preview",
+            "--irradiance-volume",
+            "--probe-rays",
+            "32",
+        ];
+        a.extend(extra);
+        bake(&a)
+    };
+    let out = run(&["--group", "day=sun"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("light group day: light sun"), "{stdout}");
+    assert!(stdout.contains("light group ungrouped: sky"), "{stdout}");
+    for group in ["day", "ungrouped"] {
+        assert!(
+            out_dir
+                .join(format!("lightmaps/groups/{group}/lightmap_0.exr"))
+                .is_file()
+        );
+        assert!(
+            out_dir
+                .join(format!("irradiance_volumes/groups/{group}/volume_0.ktx2"))
+                .is_file()
+        );
+    }
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("manifest.json")).unwrap()).unwrap();
+    let groups = &manifest["light_groups"];
+    assert_eq!(groups[0]["name"], "day");
+    assert_eq!(groups[0]["members"][0], "light sun");
+    assert_eq!(
+        groups[0]["pages"][0]["exr"],
+        "lightmaps/groups/day/lightmap_0.exr"
+    );
+    let gltf: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("sunlit_room.gltf")).unwrap()).unwrap();
+    let listed = &gltf["scenes"][0]["extras"]["lightbake"]["light_groups"];
+    assert_eq!(listed[1]["name"], "ungrouped");
+    assert_eq!(
+        listed[1]["pages"][0],
+        "lightmaps/groups/ungrouped/lightmap_0.exr"
+    );
+    assert_eq!(
+        listed[1]["irradiance_volumes"][0],
+        "irradiance_volumes/groups/ungrouped/volume_0.ktx2"
+    );
+
+    // A member the scene does not have is a one-line error naming the lights.
+    let out = run(&["--group", "night=lamp"]);
+    assert!(!out.status.success());
+    let line = stderr_line(&out);
+    assert!(
+        line.contains("night=lamp") && line.contains("its lights: sun"),
+        "{line}"
+    );
+}

@@ -330,6 +330,42 @@ impl Decision {
     }
 }
 
+/// One light group of a bake ([`crate::settings::groups`]): what it holds and what its
+/// lighting cost.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupReport {
+    /// The group's name.
+    pub name: String,
+    /// Its members: `light NAME`, `material NAME`, `sky`.
+    pub members: Vec<String>,
+    /// Wall time of its lighting and finishing stages, seconds (the shared stages before
+    /// them, from the plan to the texel patches, are not counted).
+    pub seconds: f64,
+    /// Rays its stages traced.
+    pub rays: u64,
+    /// Its stages' error estimate, relative to its own RMS texel (none when nothing was
+    /// sampled).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorEstimate>,
+}
+
+impl GroupReport {
+    /// One line: name, members, time, rays and error.
+    pub fn summary(&self) -> String {
+        format!(
+            "light group {}: {} — {:.3} s, {} rays{}",
+            self.name,
+            self.members.join(", "),
+            self.seconds,
+            self.rays,
+            self.error.as_ref().map_or(String::new(), |e| format!(
+                ", estimated error {:.2}% RMS",
+                100.0 * e.relative_rms
+            ))
+        )
+    }
+}
+
 /// Everything a bake records about itself.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BakeReport {
@@ -378,6 +414,12 @@ pub struct BakeReport {
     /// The irradiance volume, when one was baked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub irradiance_volume: Option<crate::probes::VolumeStats>,
+    /// The light groups, when the bake has any: each one's members, time, rays and error.
+    /// The other fields describe the whole bake (its stages list each group's, their notes
+    /// prefixed with the group's name); the radiosity, instant-radiosity and finishing
+    /// reports are the first group's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<GroupReport>,
     /// The memory estimate the bake was admitted with.
     pub memory: MemoryEstimate,
     /// The bake's estimate of its own error: the stages' estimates added in quadrature,
@@ -487,6 +529,10 @@ impl BakeReport {
                 .map(|m| format!(", peak memory {m:.0} MiB"))
                 .unwrap_or_default()
         ));
+        for g in &self.groups {
+            s.push_str(&g.summary());
+            s.push('\n');
+        }
         for d in &self.decisions {
             s.push_str(&format!(
                 "decided: {} {}: {}\n",

@@ -20,6 +20,7 @@ mod prefix;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
 mod builder;
+mod groups;
 mod handle;
 mod passes;
 pub mod preview;
@@ -50,11 +51,13 @@ use crate::report::{BakeReport, Decision, Floor, TexelStats};
 use crate::runner::{StageRunner, WorkScope};
 use crate::sampling::hash_words;
 use crate::scene::Scene;
+use crate::scene::groups::GroupMembers;
 use crate::settings::{BakeSettings, Method};
 use crate::stage::Stage;
 use crate::unwrap::Layout;
 pub use builder::{BakeBuilder, SplitOutcome};
 use estimate::with_grid_error;
+pub use groups::GroupPages;
 pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
 pub use shard::{Role, ShardRun};
@@ -76,6 +79,9 @@ pub struct BakeOutput {
     /// The irradiance volume for dynamic objects, when the settings ask for one
     /// ([`VolumeSettings::enabled`](crate::settings::VolumeSettings::enabled)).
     pub irradiance_volume: Option<IrradianceVolume>,
+    /// With light groups ([`BakeSettings::groups`]): each group's pages and volume, whose
+    /// sum is `pages` and `irradiance_volume`. Empty without groups.
+    pub groups: Vec<GroupPages>,
     /// Timings, counts, plan and warnings.
     pub report: BakeReport,
 }
@@ -170,6 +176,14 @@ fn bake_with(
 ) -> Result<BakeOutput> {
     settings.validate()?;
     scene.validate()?;
+    let light_groups = crate::scene::groups::resolve(scene, &settings.groups)?;
+    if !light_groups.is_empty() && !matches!(scope, Scope::All) {
+        return Err(BakeError::BadSetting {
+            name: "groups",
+            value: settings.groups.len().to_string(),
+            message: "light groups are baked in one process over every texel: a split bake or a bake of a subset of the texels takes none".into(),
+        });
+    }
     if settings.method == Method::Vpl
         && let Some(l) = scene.lights.iter().find(|l| !l.direct_is_baked())
     {
@@ -209,7 +223,7 @@ fn bake_with(
             settings,
             progress,
             previews,
-            scope,
+            (scope, &light_groups),
             pool.current_num_threads(),
             notes,
         )
@@ -256,6 +270,10 @@ struct Lit {
     volume: Option<(IrradianceVolume, VolumeStats)>,
     /// Stages the plan meant to run that the bake found it could not, with why.
     skipped: Vec<(Stage, String)>,
+    /// With light groups: each group's pages and volume, and the irradiance per patch of
+    /// the group being lit (summed into the bake's estimate, then dropped).
+    groups: Vec<GroupPages>,
+    irradiance: Vec<Vec3>,
 }
 
 /// A bake on the current rayon pool: the geometry stages ([`prefix`]), the lighting and
@@ -265,7 +283,7 @@ fn bake_in_pool(
     settings: &BakeSettings,
     progress: &Progress,
     previews: &PreviewSlot,
-    scope: Scope<'_>,
+    (scope, light_groups): (Scope<'_>, &[GroupMembers]),
     threads: usize,
     notes: Vec<String>,
 ) -> Result<BakeOutput> {
@@ -282,10 +300,13 @@ fn bake_in_pool(
     let admitted = prefix::admit(scene, settings, &plan, &layout, previews, &mut decisions)?;
     let baked_scene = layout.apply(scene);
     let mut lit = if plan.nothing_to_bake {
-        Lit::black(&layout)
+        Lit {
+            groups: groups::black_groups(&layout, light_groups, scene),
+            ..Lit::black(&layout)
+        }
     } else {
         let rays = prefix::bvh(&baked_scene, early_rays, &mut stages)?;
-        let lighting = (rays, admitted.volume_grid);
+        let lighting = (rays, admitted.volume_grid, light_groups);
         light_scene(
             &baked_scene,
             &layout,
@@ -312,6 +333,7 @@ fn bake_in_pool(
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
     let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
+    let group_reports = lit.groups.iter().map(|g| g.report.clone()).collect();
     let error_budget = crate::report::error_budget(&stages.list, lit.error.as_ref());
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
@@ -327,6 +349,7 @@ fn bake_in_pool(
         seams: lit.seams,
         denoise: lit.denoise,
         irradiance_volume: volume_stats,
+        groups: group_reports,
         split: (scope.split_bake())
             .map(ShardRun::split_stages)
             .unwrap_or_default(),
@@ -348,6 +371,7 @@ fn bake_in_pool(
         baked_scene,
         pages: lit.pages,
         irradiance_volume,
+        groups: lit.groups,
         report,
     })
 }
@@ -368,22 +392,20 @@ fn half_float_warning(pages: &[LightmapPage]) -> Option<String> {
 }
 
 /// Everything after the unwrap and the BVH for a scene with something to bake, given its ray
-/// scene and the volume's grid: the texel patches, the lighting passes, the floor
-/// calibration, the pages and the finishing passes on them, and the volume.
+/// scene and the volume's grid: the texel patches, then the lighting ([`light_patches`]), once
+/// or once per light group ([`groups::light_groups`]).
 fn light_scene(
     scene: &Scene,
     layout: &Layout,
     settings: &BakeSettings,
     plan: &BakePlan,
-    (rays, volume_grid): (RayScene, Option<VolumeGrid>),
+    (rays, volume_grid, light_groups): (RayScene, Option<VolumeGrid>, &[GroupMembers]),
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
     let mut lit = Lit::default();
     let patches = finish::texel_patches(scene, layout, settings, plan, &rays, stages)?;
     lit.count_texels(&patches, warnings);
-    let emitters = Emitters::collect(scene, &rays);
-    warnings.extend(emitter_warnings(&emitters, &rays, scene));
     let ctx = BakeContext {
         scene,
         layout,
@@ -392,38 +414,66 @@ fn light_scene(
         settings,
         plan,
     };
-    let mut light = passes::lighting(&ctx, &emitters, stages, warnings)?;
+    if light_groups.is_empty() {
+        light_patches(&ctx, volume_grid, true, lit, stages, warnings)
+    } else {
+        groups::light_groups(&ctx, light_groups, volume_grid, lit, stages, warnings)
+    }
+}
+
+/// The lighting of `ctx`'s scene over its texel patches: the lighting passes, the floor
+/// calibration (when `calibrate`), the pages and the finishing passes on them, and the
+/// volume, added to `lit`.
+fn light_patches(
+    ctx: &BakeContext<'_>,
+    volume_grid: Option<VolumeGrid>,
+    calibrate: bool,
+    mut lit: Lit,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<Lit> {
+    let (scene, layout, rays, patches) = (ctx.scene, ctx.layout, ctx.rays, ctx.patches);
+    let (settings, plan) = (ctx.settings, ctx.plan);
+    let emitters = Emitters::collect(scene, rays);
+    warnings.extend(emitter_warnings(&emitters, rays, scene));
+    let mut light = passes::lighting(ctx, &emitters, stages, warnings)?;
     stages.scope().stop_after_split()?;
     let mut irradiance = std::mem::take(&mut light.irradiance);
-    lit.take_lighting(&mut light, &patches, &irradiance);
-    lit.rates = finish::calibrate_floor(&rays, &patches, settings, stages)?;
-    if let Some((indirect, _)) = light.indirect.as_mut() {
-        finite::patches("indirect", scene, &patches, indirect)?;
+    lit.take_lighting(&mut light, patches, &irradiance);
+    if calibrate {
+        lit.rates = finish::calibrate_floor(rays, patches, settings, stages)?;
     }
-    finite::patches("lighting", scene, &patches, &mut irradiance)?;
-    let mut assembly = Assembly::new(layout, &patches, &irradiance);
+    if let Some((indirect, _)) = light.indirect.as_mut() {
+        finite::patches("indirect", scene, patches, indirect)?;
+    }
+    finite::patches("lighting", scene, patches, &mut irradiance)?;
+    let mut assembly = Assembly::new(layout, patches, &irradiance);
     if plan.runs(Stage::Denoise) {
-        finish::denoise_pages(&ctx, &light, &irradiance, &mut assembly, &mut lit, stages)?;
+        finish::denoise_pages(ctx, &light, &irradiance, &mut assembly, &mut lit, stages)?;
     }
     if plan.runs(Stage::GridError) && !light.direct.is_empty() {
         let value = (lit.error.as_ref().map(|e| e.value_rms))
-            .unwrap_or_else(|| rms_luminance(&valid(&patches, &irradiance)));
+            .unwrap_or_else(|| rms_luminance(&valid(patches, &irradiance)));
         let (direct, se) = (&light.direct, &light.texel_error);
         let before = lit.error.take();
-        lit.error = with_grid_error(&ctx, &rays, &emitters, stages, direct, se, before, value)?;
+        lit.error = with_grid_error(ctx, rays, &emitters, stages, direct, se, before, value)?;
     }
-    drop(irradiance);
-    assembly.fill_hidden(&patches);
+    if settings.groups.is_empty() {
+        drop(irradiance);
+    } else {
+        lit.irradiance = irradiance;
+    }
+    assembly.fill_hidden(patches);
     if plan.runs(Stage::ContactFit) {
-        lit.contact = Some(finish::contact_fit_pages(&ctx, &mut assembly, stages)?);
+        lit.contact = Some(finish::contact_fit_pages(ctx, &mut assembly, stages)?);
     }
-    finish::dilate_pages(&ctx, &mut assembly, &mut lit, stages)?;
+    finish::dilate_pages(ctx, &mut assembly, &mut lit, stages)?;
     if plan.runs(Stage::Stitch) {
-        lit.seams = Some(finish::stitch_pages(&ctx, &mut assembly, stages)?);
+        lit.seams = Some(finish::stitch_pages(ctx, &mut assembly, stages)?);
     }
     lit.pages = assembly.pages;
     if let Some(grid) = volume_grid {
-        let volume = finish::volume_stage(&ctx, grid, &emitters, &lit.pages, stages)?;
+        let volume = finish::volume_stage(ctx, grid, &emitters, &lit.pages, stages)?;
         if volume.1.unfilled > 0 {
             warnings.push(
                 "every probe of the irradiance volume is inside geometry: the volume is black"

@@ -16,7 +16,7 @@ use serde_json::{Value, json};
 
 use crate::error::{BakeError, Result};
 use crate::scene::extras::{
-    self, LightBakeExtras, LightExtras, NodeExtras, NodeLightmap, SceneExtras, VolumeExtras,
+    self, LightBakeExtras, LightExtras, NodeExtras, NodeLightmap, SceneExtras,
 };
 use crate::scene::glb::glb;
 use crate::scene::gltf_accessor::read_dense;
@@ -72,7 +72,7 @@ fn ensure_array(json: &mut Value, key: &str) {
 }
 
 /// Builds the baked glTF. `lightmaps` lists (node, lightmap) for every baked primitive;
-/// `stem` is the output file name without extension; `reserved` names the other files of
+/// `written` holds the scene extras the bake writes (its volumes and light groups); `stem` is the output file name without extension; `reserved` names the other files of
 /// the output folder (relative, `/`-separated), which copied images never replace.
 ///
 /// Only bytes the import read go out: the buffer views in use (not whole buffers), and the
@@ -86,7 +86,7 @@ pub fn baked_gltf(
     original: &Scene,
     layout: &Layout,
     lightmaps: &[(usize, NodeLightmap)],
-    volumes: &[VolumeExtras],
+    written: &SceneExtras,
     stem: &str,
     reserved: &[String],
 ) -> Result<BakedGltf> {
@@ -127,7 +127,7 @@ pub fn baked_gltf(
     // 3. Lightmap references in node extras, volumes in the scenes' extras; 4. punctual
     // lights marked as baked (or baked indirect only).
     write_node_lightmaps(&mut json, lightmaps);
-    write_scene_volumes(&mut json, volumes);
+    write_scene_extras(&mut json, written);
     mark_lights_baked(&mut json, original);
     // 5. Images copied (gltf) or embedded (glb), then one buffer and the container.
     let mut taken: HashSet<String> = reserved.iter().map(|r| r.to_lowercase()).collect();
@@ -370,10 +370,11 @@ fn write_node_lightmaps(json: &mut Value, lightmaps: &[(usize, NodeLightmap)]) {
     }
 }
 
-/// Writes every scene's `extras.lightbake.irradiance_volumes` (its other extras kept), so an
-/// engine that spawns the scene finds its volumes.
-fn write_scene_volumes(json: &mut Value, volumes: &[VolumeExtras]) {
-    if volumes.is_empty() {
+/// Writes every scene's `extras.lightbake.irradiance_volumes` and `light_groups` from
+/// `written` (its other extras kept), so an engine that spawns the scene finds its volumes and
+/// groups.
+fn write_scene_extras(json: &mut Value, written: &SceneExtras) {
+    if written.irradiance_volumes.is_empty() && written.light_groups.is_empty() {
         return;
     }
     let Some(scenes) = json.get_mut("scenes").and_then(Value::as_array_mut) else {
@@ -382,7 +383,8 @@ fn write_scene_volumes(json: &mut Value, volumes: &[VolumeExtras]) {
     for scene in scenes.iter_mut().filter(|s| s.is_object()) {
         let mut lb: SceneExtras =
             extras::read_value(scene["extras"].get(extras::KEY), "scene", &mut Vec::new());
-        lb.irradiance_volumes = volumes.to_vec();
+        lb.irradiance_volumes = written.irradiance_volumes.clone();
+        lb.light_groups = written.light_groups.clone();
         extras::write(scene, &lb);
     }
 }

@@ -103,6 +103,24 @@ pub struct Manifest {
     /// What the volumes' voxels hold (when there are volumes).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_stored_quantity: Option<&'static str>,
+    /// The light groups, when the bake has any: each one's lightmaps, whose sum is `pages`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub light_groups: Vec<ManifestGroup>,
+}
+
+/// One light group in the manifest: its name, members, page files (in the order and sizes of
+/// the bake's pages) and volume files.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ManifestGroup {
+    /// The group's name.
+    pub name: String,
+    /// What it holds: `light NAME`, `material NAME`, `sky`.
+    pub members: Vec<String>,
+    /// Its pages.
+    pub pages: Vec<PageFiles>,
+    /// Its irradiance volumes, relative to the output directory.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub irradiance_volumes: Vec<String>,
 }
 
 /// The volumes of a bake, as the manifest and the baked glTF list them.
@@ -129,11 +147,30 @@ pub fn volume_file(i: usize) -> String {
     format!("irradiance_volumes/volume_{i}.ktx2")
 }
 
+/// File of light group `group`'s irradiance volume `i`, relative to the output directory.
+pub fn group_volume_file(group: &str, i: usize) -> String {
+    format!("irradiance_volumes/groups/{group}/volume_{i}.ktx2")
+}
+
+/// The light groups of a bake with their files (`pages`: each group's page files).
+pub fn groups(output: &BakeOutput, pages: &[Vec<PageFiles>]) -> Vec<ManifestGroup> {
+    (output.groups.iter().zip(pages))
+        .map(|(g, files)| ManifestGroup {
+            name: g.name.clone(),
+            members: g.report.members.clone(),
+            pages: files.clone(),
+            irradiance_volumes: (g.irradiance_volume.iter().enumerate())
+                .map(|(i, _)| group_volume_file(&g.name, i))
+                .collect(),
+        })
+        .collect()
+}
+
 /// The manifest of a bake.
 pub fn manifest(
     output: &BakeOutput,
     original: &Scene,
-    pages: &[PageFiles],
+    (pages, group_pages): (&[PageFiles], &[Vec<PageFiles>]),
     baked_gltf: Option<String>,
 ) -> Manifest {
     let mut instances = Vec::new();
@@ -173,5 +210,6 @@ pub fn manifest(
         volume_stored_quantity: output.irradiance_volume.is_some().then_some(
             "irradiance / pi from each side (-X, +X, -Y, +Y, -Z, +Z), without the lights' direct light; Bevy: IrradianceVolume with intensity 1",
         ),
+        light_groups: groups(output, group_pages),
     }
 }

@@ -10,7 +10,9 @@
 //!   lightmaps/lightmap_<page>.exr|.hdr|.ktx2         E/π, linear RGB
 //!   lightmaps/lightmap_<page>.bc6h.ktx2              the same in BC6H blocks (on request)
 //!   lightmaps/lightmap_<page>.preview.png            tonemapped, to look at
+//!   lightmaps/groups/<group>/lightmap_<page>.*       each light group's pages (with groups)
 //!   irradiance_volumes/volume_0.ktx2                 ambient cubes for dynamic objects (on request)
+//!   irradiance_volumes/groups/<group>/volume_0.ktx2  each light group's volume
 //!   manifest.json                                    instance → page file + uv_rect
 //!   report.json                                      settings, plan, timings, rays, warnings
 //! ```
@@ -24,13 +26,14 @@ use std::path::{Path, PathBuf};
 use crate::atomic::StagedFiles;
 use crate::bake::BakeOutput;
 use crate::error::{BakeError, Result};
+use crate::lightmap::LightmapPage;
 use crate::scene::Scene;
-use crate::scene::extras::NodeLightmap;
+use crate::scene::extras::{GroupExtras, NodeLightmap, SceneExtras};
 use crate::scene::gltf_import::GltfSource;
 use crate::settings::BakeSettings;
 pub use manifest::{
-    MANIFEST_VERSION, Manifest, ManifestInstance, ManifestVolume, PageFiles, manifest, volume_file,
-    volumes,
+    MANIFEST_VERSION, Manifest, ManifestGroup, ManifestInstance, ManifestVolume, PageFiles,
+    group_volume_file, manifest, volume_file, volumes,
 };
 
 /// What [`write_outputs`] wrote.
@@ -51,12 +54,24 @@ fn encode_err(path: &Path) -> impl FnOnce(String) -> BakeError + '_ {
 
 /// Page file names without the output directory.
 pub fn page_files(output: &BakeOutput, settings: &BakeSettings) -> Vec<PageFiles> {
-    output
-        .pages
+    files_of(&output.pages, "lightmaps", settings)
+}
+
+/// Each light group's page file names without the output directory
+/// (`lightmaps/groups/<group>/`), in the order of [`BakeOutput::groups`].
+pub fn group_page_files(output: &BakeOutput, settings: &BakeSettings) -> Vec<Vec<PageFiles>> {
+    (output.groups.iter())
+        .map(|g| files_of(&g.pages, &format!("lightmaps/groups/{}", g.name), settings))
+        .collect()
+}
+
+/// The file names of `pages` in folder `folder`.
+fn files_of(pages: &[LightmapPage], folder: &str, settings: &BakeSettings) -> Vec<PageFiles> {
+    pages
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let f = |ext: &str, on: bool| on.then(|| format!("lightmaps/lightmap_{i}.{ext}"));
+            let f = |ext: &str, on: bool| on.then(|| format!("{folder}/lightmap_{i}.{ext}"));
             PageFiles {
                 index: i as u32,
                 width: p.width,
@@ -89,16 +104,26 @@ pub fn write_outputs(
     }
     let mut staged = StagedFiles::new(dir);
     let pages = page_files(output, settings);
-    let compressed = stage_pages(&mut staged, dir, output, &pages)?;
-    for (i, volume) in output.irradiance_volume.iter().enumerate() {
+    let group_pages = group_page_files(output, settings);
+    let compressed = stage_pages(&mut staged, dir, &output.pages, &pages, true)?;
+    for (g, files) in output.groups.iter().zip(&group_pages) {
+        stage_pages(&mut staged, dir, &g.pages, files, false)?;
+    }
+    let volumes = (output.irradiance_volume.iter().enumerate())
+        .map(|(i, v)| (v, volume_file(i)))
+        .chain(output.groups.iter().flat_map(|g| {
+            (g.irradiance_volume.iter().enumerate())
+                .map(|(i, v)| (v, group_volume_file(&g.name, i)))
+        }));
+    for (volume, file) in volumes {
         let (size, texels) = volume.texture();
         if texels.iter().any(|t| !t.is_finite()) {
-            return Err(encode_err(&dir.join(volume_file(i)))(
+            return Err(encode_err(&dir.join(&file))(
                 "a probe holds a non-finite value; nothing was written".into(),
             ));
         }
         let bytes = images::encode_ktx2_texels(size.to_array(), &texels);
-        staged.stage(&dir.join(volume_file(i)), &bytes)?;
+        staged.stage(&dir.join(&file), &bytes)?;
     }
     let baked_gltf = match source {
         Some(source) => Some(stage_baked_gltf(
@@ -107,11 +132,11 @@ pub fn write_outputs(
             output,
             original,
             source,
-            &pages,
+            (&pages, &group_pages),
         )?),
         None => None,
     };
-    let manifest = manifest(output, original, &pages, baked_gltf);
+    let manifest = manifest(output, original, (&pages, &group_pages), baked_gltf);
     stage_json(&mut staged, &dir.join("manifest.json"), &manifest)?;
     let mut report = output.report.clone();
     let report_path = dir.join("report.json");
@@ -176,15 +201,16 @@ fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// Stages every page in every format asked for; returns what BC6H did to each page written as
-/// BC6H.
+/// BC6H (when `measure`).
 fn stage_pages(
     staged: &mut StagedFiles,
     dir: &Path,
-    output: &BakeOutput,
-    pages: &[PageFiles],
+    pages: &[LightmapPage],
+    files: &[PageFiles],
+    measure: bool,
 ) -> Result<Vec<bc6h::Bc6hError>> {
     let mut compressed = Vec::new();
-    for (page, files) in output.pages.iter().zip(pages) {
+    for (page, files) in pages.iter().zip(files) {
         // A lightmap never holds a NaN or an infinity (every stage checks its output; this is
         // the last line).
         if let Some(k) = page.texels.iter().position(|t| !t.is_finite()) {
@@ -212,7 +238,9 @@ fn stage_pages(
         if let Some(f) = &files.ktx2_bc6h {
             let path = dir.join(f);
             let bytes = bc6h::encode_ktx2_bc6h(page).map_err(encode_err(&path))?;
-            compressed.push(bc6h::measure(page, &bytes).map_err(encode_err(&path))?);
+            if measure {
+                compressed.push(bc6h::measure(page, &bytes).map_err(encode_err(&path))?);
+            }
             staged.stage(&path, &bytes)?;
         }
         if let Some(f) = &files.preview {
@@ -231,7 +259,7 @@ fn stage_baked_gltf(
     output: &BakeOutput,
     original: &Scene,
     source: &GltfSource,
-    pages: &[PageFiles],
+    (pages, group_pages): (&[PageFiles], &[Vec<PageFiles>]),
 ) -> Result<String> {
     let stem = source
         .path
@@ -264,12 +292,26 @@ fn stage_baked_gltf(
         .map(|p| p.to_string_lossy().replace('\\', "/"))
         .chain(["manifest.json".to_string(), "report.json".to_string()])
         .collect();
+    let written = SceneExtras {
+        irradiance_volumes: volumes(output),
+        light_groups: (manifest::groups(output, group_pages).into_iter())
+            .map(|g| GroupExtras {
+                name: g.name,
+                members: g.members,
+                pages: (g.pages.iter())
+                    .map(|p| p.primary().unwrap_or_default().to_string())
+                    .collect(),
+                irradiance_volumes: g.irradiance_volumes,
+            })
+            .collect(),
+        ..SceneExtras::default()
+    };
     let baked = gltf_export::baked_gltf(
         source,
         original,
         &output.layout,
         &node_lightmaps,
-        &volumes(output),
+        &written,
         &stem,
         &reserved,
     )?;

@@ -7,6 +7,7 @@
 //! | scene | `texel_density` | number | suggested texels per metre |
 //! | scene | `sky` | `[r, g, b]` | uniform sky luminance, nits, linear RGB |
 //! | scene | `irradiance_volumes` | list | written by the bake: each volume's image, centre, size and resolution |
+//! | scene | `light_groups` | list | written by the bake: each light group's name, members, page images and volume images |
 //! | node | `texel_density_scale` | number | density multiplier for this node's meshes |
 //! | node | `bake` | bool | `false`: cast shadows and reflect, but get no lightmap |
 //! | node | `lightmaps` | list | written by the bake: per primitive, its page image and `uv_rect` |
@@ -14,6 +15,9 @@
 //! | light | `baked` | bool | written by the bake: the light's diffuse light is in the lightmaps |
 //! | light | `bake` | `"full"` / `"indirect"` | bake all its light (default), or only its indirect light (it stays real-time) |
 //! | light | `rect` | `[width, height]` | a spot light that is really a rectangle (Bevy's `RectLight`), m; its `intensity` is then candela on the axis, luminance × area |
+//! | light | `group` | string | the light group the light bakes into ([`crate::settings::groups`]) |
+//! | material | `group` | string | the light group the material's emission bakes into |
+//! | scene | `sky_group` | string | the light group the sky bakes into |
 //!
 //! Reading is lenient per key ([`read`]): a key of the wrong type or an unknown key is
 //! reported and left out, and the other keys still apply.
@@ -43,6 +47,35 @@ pub struct SceneExtras {
         deserialize_with = "well_formed_entries"
     )]
     pub irradiance_volumes: Vec<VolumeExtras>,
+    /// The light group the sky bakes into.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky_group: Option<String>,
+    /// The light groups baked for the scene (written by the bake). Malformed entries are
+    /// skipped when read.
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "well_formed_entries"
+    )]
+    pub light_groups: Vec<GroupExtras>,
+}
+
+/// One light group's lightmaps, in a scene's `extras.lightbake.light_groups` and in
+/// `manifest.json`: the group's light alone, on the same pages (and volume boxes) as the
+/// scene's own lightmaps, which are the sum of every group's. An engine shows
+/// `Σ weightᵢ × groupᵢ` in place of the scene's page.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GroupExtras {
+    /// The group's name.
+    pub name: String,
+    /// What it holds: `light NAME`, `material NAME`, `sky`.
+    pub members: Vec<String>,
+    /// Per page of the scene, in page order, the group's image of it, relative to the glTF
+    /// file (or the output directory, in the manifest).
+    pub pages: Vec<String>,
+    /// Per irradiance volume of the scene, in order, the group's volume image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub irradiance_volumes: Vec<String>,
 }
 
 /// One irradiance volume, in a scene's `extras.lightbake.irradiance_volumes` and in
@@ -117,6 +150,18 @@ pub struct LightExtras {
     /// a rect light, its spot entry the far-field stand-in for readers without lightbake.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rect: Option<[f32; 2]>,
+    /// The light group the light bakes into.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
+}
+
+/// A material's `extras.lightbake`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialExtras {
+    /// The light group the material's emission bakes into.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
 }
 
 /// The values of a light's `extras.lightbake.bake`.

@@ -13,9 +13,10 @@ use glam::{Affine3A, Mat4, Vec2, Vec3, Vec4};
 use gltf::Semantic;
 use gltf::mesh::Mode;
 
-use super::extras::{self, LightExtras, NodeExtras, SceneExtras};
+use super::extras::{self, LightExtras, MaterialExtras, NodeExtras, SceneExtras};
 use super::gltf_accessor::{read_indices, read_uv, read_vec3};
 use super::gltf_data::{Budget, ImageError, Images, read_buffers};
+use super::groups::add_member;
 use super::resources::{ReadPolicy, read_regular_file};
 use super::{
     GltfPrimitiveRef, Instance, Light, LightKind, Material, Mesh, Scene, Texture, TextureRef, Wrap,
@@ -50,6 +51,9 @@ pub struct ImportedScene {
     pub scene: Scene,
     /// The source, for the baked-glTF export.
     pub source: GltfSource,
+    /// The light groups the extras name (`group` on lights and materials, the scene's
+    /// `sky_group`), members written `light:NAME`, `material:NAME` and `sky`.
+    pub light_groups: Vec<crate::settings::LightGroup>,
 }
 
 impl ImportedScene {
@@ -215,6 +219,7 @@ pub fn import_gltf_slice_with(
                 .map_or_else(|| "scene".into(), |n| n.to_string_lossy().into_owned()),
             ..Scene::default()
         },
+        groups: Vec::new(),
         mesh_map: HashMap::new(),
         texture_map: HashMap::new(),
     };
@@ -230,10 +235,11 @@ pub fn import_gltf_slice_with(
     }
     let images = std::mem::take(&mut importer.images.files);
     inputs.append(&mut importer.images.paths);
-    let scene = importer.scene;
+    let (scene, light_groups) = (importer.scene, importer.groups);
     scene.validate()?;
     Ok(ImportedScene {
         scene,
+        light_groups,
         source: GltfSource {
             path: path.to_path_buf(),
             json,
@@ -314,6 +320,7 @@ struct Importer<'a> {
     budget: Budget,
     convention: LightConvention,
     scene: Scene,
+    groups: Vec<crate::settings::LightGroup>,
     /// (glTF mesh, primitive) → scene mesh (None when skipped).
     mesh_map: HashMap<(usize, usize), Option<usize>>,
     /// (image, wrap u, wrap v) → scene texture (None when it could not be loaded).
@@ -361,6 +368,9 @@ impl Importer<'_> {
         if let Some([r, g, b]) = lb.sky {
             self.scene.sky = Vec3::new(r, g, b);
         }
+        if let Some(g) = lb.sky_group {
+            add_member(&mut self.groups, &g, "sky".into());
+        }
     }
 
     fn materials(&mut self) -> Result<()> {
@@ -380,6 +390,12 @@ impl Importer<'_> {
                 None => None,
             };
             let strength = m.emissive_strength().unwrap_or(1.0);
+            let place = format!("material '{name}'");
+            let lb: MaterialExtras =
+                extras::read(extras_text(m.extras()), &place, &mut self.scene.warnings);
+            if let Some(g) = lb.group {
+                add_member(&mut self.groups, &g, format!("material:{name}"));
+            }
             self.scene.materials.push(Material {
                 name,
                 base_color: Vec4::from_array(pbr.base_color_factor()),
@@ -573,6 +589,9 @@ impl Importer<'_> {
             }
             (None, _, _) => None,
         };
+        if let Some(g) = &lb.group {
+            add_member(&mut self.groups, g, format!("light:{name}"));
+        }
         self.scene.lights.push(Light {
             name,
             kind,

@@ -28,6 +28,7 @@ pub mod extras;
 internal!(glb, gltf_accessor, gltf_data, resources);
 pub mod gltf_import;
 pub mod gltf_write;
+pub mod groups;
 mod light;
 mod material;
 mod mesh;

@@ -12,6 +12,7 @@
 //! | `finish` | [`finish`] | contact fit, denoise, seam stitch |
 //! | `volume` | [`volume`] | irradiance volume |
 //! | `checks` | [`checks`] | grid error, `--verify` |
+//! | `groups` | [`groups`] | the lighting passes, once per light group |
 //!
 //! The method, the seed, the thread count, the memory and ray limits, the target error and
 //! the output formats steer the whole bake and sit on [`BakeSettings`] itself.
@@ -24,6 +25,7 @@ pub use crate::sampling::Sequence;
 pub mod checks;
 pub mod direct;
 pub mod finish;
+pub mod groups;
 pub mod layout;
 pub mod radiosity;
 pub mod volume;
@@ -32,6 +34,7 @@ pub mod vpl;
 pub use checks::CheckSettings;
 pub use direct::DirectSettings;
 pub use finish::FinishSettings;
+pub use groups::LightGroup;
 pub use layout::LayoutSettings;
 pub use radiosity::RadiositySettings;
 pub use volume::VolumeSettings;
@@ -274,6 +277,9 @@ pub struct BakeSettings {
     pub target_error: Option<f32>,
     /// Which files to write.
     pub formats: OutputFormats,
+    /// Light groups, each baked into lightmaps of its own ([`groups`]); the bake's own pages
+    /// are their sum. Default none.
+    pub groups: Vec<LightGroup>,
 }
 
 impl Default for BakeSettings {
@@ -300,6 +306,7 @@ impl BakeSettings {
             max_rays: 100_000_000_000,
             target_error: None,
             formats: OutputFormats::default(),
+            groups: Vec::new(),
         }
     }
 
@@ -324,6 +331,7 @@ impl BakeSettings {
     /// [`BakeError::BadSetting`] naming the first field out of range (as its path, e.g.
     /// `direct.samples_per_texel`).
     pub fn validate(&self) -> Result<()> {
+        groups::check(&self.groups)?;
         for (name, rule) in self.rules() {
             if let Some((value, message)) = rule.broken() {
                 return Err(BakeError::BadSetting {

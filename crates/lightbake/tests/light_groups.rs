@@ -1,0 +1,154 @@
+//! Light groups: each group's pages are, bit for bit, the bake of its emitters alone on the
+//! shared layout; the bake's pages are their sum and agree with a bake without groups within
+//! the noise; the glTF extras name groups; bad groups are refused naming the member.
+
+mod common;
+
+use std::path::Path;
+
+use glam::Vec3;
+use lightbake::progress::Progress;
+use lightbake::scene::Scene;
+use lightbake::settings::{BakeSettings, LightGroup};
+use lightbake::{BakeOutput, LightConvention};
+
+/// The shipped sunlit room (a sun and a sky), as the importer reads it.
+fn sunlit_room() -> lightbake::ImportedScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/sunlit_room.gltf");
+    lightbake::import_gltf(&path, LightConvention::GltfSpec).expect("the shipped sunlit room")
+}
+
+/// Preview settings with the density fixed (the density that follows the light would
+/// differ between a scene and the same scene with fewer lights) and no grid check.
+fn settings() -> BakeSettings {
+    let mut s = BakeSettings::preview();
+    s.layout.adaptive_density = false;
+    s.checks.grid_error_points = 0;
+    s
+}
+
+fn group(name: &str, members: &[&str]) -> LightGroup {
+    LightGroup {
+        name: name.into(),
+        members: members.iter().map(|m| m.to_string()).collect(),
+    }
+}
+
+fn bake(scene: &Scene, settings: &BakeSettings) -> BakeOutput {
+    lightbake::bake(scene, settings, &Progress::new()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Mean luminance of every texel of `pages`.
+fn mean(pages: &[lightbake::LightmapPage]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in pages {
+        for t in &p.texels {
+            sum += f64::from(t.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+#[test]
+fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
+    let scene = sunlit_room().scene;
+    let mut s = settings();
+    s.groups = vec![group("day", &["sun"])];
+    let grouped = bake(&scene, &s);
+    let names: Vec<&str> = grouped.groups.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["day", "ungrouped"],
+        "the sky goes to the implicit group"
+    );
+    assert_eq!(grouped.groups[0].report.members, ["light sun"]);
+    assert_eq!(grouped.groups[1].report.members, ["sky"]);
+    assert_eq!(grouped.report.groups.len(), 2);
+    assert!(grouped.report.groups.iter().all(|g| g.rays > 0));
+
+    // Each group against a bake of the scene with only its emitters.
+    let mut sun_only = scene.clone();
+    sun_only.sky = Vec3::ZERO;
+    let mut sky_only = scene.clone();
+    sky_only.lights.clear();
+    let plain = settings();
+    for (g, alone) in grouped.groups.iter().zip([sun_only, sky_only]) {
+        let reference = bake(&alone, &plain);
+        assert_eq!(g.pages.len(), reference.pages.len());
+        for (a, b) in g.pages.iter().zip(&reference.pages) {
+            assert!(
+                a.texels == b.texels,
+                "group {}: its pages differ from the bake of its emitters alone",
+                g.name
+            );
+        }
+    }
+
+    // The bake's pages are the groups' sum, texel by texel.
+    for (i, page) in grouped.pages.iter().enumerate() {
+        for (k, t) in page.texels.iter().enumerate() {
+            let sum: Vec3 = grouped.groups.iter().map(|g| g.pages[i].texels[k]).sum();
+            assert_eq!(*t, sum, "page {i} texel {k}");
+        }
+    }
+
+    // Against one bake of every light: the same light within the noise.
+    let whole = bake(&scene, &plain);
+    let (m_grouped, m_whole) = (mean(&grouped.pages), mean(&whole.pages));
+    let relative = (m_grouped - m_whole).abs() / m_whole;
+    let estimate = grouped.report.error.as_ref().expect("an estimate");
+    println!(
+        "sum of the groups: mean E/π {m_grouped:.3} against {m_whole:.3} in one bake ({:.3}%); the sum's estimated error {:.2}% RMS",
+        100.0 * relative,
+        100.0 * estimate.relative_rms
+    );
+    assert!(relative < 0.01, "{relative}");
+    assert!(estimate.relative_rms > 0.0 && estimate.relative_rms < 0.2);
+}
+
+#[test]
+fn bad_groups_are_refused_naming_the_member() {
+    let scene = sunlit_room().scene;
+    let refused = |groups: Vec<LightGroup>| {
+        let mut s = settings();
+        s.groups = groups;
+        lightbake::bake(&scene, &s, &Progress::new())
+            .expect_err("refused")
+            .to_string()
+    };
+    let e = refused(vec![group("night", &["lamp"])]);
+    assert!(e.contains("lamp") && e.contains("its lights: sun"), "{e}");
+    let e = refused(vec![group("a", &["sun"]), group("b", &["light:sun"])]);
+    assert!(e.contains("'a' and 'b'"), "{e}");
+    let e = refused(vec![group("a", &["sky"]), group("b", &["sky"])]);
+    assert!(e.contains("'a' and 'b'"), "{e}");
+    let e = refused(vec![group("a", &["material:sun"])]);
+    assert!(e.contains("no emissive material named 'sun'"), "{e}");
+    let e = refused(vec![group("ungrouped", &["sun"])]);
+    assert!(e.contains("pick another name"), "{e}");
+}
+
+#[test]
+fn the_gltf_extras_name_groups() {
+    let imported = sunlit_room();
+    let dir = tempfile::tempdir().unwrap();
+    let mut json = imported.source.json.clone();
+    json["extensions"]["KHR_lights_punctual"]["lights"][0]["extras"]["lightbake"]["group"] =
+        "day".into();
+    json["scenes"][0]["extras"]["lightbake"]["sky_group"] = "outside".into();
+    std::fs::write(
+        dir.path().join("room.gltf"),
+        serde_json::to_vec(&json).unwrap(),
+    )
+    .unwrap();
+    let bin = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/sunlit_room.bin");
+    std::fs::copy(bin, dir.path().join("sunlit_room.bin")).unwrap();
+    let again =
+        lightbake::import_gltf(&dir.path().join("room.gltf"), LightConvention::GltfSpec).unwrap();
+    assert_eq!(
+        again.light_groups,
+        [group("outside", &["sky"]), group("day", &["light:sun"])]
+    );
+    assert!(imported.light_groups.is_empty());
+}
