@@ -17,6 +17,7 @@ use lightbake::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
 
 use crate::LightbakeSystems;
 use crate::components::{BakedLight, Lightmapped};
+use crate::groups::GltfPage;
 
 /// glTF scenes: the lightmaps and baked lights a baked glTF names, found when its scene
 /// spawns ([`LightbakeSystems::Gltf`]).
@@ -102,10 +103,16 @@ pub(crate) fn attach_gltf_lightmaps(
             }
         };
         let [u0, v0, u1, v1] = entry.uv_rect;
-        commands.entity(entity).insert(Lightmapped {
-            image: server.load(image_path),
-            uv_rect: Rect::new(u0, v0, u1, v1),
-        });
+        commands.entity(entity).insert((
+            Lightmapped {
+                image: server.load(image_path),
+                uv_rect: Rect::new(u0, v0, u1, v1),
+            },
+            GltfPage {
+                gltf: path.without_label().into_owned(),
+                page: entry.page,
+            },
+        ));
     }
 }
 

@@ -78,6 +78,7 @@ pub mod capture;
 pub mod components;
 pub mod convert;
 pub mod gltf;
+pub mod groups;
 pub mod images;
 pub mod lightmaps;
 mod preview;
@@ -94,6 +95,7 @@ pub use components::{
     CancelBake, LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps,
     SkySource,
 };
+pub use groups::LightGroupWeights;
 pub use lightbake;
 
 /// The usual imports.
@@ -102,6 +104,7 @@ pub mod prelude {
         BakeFinished, BakeMode, BakeOutcome, BakePhase, BakeStatus, BakedVolume, CancelBake,
         LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
     };
+    pub use crate::groups::LightGroupWeights;
     pub use crate::{LightbakePlugin, LightbakeSystems};
     pub use lightbake::BakeSettings;
     pub use lightbake::bake::PreviewKind;
@@ -153,6 +156,7 @@ impl Plugin for LightbakePlugin {
                 lightmaps::LightmapsPlugin,
                 volumes::VolumesPlugin,
                 gltf::GltfScenesPlugin,
+                groups::LightGroupsPlugin,
             ));
     }
 }

@@ -23,8 +23,10 @@ pub const SKY: &str = "sky";
 /// The group of the emitters that no group names.
 pub const UNGROUPED: &str = "ungrouped";
 
-/// The most groups a bake takes (each one costs a set of lighting passes and of pages).
-pub const MAX_GROUPS: usize = 32;
+/// The most named groups a bake takes: with [`UNGROUPED`], 16 sets of pages, which the Bevy
+/// plugin sums in one pass of 16 textures (the least every GPU binds). Each group costs a
+/// set of lighting passes and of pages.
+pub const MAX_GROUPS: usize = 15;
 
 /// The longest group name, characters.
 pub const MAX_NAME: usize = 64;
