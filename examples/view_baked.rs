@@ -8,8 +8,13 @@
 //!
 //! The baked glTF's folder is the asset root and Bevy's file watcher is on: run the `bake`
 //! command again into the same folder (other settings, same scene) and the new lightmaps
-//! appear without a restart. The camera frames the scene from its front (+Z). `Space`
-//! switches between the lightmaps and Bevy's real-time lighting of the glTF's lights.
+//! appear without a restart. The camera frames the scene from its front (+Z), or stands where
+//! `--camera EYE_X,EYE_Y,EYE_Z,AT_X,AT_Y,AT_Z` says, at `--ev100 EV` (default 6). `Space` switches between the lightmaps
+//! and Bevy's real-time lighting of the glTF's lights.
+//!
+//! A scene baked with light groups (`bake --group NAME=light,...`) starts at the weights
+//! `--weights NAME=W,NAME=W` gives (1 for the others); keys `1`–`9` switch the groups in the
+//! order the bake lists them between weight 0 and 1.
 
 #[path = "support/mod.rs"]
 mod support;
@@ -24,6 +29,7 @@ use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldInstanceReady;
 use bevy_lightbake::capture::FrameCapture;
+use bevy_lightbake::groups::{GroupSums, SummedPage};
 use bevy_lightbake::prelude::*;
 
 #[derive(Resource)]
@@ -31,6 +37,35 @@ struct Viewer {
     gltf: String,
     target: Option<Handle<Image>>,
     framed: bool,
+    /// `--camera`: eye and the point it looks at.
+    camera: Option<(Vec3, Vec3)>,
+}
+
+/// `--weights NAME=W,...`.
+fn weights_arg() -> LightGroupWeights {
+    let mut weights = LightGroupWeights::default();
+    for pair in support::option_arg("--weights")
+        .unwrap_or_default()
+        .split(',')
+    {
+        if let Some((name, w)) = pair.split_once('=') {
+            let w: f32 = w
+                .trim()
+                .parse()
+                .expect("--weights NAME=W,...: W is a number");
+            weights.set(name.trim(), w);
+        }
+    }
+    weights
+}
+
+/// `--camera EYE_X,EYE_Y,EYE_Z,AT_X,AT_Y,AT_Z`.
+fn camera_arg() -> Option<(Vec3, Vec3)> {
+    let v: Vec<f32> = (support::option_arg("--camera")?.split(','))
+        .map(|x| x.trim().parse().expect("--camera takes six numbers"))
+        .collect();
+    assert_eq!(v.len(), 6, "--camera takes six numbers");
+    Some((Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])))
 }
 
 fn main() -> AppExit {
@@ -62,9 +97,11 @@ fn main() -> AppExit {
         gltf: file,
         target,
         framed: false,
+        camera: camera_arg(),
     })
+    .insert_resource(weights_arg())
     .add_systems(Startup, setup)
-    .add_systems(Update, (toggle, arm_capture));
+    .add_systems(Update, (toggle, switch_groups, arm_capture));
     app.run()
 }
 
@@ -103,11 +140,17 @@ fn frame_scene(
     }
     let centre = (lo + hi) / 2.0;
     let size = (hi - lo).max_element();
+    let (eye, at) = viewer.camera.unwrap_or((
+        centre + Vec3::new(0.0, 0.0, hi.z - centre.z + 1.3 * size),
+        centre,
+    ));
     let mut camera = commands.spawn((
         Camera3d::default(),
-        Transform::from_translation(centre + Vec3::new(0.0, 0.0, hi.z - centre.z + 1.3 * size))
-            .looking_at(centre, Vec3::Y),
-        Exposure { ev100: 6.0 },
+        Transform::from_translation(eye).looking_at(at, Vec3::Y),
+        Exposure {
+            ev100: support::option_arg("--ev100")
+                .map_or(6.0, |v| v.parse().expect("--ev100 takes a number")),
+        },
     ));
     if let Some(image) = &viewer.target {
         // No camera draws to a window: this one places the shadow maps' detail.
@@ -126,15 +169,51 @@ fn toggle(input: Option<Res<ButtonInput<KeyCode>>>, mut show: ResMut<ShowLightma
     }
 }
 
+/// Keys `1`–`9`: group k of the first summed page between weight 0 and 1.
+fn switch_groups(
+    input: Option<Res<ButtonInput<KeyCode>>>,
+    sums: Res<GroupSums>,
+    pages: Query<&SummedPage>,
+    mut weights: ResMut<LightGroupWeights>,
+) {
+    let (Some(input), Some(page)) = (input, pages.iter().next()) else {
+        return;
+    };
+    let keys = [
+        KeyCode::Digit1,
+        KeyCode::Digit2,
+        KeyCode::Digit3,
+        KeyCode::Digit4,
+        KeyCode::Digit5,
+        KeyCode::Digit6,
+        KeyCode::Digit7,
+        KeyCode::Digit8,
+        KeyCode::Digit9,
+    ];
+    for ((group, _), key) in sums.sources(&page.0).into_iter().zip(keys) {
+        if input.just_pressed(key) {
+            let w = if weights.get(&group) > 0.0 { 0.0 } else { 1.0 };
+            info!("light group {group}: weight {w}");
+            weights.set(group, w);
+        }
+    }
+}
+
 fn arm_capture(
     capture: Option<ResMut<FrameCapture>>,
     viewer: Res<Viewer>,
-    shown: Query<(&Lightmapped, Option<&Lightmap>)>,
+    shown: Query<(&Lightmapped, Option<&Lightmap>, Option<&SummedPage>)>,
+    sums: Res<GroupSums>,
 ) {
+    // Every lightmap shown; with light groups, every page's sum at the weights asked for.
+    let summed = sums.pages() == 0 || sums.applied();
     if let Some(mut capture) = capture
         && viewer.framed
         && !shown.is_empty()
-        && shown.iter().all(|(l, m)| l.is_shown_by(m))
+        && summed
+        && shown
+            .iter()
+            .all(|(l, m, page)| l.is_shown_by(m) && page.is_none_or(|p| sums.shows_sum(p, l)))
     {
         capture.armed = true;
     }

@@ -19,6 +19,17 @@ pub fn screenshot_arg() -> Option<PathBuf> {
         .map(|i| PathBuf::from(args.get(i + 1).expect("--screenshot needs a PATH")))
 }
 
+/// The value of option `name` (`--name VALUE`), if given.
+pub fn option_arg(name: &str) -> Option<String> {
+    let args: Vec<String> = std::env::args().collect();
+    let i = args.iter().position(|a| a == name)?;
+    Some(
+        args.get(i + 1)
+            .unwrap_or_else(|| panic!("{name} needs a value"))
+            .clone(),
+    )
+}
+
 /// The first argument that is not an option (or an option's value), if any.
 pub fn positional_arg() -> Option<String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -28,7 +39,7 @@ pub fn positional_arg() -> Option<String> {
             skip = false;
             continue;
         }
-        if a == "--screenshot" {
+        if ["--screenshot", "--weights", "--camera", "--ev100"].contains(&a.as_str()) {
             skip = true;
             continue;
         }

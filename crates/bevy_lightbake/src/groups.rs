@@ -3,8 +3,8 @@
 //! Light adds up, so the plugin shows `Σ weightᵢ × groupᵢ` in place of each page: a compute
 //! pass on the GPU sums the group images into one `Rgba16Float` image per page, which the
 //! page's meshes take as their `Lightmap`, whenever [`LightGroupWeights`] or a group image
-//! changes — in the frame it changes, before the cameras draw. No rebake, and no texels on
-//! the CPU.
+//! changes — in the frame it changes, before the cameras draw. No rebake; the sum never
+//! leaves the GPU (the group images stay loaded as the `AssetServer` loads any image).
 //!
 //! Until a page's group images are loaded and first summed (or where the app has no
 //! renderer) its meshes show the page the bake wrote, which is every group at weight 1.
@@ -76,7 +76,7 @@ pub struct GltfPage {
 
 /// A mesh entity whose page is shown as a sum of light groups (when it is ready).
 #[derive(Component, Clone, Debug)]
-pub struct SummedPage(GltfPage);
+pub struct SummedPage(pub GltfPage);
 
 /// A mesh entity whose scene was looked up for light groups.
 #[derive(Component, Clone, Copy, Debug, Default)]
@@ -117,6 +117,11 @@ impl GroupSums {
             .get(page)
             .map(|p| p.sources.clone())
             .unwrap_or_default()
+    }
+
+    /// Whether `lightmapped`, of a mesh whose page is `page`, shows the page's sum.
+    pub fn shows_sum(&self, page: &SummedPage, lightmapped: &Lightmapped) -> bool {
+        self.target(&page.0) == Some(&lightmapped.image)
     }
 
     /// Whether every page's sum holds the current weights (the GPU pass ran with them).

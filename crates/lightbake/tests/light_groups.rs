@@ -125,6 +125,14 @@ fn bad_groups_are_refused_naming_the_member() {
     assert!(e.contains("'a' and 'b'"), "{e}");
     let e = refused(vec![group("a", &["material:sun"])]);
     assert!(e.contains("no emissive material named 'sun'"), "{e}");
+    let mut dark = scene.clone();
+    dark.sky = Vec3::ZERO;
+    let mut s = settings();
+    s.groups = vec![group("outside", &["sky"])];
+    let e = lightbake::bake(&dark, &s, &Progress::new())
+        .expect_err("no sky")
+        .to_string();
+    assert!(e.contains("outside=sky") && e.contains("no sky"), "{e}");
     let e = refused(vec![group("ungrouped", &["sun"])]);
     assert!(e.contains("pick another name"), "{e}");
 }

@@ -148,6 +148,12 @@ pub fn resolve(scene: &Scene, groups: &[LightGroup]) -> Result<Vec<GroupMembers>
                     (lights, materials, false)
                 }
             };
+            if sky && scene.sky.max_element() <= 0.0 {
+                return Err(bad(
+                    member,
+                    "the scene has no sky (its sky luminance is 0: set one with --sky or the scene's extras.lightbake.sky)".into(),
+                ));
+            }
             if lights.is_empty() && materials.is_empty() && !sky {
                 return Err(bad(
                     member,
