@@ -8,11 +8,8 @@ mod render_common;
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::camera::{Exposure, RenderTarget};
-use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use bevy::render::view::Msaa;
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::spawn::spawn_scene;
 use lightbake::scene::testscenes::{CORNELL_WHITE, CornellLight, cornell_box};
@@ -44,15 +41,10 @@ fn rendered_cornell_box_shows_the_bake() {
     for mut l in lights.iter_mut(world) {
         l.shadow_maps_enabled = false;
     }
-    world.spawn((
-        Camera3d::default(),
+    world.spawn(render_common::test_camera(
+        target,
         Transform::from_xyz(0.0, 0.2744, 1.35).looking_at(Vec3::new(0.0, 0.2744, 0.0), Vec3::Y),
-        RenderTarget::Image(target.into()),
-        bevy::camera::ShadowLodOrigin,
-        bevy::core_pipeline::tonemapping::DebandDither::Disabled,
-        Tonemapping::None,
-        Msaa::Off,
-        Exposure { ev100: EV100 },
+        EV100,
     ));
     world.write_message(RequestBake::default());
     let frame = support::capture_when_ready(&mut app, |world| {

@@ -12,17 +12,15 @@ mod support;
 
 use std::path::Path;
 
-use bevy::camera::{Exposure, RenderTarget};
-use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::camera::Exposure;
 use bevy::diagnostic::FrameCount;
 use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
-use bevy::render::view::Msaa;
 use bevy_lightbake::capture::FrameCapture;
 use bevy_lightbake::groups::{GltfPage, GroupSums};
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::sample::sample_lightmap;
-use lightbake::settings::LightGroup;
+use lightbake::settings::LightGroup as GroupSetting;
 use render_common::{mean_at, pixel};
 
 const W: u32 = 320;
@@ -34,7 +32,7 @@ fn bake_groups(out: &Path) {
     let imported =
         lightbake::import_gltf(&path, lightbake::LightConvention::GltfSpec).expect("the room");
     let mut settings = BakeSettings::preview();
-    settings.groups = vec![LightGroup {
+    settings.groups = vec![GroupSetting {
         name: "sun".into(),
         members: vec!["sun".into()],
     }];
@@ -130,19 +128,16 @@ fn light_groups_render_as_their_weighted_sum() {
     world.insert_resource(GlobalAmbientLight::NONE);
     let camera = world
         .spawn((
-            Camera3d::default(),
-            Transform::from_xyz(-0.9, 2.9, -0.7)
-                .looking_at(Vec3::new(-0.9, 0.0, -0.7), Vec3::NEG_Z),
+            render_common::test_camera(
+                target,
+                Transform::from_xyz(-0.9, 2.9, -0.7)
+                    .looking_at(Vec3::new(-0.9, 0.0, -0.7), Vec3::NEG_Z),
+                Exposure::default().ev100,
+            ),
             Projection::Perspective(PerspectiveProjection {
                 fov: 100f32.to_radians(),
                 ..default()
             }),
-            RenderTarget::Image(target.into()),
-            bevy::camera::ShadowLodOrigin,
-            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
-            Tonemapping::None,
-            Msaa::Off,
-            Exposure::default(),
         ))
         .id();
     // Until the sum is on the GPU and shown.
@@ -229,4 +224,65 @@ fn light_groups_render_as_their_weighted_sum() {
         }
     }
     assert!(worst < 0.01, "{:.2}%", 100.0 * worst);
+}
+
+/// A bake in the app with the Cornell box's lamp in a group (a [`LightGroup`] component):
+/// its meshes show the group's sum, and weight 0 leaves the lamp's light out entirely.
+#[test]
+fn an_in_app_bake_takes_light_groups_from_components() {
+    if !support::render_tests_can_run() {
+        return;
+    }
+    let scene = lightbake::scene::testscenes::cornell_box(
+        lightbake::scene::testscenes::CornellLight::Point,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let (mut app, target) = support::render_test_app(dir.path(), W, H);
+    let world = app.world_mut();
+    world.resource_mut::<LightbakeConfig>().settings = BakeSettings::preview();
+    let entities = bevy_lightbake::spawn::spawn_scene(world, &scene);
+    let floor = render_common::instance_entity(&scene, &entities, "floor");
+    world.insert_resource(GlobalAmbientLight::NONE);
+    let mut lights = world.query_filtered::<Entity, With<PointLight>>();
+    let lamp = lights.single(world).unwrap();
+    world.entity_mut(lamp).insert(LightGroup("lamp".into()));
+    world.spawn(render_common::test_camera(
+        target,
+        Transform::from_xyz(0.0, 1.2, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
+        7.0,
+    ));
+    world.write_message(RequestBake::default());
+    render_common::wait_for_bake(&mut app, 1, |world| {
+        let sums = world.resource::<GroupSums>();
+        let page = world.get::<bevy_lightbake::groups::SummedPage>(floor);
+        sums.applied()
+            && page.is_some_and(|p| sums.shows_sum(p, world.get::<Lightmapped>(floor).unwrap()))
+    });
+    let world = app.world_mut();
+    // The lamp's light is baked: only its specular would remain. Without it the floor shows
+    // its lightmap alone.
+    world.get_mut::<PointLight>(lamp).unwrap().intensity = 0.0;
+    let report = world.resource::<BakeStatus>().last_report.clone().unwrap();
+    let names: Vec<&str> = report.groups.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["lamp"],
+        "one group: the lamp (no sky, nothing else)"
+    );
+    let centre = pixel(world, Vec3::ZERO);
+    let mut shown = Vec::new();
+    for w in [1.0, 0.0] {
+        app.world_mut()
+            .resource_mut::<LightGroupWeights>()
+            .set("lamp", w);
+        app.world_mut().resource_mut::<FrameCapture>().rearm();
+        let frame = support::capture_when_ready(&mut app, |w| w.resource::<GroupSums>().applied());
+        shown.push(mean_at(&frame, centre, 2));
+    }
+    println!(
+        "the floor's centre: {:.4} with the lamp's group at weight 1, {:.4} at weight 0",
+        shown[0], shown[1]
+    );
+    assert!(shown[0].max_element() > 0.05, "lit: {}", shown[0]);
+    assert_eq!(shown[1], Vec3::ZERO, "weight 0 leaves the lamp out");
 }

@@ -10,11 +10,9 @@ mod render_common;
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::camera::{Exposure, RenderTarget};
-use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::camera::Exposure;
 use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
-use bevy::render::view::Msaa;
 use bevy_lightbake::capture::{CapturedFrame, FrameCapture};
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::spawn::spawn_scene;
@@ -89,16 +87,11 @@ fn a_mixed_bake_renders_like_a_full_bake() {
         .unwrap()];
     world.insert_resource(GlobalAmbientLight::NONE);
     let camera = world
-        .spawn((
-            Camera3d::default(),
+        .spawn(render_common::test_camera(
+            target,
             // From above: the ceiling faces down, so Bevy culls it.
             Transform::from_xyz(0.0, 1.2, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
-            RenderTarget::Image(target.into()),
-            bevy::camera::ShadowLodOrigin,
-            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
-            Tonemapping::None,
-            Msaa::Off,
-            Exposure::default(),
+            Exposure::default().ev100,
         ))
         .id();
     // Full: the light's light is baked.

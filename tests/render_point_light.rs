@@ -5,15 +5,14 @@
 //! installed (fails instead with `LIGHTBAKE_REQUIRE_VULKAN=1`, which `.ci/run` sets after
 //! installing one).
 
+mod render_common;
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::camera::{Exposure, RenderTarget, ScalingMode};
-use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::camera::ScalingMode;
 use bevy::light::GlobalAmbientLight;
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
-use bevy::render::view::Msaa;
 use bevy_lightbake::prelude::*;
 
 const SIZE: u32 = 256;
@@ -78,7 +77,6 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
     ));
     world.spawn((light(), Transform::from_xyz(LIVE_X, 0.5, 0.0), NotBaked));
     world.spawn((
-        Camera3d::default(),
         Projection::Orthographic(OrthographicProjection {
             scaling_mode: ScalingMode::Fixed {
                 width: 2.0 * HALF_VIEW,
@@ -87,13 +85,11 @@ fn baked_point_light_matches_bevys_real_time_point_light() {
             ..OrthographicProjection::default_3d()
         }),
         // Looking down -Y with -Z up in the image: image x = world x, image y = world z.
-        Transform::from_xyz(0.0, 3.0, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
-        RenderTarget::Image(target.into()),
-        bevy::camera::ShadowLodOrigin,
-        bevy::core_pipeline::tonemapping::DebandDither::Disabled,
-        Tonemapping::None,
-        Msaa::Off,
-        Exposure { ev100: 1.0 },
+        render_common::test_camera(
+            target,
+            Transform::from_xyz(0.0, 3.0, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z),
+            1.0,
+        ),
     ));
     world.write_message(RequestBake::default());
 

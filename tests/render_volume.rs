@@ -12,11 +12,9 @@ mod render_common;
 #[path = "../examples/support/mod.rs"]
 mod support;
 
-use bevy::camera::{Exposure, RenderTarget};
-use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::camera::Exposure;
 use bevy::light::{GlobalAmbientLight, IrradianceVolume};
 use bevy::prelude::*;
-use bevy::render::view::Msaa;
 use bevy_lightbake::capture::FrameCapture;
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::spawn::spawn_scene;
@@ -67,15 +65,8 @@ fn plates_against_floor(
     }
     let camera = world
         .spawn((
-            Camera3d::default(),
-            camera.0,
+            render_common::test_camera(target, camera.0, Exposure::default().ev100),
             camera.1,
-            RenderTarget::Image(target.into()),
-            bevy::camera::ShadowLodOrigin,
-            bevy::core_pipeline::tonemapping::DebandDither::Disabled,
-            Tonemapping::None,
-            Msaa::Off,
-            Exposure::default(),
         ))
         .id();
     world.write_message(RequestBake::default());

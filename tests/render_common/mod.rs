@@ -3,11 +3,36 @@
 
 #![allow(dead_code)]
 
+use bevy::camera::{Exposure, RenderTarget, ShadowLodOrigin};
+use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
+use bevy::render::view::Msaa;
 use bevy_lightbake::capture::CapturedFrame;
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::sample::sample_lightmap;
+
+/// A camera drawing into the capture image `target` from `transform` at `ev100`, as the render
+/// tests compare pictures: no tonemapping, dithering or MSAA; the shadow maps' detail placed
+/// at it (no camera draws to a window).
+pub fn test_camera(target: Handle<Image>, transform: Transform, ev100: f32) -> impl Bundle {
+    (
+        Camera3d::default(),
+        transform,
+        RenderTarget::Image(target.into()),
+        ShadowLodOrigin,
+        DebandDither::Disabled,
+        Tonemapping::None,
+        Msaa::Off,
+        Exposure { ev100 },
+    )
+}
+
+/// The entity `spawn_scene` gave the instance of `scene` named `name`.
+pub fn instance_entity(scene: &lightbake::scene::Scene, entities: &[Entity], name: &str) -> Entity {
+    let i = (scene.instances.iter()).position(|i| i.name == name);
+    entities[i.unwrap_or_else(|| panic!("no instance named {name}"))]
+}
 
 /// The pixel where the (single) camera sees world point `p`.
 pub fn pixel(world: &mut World, p: Vec3) -> (u32, u32) {

@@ -57,6 +57,15 @@ impl Lightbaked {
 #[reflect(Component, Default)]
 pub struct NotBaked;
 
+/// On a `PointLight`, `SpotLight`, `DirectionalLight` or `RectLight`: the light group it
+/// bakes into (`lightbake::settings::groups`). A bake in the app with grouped lights writes
+/// one set of lightmaps per group (lights without a group go to `ungrouped`), and the meshes
+/// show their sum at the [`LightGroupWeights`](crate::LightGroupWeights). The name names
+/// files: letters, digits, `_` and `-`.
+#[derive(Component, Clone, Debug, PartialEq, Eq, Reflect)]
+#[reflect(Component)]
+pub struct LightGroup(pub String);
+
 /// On a `PointLight`, `SpotLight`, `DirectionalLight` or `RectLight`: which part of its light
 /// the bake puts into the lightmaps. Without it, point, spot and directional lights are baked
 /// [`BakeMode::Full`] and rect lights [`BakeMode::IndirectOnly`].

@@ -8,6 +8,7 @@
 //! | `DirectionalLight::illuminance` (lux) | lux | same; `SunDisk::angular_size / 2` is the angular radius |
 //! | `RectLight::{intensity, width, height}` (lumens, m, local XY facing −Z) | luminance, nits | L = Φ / (π·w·h), w and h scaled by the transform (Bevy's own conversion) |
 //! | [`BakeMode`] on a light | `LightBake` | `Full` (default; rect lights `IndirectOnly`) |
+//! | [`LightGroup`] on a light | a member `light:NAME` of `BakeSettings::groups` | the light's name made unique |
 //! | `Color` | linear RGB | `Color::to_linear` |
 //! | `StandardMaterial::emissive` (`LinearRgba`, nits) | `emissive`, nits | same |
 //! | `StandardMaterial::{base_color, base_color_texture, metallic, double_sided}` | same | linear; sRGB texture |
@@ -31,7 +32,7 @@ use lightbake::scene::{
     Mesh as CoreMesh, Scene, Texture as CoreTexture, TextureRef, Wrap,
 };
 
-use crate::components::{BakeMode, Lightbaked, NotBaked, SkySource};
+use crate::components::{BakeMode, LightGroup, Lightbaked, NotBaked, SkySource};
 
 /// Which Bevy entity and asset each part of the core scene came from, to carry the bake's
 /// results back.
@@ -394,7 +395,10 @@ pub fn extract_scene(
     let mut mapping = SceneMapping::default();
 
     let own = extract_instances(world, &mut scene, &mut mapping)?;
-    extract_lights(world, &mut scene, &mut mapping);
+    let groups = extract_lights(world, &mut scene, &mut mapping);
+    if settings.groups.is_empty() {
+        settings.groups = groups;
+    }
     scene.sky = match sky {
         SkySource::GlobalAmbient => {
             let a = world.get_resource::<GlobalAmbientLight>();
@@ -509,7 +513,13 @@ fn light_bake(mode: Option<&BakeMode>, default: BakeMode) -> LightBake {
 
 /// Every point, spot, directional and rect light without [`NotBaked`], in the order of their
 /// names.
-fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMapping) {
+/// Every baked light into `scene` (in the order of their names); returns the light groups
+/// their [`LightGroup`] components make.
+fn extract_lights(
+    world: &mut World,
+    scene: &mut Scene,
+    mapping: &mut SceneMapping,
+) -> Vec<lightbake::settings::LightGroup> {
     let mut lights: Vec<(String, Entity, CoreLight)> = Vec::new();
     let light =
         |name: String, kind, color: Color, intensity, range, t: &GlobalTransform, bake| CoreLight {
@@ -624,7 +634,23 @@ fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMappi
         lights.push((name, e, core));
     }
     lights.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
-    for (_, e, l) in lights {
+    let mut count: HashMap<&str, usize> = HashMap::new();
+    for (name, _, _) in &lights {
+        *count.entry(name.as_str()).or_default() += 1;
+    }
+    let shared: Vec<bool> = lights
+        .iter()
+        .map(|(n, _, _)| count[n.as_str()] > 1)
+        .collect();
+    let mut groups = Vec::new();
+    for ((name, e, mut l), shared) in lights.into_iter().zip(shared) {
+        if let Some(LightGroup(group)) = world.get::<LightGroup>(e) {
+            // Groups name lights by name: a grouped light's name is made its own.
+            if shared {
+                l.name = format!("{name} ({e})");
+            }
+            lightbake::scene::groups::add_member(&mut groups, group, format!("light:{}", l.name));
+        }
         if l.direct_is_baked() {
             mapping.lights.push(e);
         } else {
@@ -632,4 +658,5 @@ fn extract_lights(world: &mut World, scene: &mut Scene, mapping: &mut SceneMappi
         }
         scene.lights.push(l);
     }
+    groups
 }

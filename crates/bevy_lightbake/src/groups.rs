@@ -37,6 +37,7 @@ use lightbake::scene::extras::{self, SceneExtras};
 
 use crate::LightbakeSystems;
 use crate::components::Lightmapped;
+use crate::images::page_image;
 
 /// Group images one pass sums (the least number of textures every GPU binds to one shader
 /// stage; the bake takes at most this many groups).
@@ -205,6 +206,63 @@ fn scene_extras(
             return Some(extras::read(Some(&x.value), "scene", &mut Vec::new()));
         }
         e = parents.get(e).ok()?.parent();
+    }
+}
+
+/// The key path of the pages of a bake in the app.
+const IN_APP: &str = "lightbake-in-app";
+
+/// After a bake in the app: its light groups' pages as images, each page of `entities` (mesh
+/// entity, page index) shown as their sum; a bake without groups drops the earlier bake's.
+pub(crate) fn apply_in_app_groups(
+    world: &mut World,
+    groups: &[lightbake::bake::GroupPages],
+    entities: &[(Entity, u32)],
+) {
+    let in_app = AssetPath::from(IN_APP);
+    let mut old = world.query::<(Entity, &SummedPage)>();
+    let stale: Vec<Entity> = (old.iter(world))
+        .filter(|(_, p)| p.0.gltf == in_app)
+        .map(|(e, _)| e)
+        .collect();
+    for e in stale {
+        world.entity_mut(e).remove::<SummedPage>();
+    }
+    world
+        .resource_mut::<GroupSums>()
+        .pages
+        .retain(|k, _| k.gltf != in_app);
+    if groups.is_empty() {
+        return;
+    }
+    let mut images = world.resource_mut::<Assets<Image>>();
+    let handles: Vec<Vec<Handle<Image>>> = (groups.iter())
+        .map(|g| g.pages.iter().map(|p| images.add(page_image(p))).collect())
+        .collect();
+    let mut sums = world.resource_mut::<GroupSums>();
+    for page in 0..handles[0].len() {
+        let key = GltfPage {
+            gltf: in_app.clone(),
+            page: page as u32,
+        };
+        let sources = (groups.iter().zip(&handles))
+            .map(|(g, h)| (g.name.clone(), h[page].clone()))
+            .collect();
+        sums.pages.insert(
+            key,
+            SumPage {
+                sources,
+                target: None,
+            },
+        );
+    }
+    for &(e, page) in entities {
+        if let Ok(mut e) = world.get_entity_mut(e) {
+            e.insert(SummedPage(GltfPage {
+                gltf: in_app.clone(),
+                page,
+            }));
+        }
     }
 }
 

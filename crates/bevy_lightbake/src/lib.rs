@@ -29,6 +29,9 @@
 //! * A light with [`BakeMode::IndirectOnly`] stays real time, with Bevy's shadows; the
 //!   lightmaps add only what it reflects (mixed lighting). `RectLight`s are baked that way
 //!   by default, since Bevy 0.20 cannot stop them lighting lightmapped meshes.
+//! * Light groups (`bake --group`, or a [`LightGroup`] on lights baked in the app) bake into
+//!   lightmaps of their own; the meshes show `Σ weight × group`, summed on the GPU in the
+//!   frame [`LightGroupWeights`] changes (see [`groups`]).
 //!
 //! Texels store irradiance / π, shown by Bevy with `lightmap_exposure = 1` (the default);
 //! units are Bevy's (lumens, lux, nits). See `docs/units.md`.
@@ -68,8 +71,8 @@
 //! as `bevy_pbr`'s light probes do: [`requests::BakeRequestsPlugin`] (bake requests, the
 //! background bake and its status, with progressive previews), [`lightmaps::LightmapsPlugin`]
 //! (lightmaps applied to meshes and kept in step with their images),
-//! [`volumes::VolumesPlugin`] (irradiance volumes) and [`gltf::GltfScenesPlugin`] (baked glTF
-//! scenes).
+//! [`volumes::VolumesPlugin`] (irradiance volumes), [`gltf::GltfScenesPlugin`] (baked glTF
+//! scenes) and [`groups::LightGroupsPlugin`] (light groups at run time).
 // Bevy systems name their data in their signatures: long query types and many parameters are
 // the idiom (Bevy's own crates allow both).
 #![allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -92,8 +95,8 @@ use bevy::prelude::*;
 
 pub use components::{
     BakeFinished, BakeMode, BakeOutcome, BakePhase, BakeStatus, BakedLight, BakedVolume,
-    CancelBake, LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps,
-    SkySource,
+    CancelBake, LightGroup, LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake,
+    ShowLightmaps, SkySource,
 };
 pub use groups::LightGroupWeights;
 pub use lightbake;
@@ -102,7 +105,8 @@ pub use lightbake;
 pub mod prelude {
     pub use crate::components::{
         BakeFinished, BakeMode, BakeOutcome, BakePhase, BakeStatus, BakedVolume, CancelBake,
-        LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps, SkySource,
+        LightGroup, LightbakeConfig, Lightbaked, Lightmapped, NotBaked, RequestBake, ShowLightmaps,
+        SkySource,
     };
     pub use crate::groups::LightGroupWeights;
     pub use crate::{LightbakePlugin, LightbakeSystems};
@@ -132,6 +136,7 @@ pub struct LightbakePlugin;
 impl Plugin for LightbakePlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<Lightbaked>()
+            .register_type::<LightGroup>()
             .register_type::<NotBaked>()
             .register_type::<BakeMode>()
             .configure_sets(

@@ -145,6 +145,10 @@ pub(crate) fn start_bake(world: &mut World) {
         mapping,
         previewing: Previewing::default(),
     });
+    if config.previews {
+        // The previews show in place of the last bake's light-group sums.
+        crate::groups::apply_in_app_groups(world, &[], &[]);
+    }
     let mut status = world.resource_mut::<BakeStatus>();
     status.phase = BakePhase::Running;
     status.stage = None;
@@ -272,6 +276,10 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
         None => memory_pages(world, &output.pages),
     };
     let lightmapped = attach_lightmaps(world, &output.layout, mapping, &new_handles, &handles);
+    let pages: Vec<(Entity, u32)> = (mapping.instances.iter().zip(&output.layout.instances))
+        .filter_map(|(&e, rect)| Some((e, rect.as_ref()?.page)))
+        .collect();
+    crate::groups::apply_in_app_groups(world, &output.groups, &pages);
     mark_lights_baked(world, mapping);
     spawn_bake_volumes(
         world,
