@@ -34,8 +34,9 @@ pub struct GroupPages {
 }
 
 /// Lights the scene of `ctx` once per group in `groups` and returns `lit` with the groups'
-/// pages, their sum as the bake's pages (and volume) and the estimate of the sum; the reports
-/// of the radiosity, instant-radiosity and finishing passes are the first group's.
+/// pages, their sum as the bake's pages (and volume) and the estimate of the sum; the floor
+/// calibration and the reports of the radiosity, instant-radiosity and finishing passes are
+/// the first lit group's.
 pub(super) fn light_groups(
     ctx: &BakeContext<'_>,
     groups: &[GroupMembers],
@@ -46,7 +47,7 @@ pub(super) fn light_groups(
 ) -> Result<Lit> {
     let mut sum = vec![Vec3::ZERO; ctx.patches.patches.len()];
     let mut errors: Vec<ErrorEstimate> = Vec::new();
-    for (k, g) in groups.iter().enumerate() {
+    for g in groups {
         let scene = g.scene_of(ctx.scene);
         let mut plan = BakePlan::new(&scene, ctx.settings);
         // The layout is the whole scene's: the density that follows the light was decided on
@@ -64,10 +65,11 @@ pub(super) fn light_groups(
         let mut got = if plan.nothing_to_bake {
             Lit::black(ctx.layout)
         } else {
+            let calibrate = lit.rates.closest_per_second == 0.0;
             light_patches(
                 &gctx,
                 volume_grid.clone(),
-                k == 0,
+                calibrate,
                 Lit::default(),
                 stages,
                 &mut own,
@@ -100,21 +102,25 @@ pub(super) fn light_groups(
                 error: got.error.clone(),
             },
         });
-        if k == 0 {
+        if lit.rates.closest_per_second == 0.0 {
             lit.rates = got.rates;
-            lit.radiosity = got.radiosity.take();
-            lit.vpl = got.vpl.take();
-            lit.indirect_reason = got.indirect_reason.take();
-            lit.contact = got.contact.take();
-            lit.seams = got.seams.take();
-            lit.denoise = got.denoise.take();
-            lit.volume = volume;
-        } else if let (Some((total, _)), Some((v, _))) = (lit.volume.as_mut(), volume) {
-            for (a, b) in total.voxels.iter_mut().zip(&v.voxels) {
-                for (x, y) in a.iter_mut().zip(b) {
-                    *x += *y;
+        }
+        lit.radiosity = lit.radiosity.take().or(got.radiosity.take());
+        lit.vpl = lit.vpl.take().or(got.vpl.take());
+        lit.indirect_reason = lit.indirect_reason.take().or(got.indirect_reason.take());
+        lit.contact = lit.contact.take().or(got.contact.take());
+        lit.seams = lit.seams.take().or(got.seams.take());
+        lit.denoise = lit.denoise.take().or(got.denoise.take());
+        match (lit.volume.as_mut(), volume) {
+            (Some((total, _)), Some((v, _))) => {
+                for (a, b) in total.voxels.iter_mut().zip(&v.voxels) {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        *x += *y;
+                    }
                 }
             }
+            (None, volume) => lit.volume = volume,
+            (Some(_), None) => {}
         }
         for s in got.skipped {
             if !lit.skipped.contains(&s) {
