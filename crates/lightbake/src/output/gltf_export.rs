@@ -72,8 +72,9 @@ fn ensure_array(json: &mut Value, key: &str) {
 }
 
 /// Builds the baked glTF. `lightmaps` lists (node, lightmap) for every baked primitive;
-/// `written` holds the scene extras the bake writes (its volumes and light groups); `stem` is the output file name without extension; `reserved` names the other files of
-/// the output folder (relative, `/`-separated), which copied images never replace.
+/// `written` holds the scene extras the bake writes (its volumes and light groups); `stem` is
+/// the output file name without extension; `reserved` names the other files of the output
+/// folder (relative, `/`-separated), which copied images never replace.
 ///
 /// Only bytes the import read go out: the buffer views in use (not whole buffers), and the
 /// image files the import read under its read rule.
