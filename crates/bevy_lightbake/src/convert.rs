@@ -511,10 +511,8 @@ fn light_bake(mode: Option<&BakeMode>, default: BakeMode) -> LightBake {
     }
 }
 
-/// Every point, spot, directional and rect light without [`NotBaked`], in the order of their
-/// names.
-/// Every baked light into `scene` (in the order of their names); returns the light groups
-/// their [`LightGroup`] components make.
+/// Every point, spot, directional and rect light without [`NotBaked`] into `scene`, in the
+/// order of their names; returns the light groups their [`LightGroup`] components make.
 fn extract_lights(
     world: &mut World,
     scene: &mut Scene,

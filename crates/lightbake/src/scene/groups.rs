@@ -97,8 +97,9 @@ fn emits(scene: &Scene, m: usize) -> bool {
 ///
 /// # Errors
 /// [`BakeError::BadSetting`] naming the group and member: a member that names no light,
-/// emissive material or sky of the scene; a name that is both a light and an emissive
-/// material (write `light:NAME` or `material:NAME`); an emitter that two groups name.
+/// emissive material or sky of the scene (`sky` in a scene whose sky is 0 among them); a
+/// name that is both a light and an emissive material (write `light:NAME` or
+/// `material:NAME`); an emitter that two groups name.
 pub fn resolve(scene: &Scene, groups: &[LightGroup]) -> Result<Vec<GroupMembers>> {
     crate::settings::groups::check(groups)?;
     if groups.is_empty() {
