@@ -33,7 +33,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph};
 use bevy::render::texture::{FallbackImage, GpuImage};
 use bevy::render::{RenderApp, RenderStartup};
-use lightbake::scene::extras::{self, SceneExtras};
+use lightbake::scene::extras::{self, GroupExtras, SceneExtras};
 
 use crate::LightbakeSystems;
 use crate::components::Lightmapped;
@@ -157,7 +157,7 @@ struct SumProgress(Arc<Mutex<HashMap<AssetId<Image>, (u64, u32)>>>);
 #[extract_app(RenderApp)]
 struct SumJobs(Vec<SumJob>);
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 struct SumJob {
     target: AssetId<Image>,
     sources: Vec<AssetId<Image>>,
@@ -194,19 +194,17 @@ impl Plugin for LightGroupsPlugin {
     }
 }
 
-/// The scene extras above `entity` (its glTF scene's root), if any.
-fn scene_extras(
+/// The glTF scene root above `entity` (the entity with the scene's extras), if any.
+fn scene_root(
     entity: Entity,
     parents: &Query<&ChildOf>,
     extras: &Query<&GltfSceneExtras>,
-) -> Option<SceneExtras> {
+) -> Option<Entity> {
     let mut e = entity;
-    loop {
-        if let Ok(x) = extras.get(e) {
-            return Some(extras::read(Some(&x.value), "scene", &mut Vec::new()));
-        }
+    while !extras.contains(e) {
         e = parents.get(e).ok()?.parent();
     }
+    Some(e)
 }
 
 /// The key path of the pages of a bake in the app.
@@ -275,12 +273,23 @@ fn find_summed_pages(
     parents: Query<&ChildOf>,
     extras: Query<&GltfSceneExtras>,
 ) {
+    // Each scene's extras are read once, however many of its meshes are new.
+    let mut scenes: HashMap<Entity, Vec<GroupExtras>> = HashMap::new();
     for (entity, page) in &new {
-        let groups = scene_extras(entity, &parents, &extras)
-            .map(|x| x.light_groups)
-            .unwrap_or_default();
+        commands.entity(entity).insert(GroupsLookedUp);
+        if sums.pages.contains_key(page) {
+            commands.entity(entity).insert(SummedPage(page.clone()));
+            continue;
+        }
+        let Some(root) = scene_root(entity, &parents, &extras) else {
+            continue;
+        };
+        let groups = scenes.entry(root).or_insert_with(|| {
+            let x = extras.get(root).map(|x| x.value.as_str()).ok();
+            extras::read::<SceneExtras>(x, "scene", &mut Vec::new()).light_groups
+        });
         let mut sources = Vec::new();
-        for g in &groups {
+        for g in groups.iter() {
             let Some(image) = g.pages.get(page.page as usize) else {
                 continue;
             };
@@ -300,12 +309,12 @@ fn find_summed_pages(
             );
             sources.clear();
         }
-        commands.entity(entity).insert(GroupsLookedUp);
         if !sources.is_empty() {
-            sums.pages.entry(page.clone()).or_insert(SumPage {
+            let summed = SumPage {
                 sources,
                 target: None,
-            });
+            };
+            sums.pages.insert(page.clone(), summed);
             commands.entity(entity).insert(SummedPage(page.clone()));
         }
     }
@@ -381,14 +390,7 @@ fn publish_jobs(
             })
         })
         .collect();
-    let same = next.len() == jobs.0.len()
-        && next.iter().zip(&jobs.0).all(|(a, b)| {
-            a.target == b.target
-                && a.sources == b.sources
-                && a.weights == b.weights
-                && a.generation == b.generation
-        });
-    if !same {
+    if jobs.0 != next {
         jobs.0 = next;
     }
 }

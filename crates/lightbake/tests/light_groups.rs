@@ -7,6 +7,7 @@ mod common;
 use std::path::Path;
 
 use glam::Vec3;
+use lightbake::color::luminance;
 use lightbake::progress::Progress;
 use lightbake::scene::Scene;
 use lightbake::settings::{BakeSettings, LightGroup};
@@ -43,7 +44,7 @@ fn mean(pages: &[lightbake::LightmapPage]) -> f64 {
     let (mut sum, mut n) = (0.0f64, 0usize);
     for p in pages {
         for t in &p.texels {
-            sum += f64::from(t.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
+            sum += f64::from(luminance(*t));
             n += 1;
         }
     }
@@ -176,13 +177,12 @@ fn a_weighted_sum_is_a_bake_at_those_intensities() {
     let mut other = settings();
     other.seed = 1;
     let reference = bake(&scaled, &other);
-    let luminance = |v: Vec3| f64::from(v.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
     let (mut diff_sq, mut ref_sq, mut diff_sum, mut ref_sum, mut n) = (0.0, 0.0, 0.0, 0.0, 0);
     for (i, page) in reference.pages.iter().enumerate() {
         for (k, t) in page.texels.iter().enumerate() {
             let sum = w_sun * grouped.groups[0].pages[i].texels[k]
                 + w_sky * grouped.groups[1].pages[i].texels[k];
-            let (a, b) = (luminance(sum), luminance(*t));
+            let (a, b) = (f64::from(luminance(sum)), f64::from(luminance(*t)));
             diff_sq += (a - b) * (a - b);
             ref_sq += b * b;
             diff_sum += a - b;
