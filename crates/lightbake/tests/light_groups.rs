@@ -96,6 +96,10 @@ fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
 
     // Against one bake of every light: the same light within the noise.
     let whole = bake(&scene, &plain);
+    assert_eq!(
+        grouped.report.texels, whole.report.texels,
+        "the same texels filled and dilated"
+    );
     let (m_grouped, m_whole) = (mean(&grouped.pages), mean(&whole.pages));
     let relative = (m_grouped - m_whole).abs() / m_whole;
     let estimate = grouped.report.error.as_ref().expect("an estimate");

@@ -35,8 +35,8 @@ pub struct GroupPages {
 
 /// Lights the scene of `ctx` once per group in `groups` and returns `lit` with the groups'
 /// pages, their sum as the bake's pages (and volume) and the estimate of the sum; the floor
-/// calibration and the reports of the radiosity, instant-radiosity and finishing passes are
-/// the first lit group's.
+/// calibration, the filled-texel counts and the reports of the radiosity, instant-radiosity
+/// and finishing passes are the first lit group's.
 pub(super) fn light_groups(
     ctx: &BakeContext<'_>,
     groups: &[GroupMembers],
@@ -102,8 +102,13 @@ pub(super) fn light_groups(
                 error: got.error.clone(),
             },
         });
-        if lit.rates.closest_per_second == 0.0 {
+        if lit.rates.closest_per_second == 0.0 && !plan.nothing_to_bake {
+            // The first group lit: its floor calibration and its count of the texels the
+            // finishing passes filled (every group fills the same ones).
             lit.rates = got.rates;
+            lit.texels.filled = got.texels.filled;
+            lit.texels.unfilled = got.texels.unfilled;
+            lit.texels.dilated = got.texels.dilated;
         }
         lit.radiosity = lit.radiosity.take().or(got.radiosity.take());
         lit.vpl = lit.vpl.take().or(got.vpl.take());
