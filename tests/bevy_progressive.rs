@@ -210,7 +210,10 @@ fn an_in_app_bake_spawns_its_irradiance_volume_and_keeps_indirect_only_lights_re
     });
     let world = app.world_mut();
     let report = world.resource::<BakeStatus>().last_report.clone().unwrap();
-    let stats = report.irradiance_volume.clone().expect("volume stats");
+    let [stats] = &report.irradiance_volumes[..] else {
+        panic!("one volume: {:?}", report.irradiance_volumes);
+    };
+    let stats = stats.clone();
     let mut q = world.query::<(&IrradianceVolume, &LightProbe, &Transform, &BakedVolume)>();
     let (volume, _, transform, baked) = q.single(world).unwrap();
     assert!(!volume.affects_lightmapped_meshes && volume.intensity == 1.0);

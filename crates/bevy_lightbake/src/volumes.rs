@@ -55,16 +55,29 @@ fn volume_bundle(
 ) -> impl Bundle + use<> {
     (
         Name::new(format!("lightbake irradiance volume ({})", entry.image)),
-        LightProbe::default(),
+        LightProbe {
+            falloff: Vec3::from_array(entry.falloff),
+        },
         IrradianceVolume {
             voxels: image,
             intensity: entry.intensity,
             affects_lightmapped_meshes: false,
         },
         Transform::from_translation(Vec3::from_array(entry.center))
+            .with_rotation(rotation(entry.rotation))
             .with_scale(Vec3::from_array(entry.size)),
         BakedVolume { carries_ambient },
     )
+}
+
+/// The box's rotation an entry gives: a unit quaternion, or none for a malformed one.
+fn rotation(q: [f32; 4]) -> Quat {
+    let q = Quat::from_array(q);
+    if q.is_finite() && q.length() > 0.5 {
+        q.normalize()
+    } else {
+        Quat::IDENTITY
+    }
 }
 
 /// Replaces the volumes of the previous in-app bake with `output`'s: their images loaded from
@@ -83,7 +96,7 @@ pub(crate) fn spawn_bake_volumes(
         world.despawn(e);
     }
     let entries = lightbake::output::volumes(output);
-    for (i, (entry, volume)) in entries.iter().zip(&output.irradiance_volume).enumerate() {
+    for (i, (entry, volume)) in entries.iter().zip(&output.irradiance_volumes).enumerate() {
         // The file's asset (tied to it for hot reloads) holds the new voxels at once.
         let image = match paths.and_then(|p| p.get(i)) {
             Some(path) => {

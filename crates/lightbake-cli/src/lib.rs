@@ -245,13 +245,20 @@ struct Args {
     /// The denoiser's radius, texels (default 3).
     #[arg(long)]
     denoise_radius: Option<u32>,
-    /// Also bake an irradiance volume for dynamic objects
-    /// (`irradiance_volumes/volume_0.ktx2`, Bevy's `IrradianceVolume` layout, listed in
-    /// manifest.json with its transform).
+    /// Also bake irradiance volumes for dynamic objects: one per room, the level cut at its
+    /// walls (`irradiance_volumes/volume_N.ktx2`, Bevy's `IrradianceVolume` layout, listed
+    /// in manifest.json with their transforms and falloffs).
     #[arg(long)]
     irradiance_volume: bool,
-    /// Distance between the volume's probes, m (default: 16 texels at the bake's density,
-    /// widened to at most 65 536 probes).
+    /// Most irradiance volumes (default 8, the most Bevy draws in one view; 1: one volume
+    /// over the whole level).
+    #[arg(long, value_name = "N")]
+    volume_regions: Option<u32>,
+    /// Keep the volumes on the world axes even when the level's walls are turned.
+    #[arg(long)]
+    volume_world_axes: bool,
+    /// Distance between the volumes' probes, m (default: 16 texels at the bake's density,
+    /// widened to at most 65 536 probes per volume).
     #[arg(long, value_name = "M")]
     probe_spacing: Option<f32>,
     /// Rays per probe of the volume (default 256 preview, 512 medium, 1024 high).
@@ -441,6 +448,8 @@ fn settings_from(args: &Args) -> BakeSettings {
     set(&mut s.finish.denoise_radius, args.denoise_radius);
     s.volume.enabled = args.irradiance_volume;
     s.volume.probe_spacing = args.probe_spacing;
+    set(&mut s.volume.regions, args.volume_regions);
+    s.volume.oriented = !args.volume_world_axes;
     set(&mut s.volume.probe_rays, args.probe_rays);
     s.threads = args.threads;
     s.seed = args.seed;
@@ -706,6 +715,8 @@ mod tests {
             "--irradiance-volume",
             "--probe-spacing=0.5",
             "--probe-rays=43",
+            "--volume-regions=3",
+            "--volume-world-axes",
             "--threads=1",
             "--seed=37",
             "--memory-budget=41",

@@ -170,6 +170,7 @@ fn volumes(c: &mut Criterion) {
         let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, density)
             .expect("grid")
             .expect("baked instances");
+        // One volume over the scene (each of these is one room).
         let rays = RayScene::build(&out.baked_scene);
         let emitters = Emitters::collect(&out.baked_scene, &rays);
         let solution = Solution {

@@ -411,9 +411,9 @@ pub struct BakeReport {
     /// seconds, rays).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub split: Vec<SplitStage>,
-    /// The irradiance volume, when one was baked.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub irradiance_volume: Option<crate::probes::VolumeStats>,
+    /// The irradiance volumes, one per region of the level; empty when none was baked.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub irradiance_volumes: Vec<crate::probes::VolumeStats>,
     /// The light groups, when the bake has any: each one's members, time, rays and error.
     /// The other fields describe the whole bake (its stages list each group's, their notes
     /// prefixed with the group's name); the radiosity, instant-radiosity and finishing
@@ -574,9 +574,9 @@ impl BakeReport {
                 100.0 * st.after.max
             ));
         }
-        if let Some(v) = &self.irradiance_volume {
+        for (k, v) in self.irradiance_volumes.iter().enumerate() {
             s.push_str(&format!(
-                "irradiance volume: {} × {} × {} probes {:.3e} m apart ({}), {} rays each, {:.2}% noise; {} moved out of geometry, {} filled from neighbours{}\n",
+                "irradiance volume {k}: {} × {} × {} probes {:.3e} m apart ({}), {} rays each, {:.2}% noise; {} moved out of geometry, {} filled from neighbours{}\n",
                 v.resolution[0],
                 v.resolution[1],
                 v.resolution[2],

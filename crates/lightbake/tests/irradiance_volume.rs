@@ -23,14 +23,19 @@ fn volume_settings(spacing: Option<f32>, rays: u32) -> BakeSettings {
         s.volume.enabled = true;
         s.volume.probe_spacing = spacing;
         s.volume.probe_rays = rays;
+        // One volume over the scene (the sunlit room's ground would get volumes of its own:
+        // `volume_regions.rs`).
+        s.volume.regions = 1;
         s
     }
 }
 
+/// The one volume of a one-room scene.
 fn volume(out: &BakeOutput) -> &IrradianceVolume {
-    out.irradiance_volume
-        .as_ref()
-        .expect("a volume was asked for")
+    match &out.irradiance_volumes[..] {
+        [v] => v,
+        vs => panic!("one volume was wanted, the bake made {}", vs.len()),
+    }
 }
 
 /// The relative RMS difference between `volume`'s open probes (every `stride`-th) and the
@@ -137,7 +142,7 @@ fn probes_inside_the_blocks_do_not_darken_the_light_beside_them() {
     let scene = cornell_box(CornellLight::Area);
     let out = common::bake(&scene, &volume_settings(Some(0.05), 1024));
     let v = volume(&out);
-    let stats = out.report.irradiance_volume.as_ref().unwrap();
+    let stats = &out.report.irradiance_volumes[0];
     println!("{stats:?}");
     assert!(stats.moved + stats.filled > 0, "{stats:?}");
     assert_eq!(stats.unfilled, 0);
@@ -207,7 +212,7 @@ fn the_volume_is_written_for_bevy_and_listed_in_the_manifest() {
         v.grid.spacing
     );
     assert!(out.report.plan.describe().contains("irradiance volume"));
-    assert!(out.report.table().contains("irradiance volume:"));
+    assert!(out.report.table().contains("irradiance volume 0:"));
     let dir = tempfile::tempdir().unwrap();
     lightbake::write_outputs(dir.path(), &out, &scene, None, &settings).unwrap();
     let bytes = std::fs::read(dir.path().join("irradiance_volumes/volume_0.ktx2")).unwrap();
@@ -234,6 +239,8 @@ fn the_volume_is_written_for_bevy_and_listed_in_the_manifest() {
     assert_eq!(entry["center"][1].as_f64().unwrap() as f32, centre.y);
     assert_eq!(entry["size"][0].as_f64().unwrap() as f32, extent.x);
     assert_eq!(entry["intensity"], 1.0);
+    assert_eq!(entry["rotation"], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
+    assert_eq!(entry["falloff"], serde_json::json!([0.0, 0.0, 0.0]));
 }
 
 #[test]

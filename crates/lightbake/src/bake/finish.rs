@@ -270,15 +270,16 @@ pub(super) fn stitch_pages(
     Ok(st)
 }
 
-/// The irradiance volume stage ([`crate::probes`]): every probe of `grid` gathered from the
-/// finished `pages`.
+/// The irradiance volume stage ([`crate::probes`]): every probe of every grid in `grids`
+/// gathered from the finished `pages` (the first volume's numbers keyed by the bake's seed,
+/// volume k's by the seed and k).
 pub(super) fn volume_stage(
     ctx: &BakeContext<'_>,
-    grid: VolumeGrid,
+    grids: Vec<VolumeGrid>,
     emitters: &Emitters,
     pages: &[LightmapPage],
     stages: &mut Stages<'_>,
-) -> Result<(IrradianceVolume, VolumeStats)> {
+) -> Result<Vec<(IrradianceVolume, VolumeStats)>> {
     let settings = ctx.settings;
     let solution = Solution {
         scene: ctx.scene,
@@ -288,22 +289,33 @@ pub(super) fn volume_stage(
         emitters,
     };
     let progress = stages.progress();
-    let volume = stages.run(Stage::Volume, grid.len() as u64, || {
-        let (volume, st) = bake_volume(&solution, grid, settings.volume.probe_rays, settings.seed, progress);
-        let note = format!(
-            "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
-            st.resolution[0],
-            st.resolution[1],
-            st.resolution[2],
-            st.spacing,
-            st.moved,
-            st.filled,
-            100.0 * st.relative_standard_error
-        );
-        let rays = st.rays;
-        Ok(((volume, st), rays, note))
+    let probes: usize = grids.iter().map(VolumeGrid::len).sum();
+    let mut volumes = stages.run(Stage::Volume, probes as u64, || {
+        let mut out = Vec::with_capacity(grids.len());
+        let (mut notes, mut rays) = (Vec::new(), 0);
+        for (k, grid) in grids.into_iter().enumerate() {
+            let seed = match k {
+                0 => settings.seed,
+                k => crate::sampling::hash_words(&[settings.seed, 0x005e_610a, k as u32]),
+            };
+            let (volume, st) = bake_volume(&solution, grid, settings.volume.probe_rays, seed, progress);
+            notes.push(format!(
+                "{} × {} × {} probes, {:.3e} m apart, {} moved out of geometry, {} filled; noise {:.2}%",
+                st.resolution[0],
+                st.resolution[1],
+                st.resolution[2],
+                st.spacing,
+                st.moved,
+                st.filled,
+                100.0 * st.relative_standard_error
+            ));
+            rays += st.rays;
+            out.push((volume, st));
+        }
+        Ok((out, rays, notes.join("; ")))
     })?;
-    let mut volume = volume;
-    finite::probes(&mut volume.0.voxels)?;
-    Ok(volume)
+    for (volume, _) in &mut volumes {
+        finite::probes(&mut volume.voxels)?;
+    }
+    Ok(volumes)
 }

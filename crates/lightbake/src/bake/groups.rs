@@ -27,8 +27,8 @@ pub struct GroupPages {
     pub name: String,
     /// Its pages, in the order and sizes of the bake's pages.
     pub pages: Vec<LightmapPage>,
-    /// Its irradiance volume, when the bake has one.
-    pub irradiance_volume: Option<IrradianceVolume>,
+    /// Its irradiance volumes, in the order of the bake's; empty when the bake has none.
+    pub irradiance_volumes: Vec<IrradianceVolume>,
     /// Its members, time, rays and error.
     pub report: GroupReport,
 }
@@ -40,7 +40,7 @@ pub struct GroupPages {
 pub(super) fn light_groups(
     ctx: &BakeContext<'_>,
     groups: &[GroupMembers],
-    volume_grid: Option<VolumeGrid>,
+    volume_grids: Vec<VolumeGrid>,
     mut lit: Lit,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
@@ -68,7 +68,7 @@ pub(super) fn light_groups(
             let calibrate = lit.rates.closest_per_second == 0.0;
             light_patches(
                 &gctx,
-                volume_grid.clone(),
+                volume_grids.clone(),
                 calibrate,
                 Lit::default(),
                 stages,
@@ -86,14 +86,14 @@ pub(super) fn light_groups(
         for (s, e) in sum.iter_mut().zip(&got.irradiance) {
             *s += *e;
         }
-        let volume = got.volume.take();
+        let volumes = std::mem::take(&mut got.volumes);
         if let Some(e) = &got.error {
             errors.push(e.clone());
         }
         lit.groups.push(GroupPages {
             name: g.name.clone(),
             pages: std::mem::take(&mut got.pages),
-            irradiance_volume: volume.as_ref().map(|v| v.0.clone()),
+            irradiance_volumes: volumes.iter().map(|v| v.0.clone()).collect(),
             report: GroupReport {
                 name: g.name.clone(),
                 members: g.describe(ctx.scene),
@@ -116,16 +116,16 @@ pub(super) fn light_groups(
         lit.contact = lit.contact.take().or(got.contact.take());
         lit.seams = lit.seams.take().or(got.seams.take());
         lit.denoise = lit.denoise.take().or(got.denoise.take());
-        match (lit.volume.as_mut(), volume) {
-            (Some((total, _)), Some((v, _))) => {
+        if lit.volumes.is_empty() {
+            lit.volumes = volumes;
+        } else if !volumes.is_empty() {
+            for ((total, _), (v, _)) in lit.volumes.iter_mut().zip(&volumes) {
                 for (a, b) in total.voxels.iter_mut().zip(&v.voxels) {
                     for (x, y) in a.iter_mut().zip(b) {
                         *x += *y;
                     }
                 }
             }
-            (None, volume) => lit.volume = volume,
-            (Some(_), None) => {}
         }
         for s in got.skipped {
             if !lit.skipped.contains(&s) {
@@ -168,7 +168,7 @@ pub(super) fn black_groups(
         .map(|g| GroupPages {
             name: g.name.clone(),
             pages: Lit::black(layout).pages,
-            irradiance_volume: None,
+            irradiance_volumes: Vec::new(),
             report: GroupReport {
                 name: g.name.clone(),
                 members: g.describe(scene),

@@ -76,11 +76,14 @@ pub struct BakeOutput {
     pub baked_scene: Scene,
     /// Lightmap pages (E/π, linear RGB).
     pub pages: Vec<LightmapPage>,
-    /// The irradiance volume for dynamic objects, when the settings ask for one
-    /// ([`VolumeSettings::enabled`](crate::settings::VolumeSettings::enabled)).
-    pub irradiance_volume: Option<IrradianceVolume>,
-    /// With light groups ([`BakeSettings::groups`]): each group's pages and volume, whose
-    /// sum is `pages` and `irradiance_volume`. Empty without groups.
+    /// The irradiance volumes for dynamic objects, one per region of the level, when the
+    /// settings ask for them
+    /// ([`VolumeSettings::enabled`](crate::settings::VolumeSettings::enabled),
+    /// [`VolumeSettings::regions`](crate::settings::VolumeSettings::regions)); empty
+    /// otherwise.
+    pub irradiance_volumes: Vec<IrradianceVolume>,
+    /// With light groups ([`BakeSettings::groups`]): each group's pages and volumes, whose
+    /// sum is `pages` and `irradiance_volumes`. Empty without groups.
     pub groups: Vec<GroupPages>,
     /// Timings, counts, plan and warnings.
     pub report: BakeReport,
@@ -267,7 +270,7 @@ struct Lit {
     contact: Option<ContactStats>,
     seams: Option<StitchStats>,
     denoise: Option<DenoiseStats>,
-    volume: Option<(IrradianceVolume, VolumeStats)>,
+    volumes: Vec<(IrradianceVolume, VolumeStats)>,
     /// Stages the plan meant to run that the bake found it could not, with why.
     skipped: Vec<(Stage, String)>,
     /// With light groups: each group's pages and volume, and the irradiance per patch of
@@ -306,7 +309,7 @@ fn bake_in_pool(
         }
     } else {
         let rays = prefix::bvh(&baked_scene, early_rays, &mut stages)?;
-        let lighting = (rays, admitted.volume_grid, light_groups);
+        let lighting = (rays, admitted.volume_grids, light_groups);
         light_scene(
             &baked_scene,
             &layout,
@@ -332,7 +335,8 @@ fn bake_in_pool(
     });
     let floor = (stages.list.iter().any(|s| s.rays > 0) && lit.rates.closest_per_second > 0.0)
         .then(|| Floor::new(&stages.list, lit.rates, total_seconds));
-    let (irradiance_volume, volume_stats) = lit.volume.take().unzip();
+    let (irradiance_volumes, volume_stats): (Vec<_>, Vec<_>) =
+        std::mem::take(&mut lit.volumes).into_iter().unzip();
     let group_reports = lit.groups.iter().map(|g| g.report.clone()).collect();
     let error_budget = crate::report::error_budget(&stages.list, lit.error.as_ref());
     let report = BakeReport {
@@ -348,7 +352,7 @@ fn bake_in_pool(
         contact_fit: lit.contact,
         seams: lit.seams,
         denoise: lit.denoise,
-        irradiance_volume: volume_stats,
+        irradiance_volumes: volume_stats,
         groups: group_reports,
         split: (scope.split_bake())
             .map(ShardRun::split_stages)
@@ -370,7 +374,7 @@ fn bake_in_pool(
         layout,
         baked_scene,
         pages: lit.pages,
-        irradiance_volume,
+        irradiance_volumes,
         groups: lit.groups,
         report,
     })
@@ -399,7 +403,7 @@ fn light_scene(
     layout: &Layout,
     settings: &BakeSettings,
     plan: &BakePlan,
-    (rays, volume_grid, light_groups): (RayScene, Option<VolumeGrid>, &[GroupMembers]),
+    (rays, volume_grids, light_groups): (RayScene, Vec<VolumeGrid>, &[GroupMembers]),
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
@@ -415,9 +419,9 @@ fn light_scene(
         plan,
     };
     if light_groups.is_empty() {
-        light_patches(&ctx, volume_grid, true, lit, stages, warnings)
+        light_patches(&ctx, volume_grids, true, lit, stages, warnings)
     } else {
-        groups::light_groups(&ctx, light_groups, volume_grid, lit, stages, warnings)
+        groups::light_groups(&ctx, light_groups, volume_grids, lit, stages, warnings)
     }
 }
 
@@ -426,7 +430,7 @@ fn light_scene(
 /// volume, added to `lit`.
 fn light_patches(
     ctx: &BakeContext<'_>,
-    volume_grid: Option<VolumeGrid>,
+    volume_grids: Vec<VolumeGrid>,
     calibrate: bool,
     mut lit: Lit,
     stages: &mut Stages<'_>,
@@ -472,15 +476,16 @@ fn light_patches(
         lit.seams = Some(finish::stitch_pages(ctx, &mut assembly, stages)?);
     }
     lit.pages = assembly.pages;
-    if let Some(grid) = volume_grid {
-        let volume = finish::volume_stage(ctx, grid, &emitters, &lit.pages, stages)?;
-        if volume.1.unfilled > 0 {
-            warnings.push(
-                "every probe of the irradiance volume is inside geometry: the volume is black"
-                    .to_string(),
-            );
+    if !volume_grids.is_empty() {
+        let volumes = finish::volume_stage(ctx, volume_grids, &emitters, &lit.pages, stages)?;
+        for (k, (_, st)) in volumes.iter().enumerate() {
+            if st.unfilled > 0 {
+                warnings.push(format!(
+                    "every probe of irradiance volume {k} is inside geometry: the volume is black"
+                ));
+            }
         }
-        lit.volume = Some(volume);
+        lit.volumes = volumes;
     }
     Ok(lit)
 }

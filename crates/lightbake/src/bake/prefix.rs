@@ -95,13 +95,13 @@ pub(super) fn density(
 pub(super) struct Admitted {
     /// The estimate the bake was admitted with.
     pub(super) estimate: MemoryEstimate,
-    /// The irradiance volume's grid, when one is baked.
-    pub(super) volume_grid: Option<VolumeGrid>,
+    /// The irradiance volumes' grids, one per region of the level; empty when none is baked.
+    pub(super) volume_grids: Vec<VolumeGrid>,
 }
 
-/// The memory the bake will take with `layout` (the volume's grid planned here, so that a
-/// spacing it cannot take is refused before the lighting passes run; previews kept), checked
-/// against the budget.
+/// The memory the bake will take with `layout` (the volumes' grids planned here, so that a
+/// spacing they cannot take is refused before the lighting passes run; previews kept),
+/// checked against the budget.
 pub(super) fn admit(
     scene: &Scene,
     settings: &BakeSettings,
@@ -111,37 +111,47 @@ pub(super) fn admit(
     decisions: &mut Vec<Decision>,
 ) -> Result<Admitted> {
     let mut estimate = memory::estimate_from_layout(scene, layout);
-    let volume_grid = if plan.runs(Stage::Volume) {
-        VolumeGrid::plan(scene, layout, settings, plan.texel_density)?
+    let volume_grids = if plan.runs(Stage::Volume) {
+        crate::probes::plan_volumes(scene, layout, settings, plan.texel_density)?
     } else {
-        None
+        Vec::new()
     };
-    match &volume_grid {
-        Some(grid) => {
-            estimate = estimate.with(
-                "irradiance volume",
-                grid.len() as u64 * crate::probes::volume::BYTES_PER_PROBE,
-            );
-            decisions.push(Decision::ran(
-                Stage::Volume,
+    if !volume_grids.is_empty() {
+        let probes: usize = volume_grids.iter().map(VolumeGrid::len).sum();
+        estimate = estimate.with(
+            "irradiance volumes",
+            probes as u64 * crate::probes::volume::BYTES_PER_PROBE,
+        );
+        let boxes: Vec<String> = volume_grids
+            .iter()
+            .map(|g| {
                 format!(
-                    "irradiance volume for dynamic objects: {} × {} × {} probes {:.3e} m apart ({}), {} rays each",
-                    grid.resolution.x,
-                    grid.resolution.y,
-                    grid.resolution.z,
-                    grid.spacing,
-                    grid.reason,
-                    settings.volume.probe_rays
-                ),
-            ));
-        }
-        None if plan.runs(Stage::Volume) => {
-            decisions.push(Decision::skipped(
-                Stage::Volume,
-                "no instance has a lightmap".into(),
-            ));
-        }
-        None => {}
+                    "{} × {} × {} probes {:.3e} m apart ({})",
+                    g.resolution.x, g.resolution.y, g.resolution.z, g.spacing, g.reason
+                )
+            })
+            .collect();
+        let turned = volume_grids[0].rotation.to_axis_angle().1.to_degrees();
+        decisions.push(Decision::ran(
+            Stage::Volume,
+            format!(
+                "{} irradiance volume{} for dynamic objects{}, {} rays per probe: {}",
+                volume_grids.len(),
+                if volume_grids.len() == 1 { "" } else { "s" },
+                if turned > 0.01 {
+                    format!(", turned {turned:.1}° about the vertical with the walls")
+                } else {
+                    String::new()
+                },
+                settings.volume.probe_rays,
+                boxes.join("; ")
+            ),
+        ));
+    } else if plan.runs(Stage::Volume) {
+        decisions.push(Decision::skipped(
+            Stage::Volume,
+            "no instance has a lightmap".into(),
+        ));
     }
     if plan.runs(Stage::Indirect) && matches!(settings.method, Method::Vpl | Method::Hybrid) {
         estimate = estimate.with(
@@ -157,7 +167,7 @@ pub(super) fn admit(
     estimate.check(settings.memory_budget_mib)?;
     Ok(Admitted {
         estimate,
-        volume_grid,
+        volume_grids,
     })
 }
 

@@ -126,7 +126,7 @@ pub struct ManifestGroup {
 /// The volumes of a bake, as the manifest and the baked glTF list them.
 pub fn volumes(output: &BakeOutput) -> Vec<ManifestVolume> {
     output
-        .irradiance_volume
+        .irradiance_volumes
         .iter()
         .enumerate()
         .map(|(i, v)| {
@@ -135,6 +135,8 @@ pub fn volumes(output: &BakeOutput) -> Vec<ManifestVolume> {
                 image: volume_file(i),
                 center: center.to_array(),
                 size: size.to_array(),
+                rotation: v.grid.rotation.to_array(),
+                falloff: v.grid.falloff.to_array(),
                 resolution: v.grid.resolution.to_array(),
                 intensity: 1.0,
             }
@@ -159,7 +161,7 @@ pub fn groups(output: &BakeOutput, pages: &[Vec<PageFiles>]) -> Vec<ManifestGrou
             name: g.name.clone(),
             members: g.report.members.clone(),
             pages: files.clone(),
-            irradiance_volumes: (g.irradiance_volume.iter().enumerate())
+            irradiance_volumes: (g.irradiance_volumes.iter().enumerate())
                 .map(|(i, _)| group_volume_file(&g.name, i))
                 .collect(),
         })
@@ -207,7 +209,7 @@ pub fn manifest(
         pages: pages.to_vec(),
         instances,
         irradiance_volumes: volumes(output),
-        volume_stored_quantity: output.irradiance_volume.is_some().then_some(
+        volume_stored_quantity: (!output.irradiance_volumes.is_empty()).then_some(
             "irradiance / pi from each side (-X, +X, -Y, +Y, -Z, +Z), without the lights' direct light; Bevy: IrradianceVolume with intensity 1",
         ),
         light_groups: groups(output, group_pages),

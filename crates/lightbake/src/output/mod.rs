@@ -109,10 +109,10 @@ pub fn write_outputs(
     for (g, files) in output.groups.iter().zip(&group_pages) {
         stage_pages(&mut staged, dir, &g.pages, files, false)?;
     }
-    let volumes = (output.irradiance_volume.iter().enumerate())
+    let volumes = (output.irradiance_volumes.iter().enumerate())
         .map(|(i, v)| (v, volume_file(i)))
         .chain(output.groups.iter().flat_map(|g| {
-            (g.irradiance_volume.iter().enumerate())
+            (g.irradiance_volumes.iter().enumerate())
                 .map(|(i, v)| (v, group_volume_file(&g.name, i)))
         }));
     for (volume, file) in volumes {

@@ -3,7 +3,7 @@
 //! samples its voxels: the texture is stretched over the unit cube, texel centres at
 //! (i + ½)/R).
 
-use glam::{UVec3, Vec3};
+use glam::{Quat, UVec3, Vec3};
 use serde::Serialize;
 
 use crate::error::{BakeError, Result};
@@ -30,7 +30,8 @@ pub const MAX_TEXTURE_SIDE: u32 = 2048;
 /// The probe grid of one volume.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct VolumeGrid {
-    /// The volume's box, world metres: lower corner.
+    /// The volume's box, metres, in its own frame (world axes turned by [`Self::rotation`]):
+    /// lower corner.
     pub min: Vec3,
     /// Upper corner.
     pub max: Vec3,
@@ -40,6 +41,13 @@ pub struct VolumeGrid {
     pub spacing: f32,
     /// How the spacing was chosen, in words (for the plan).
     pub reason: String,
+    /// World from the box's frame: the box turned with the level's walls
+    /// (`super::regions`). Identity: axis-aligned.
+    pub rotation: Quat,
+    /// Bevy's `LightProbe::falloff`: per axis of the box, the fraction of its size over
+    /// which the volume's weight ramps from 0 at the box's faces to 1 inside, so that
+    /// overlapping neighbours blend. Zero: no ramp (a volume alone).
+    pub falloff: Vec3,
 }
 
 impl VolumeGrid {
@@ -140,11 +148,13 @@ impl VolumeGrid {
             resolution,
             spacing,
             reason,
+            rotation: Quat::IDENTITY,
+            falloff: Vec3::ZERO,
         }
     }
 
     /// Why the grid cannot be a texture of at most `max_probes` probes, if it cannot.
-    fn too_large(&self, max_probes: u64) -> Option<String> {
+    pub(super) fn too_large(&self, max_probes: u64) -> Option<String> {
         let r = self.resolution;
         let n = self.len() as u64;
         if n > max_probes {
@@ -189,13 +199,33 @@ impl VolumeGrid {
 
     /// World position of probe `i`: its cell's centre.
     pub fn position(&self, i: usize) -> Vec3 {
-        self.min + (self.coords(i).as_vec3() + 0.5) * self.spacing
+        self.rotation * (self.min + (self.coords(i).as_vec3() + 0.5) * self.spacing)
     }
 
-    /// The box's centre and size, m: Bevy's light probe is the unit cube under
-    /// `Transform::from_translation(centre).with_scale(size)`.
+    /// The box's centre (world) and size (along its own axes), m: Bevy's light probe is the
+    /// unit cube under `Transform::from_translation(centre).with_rotation(rotation)
+    /// .with_scale(size)`.
     pub fn centre_and_size(&self) -> (Vec3, Vec3) {
-        (0.5 * (self.min + self.max), self.max - self.min)
+        (
+            self.rotation * (0.5 * (self.min + self.max)),
+            self.max - self.min,
+        )
+    }
+
+    /// `world` in the box's unit cube (−½..½ inside), as Bevy's shader finds it.
+    pub fn unit_position(&self, world: Vec3) -> Vec3 {
+        let (centre, size) = self.centre_and_size();
+        self.rotation.inverse() * (world - centre) / size
+    }
+
+    /// The weight Bevy gives this volume at `world` (`light_probe.wesl`): per axis, a ramp
+    /// from 0 at the box's face to 1 at [`Self::falloff`] of its size inside; the least of
+    /// the three. 0 outside the box.
+    pub fn weight(&self, world: Vec3) -> f32 {
+        let p = self.unit_position(world);
+        let f = self.falloff.max(Vec3::splat(1e-4));
+        let w = ((Vec3::ONE - 2.0 * p.abs()) / (2.0 * f)).clamp(Vec3::ZERO, Vec3::ONE);
+        w.min_element()
     }
 }
 

@@ -9,7 +9,8 @@
 //! of every light *excluded*, since the engine draws that on dynamic objects itself, with its
 //! shadows.
 //!
-//! * [`grid`]: where the probes go (the baked instances' bounds, the spacing and why);
+//! * [`grid`]: where one volume's probes go (its box, the spacing and why);
+//! * [`regions`]: the volumes of a level, one per room, cut at its walls;
 //! * `gather`: one probe's six sides from the solution (rays read the baked lightmaps);
 //! * `bake`: the volume stage: every probe gathered, probes inside geometry moved to the
 //!   nearest open point or filled from their neighbours, and the texture in Bevy's layout.
@@ -18,6 +19,7 @@
 // `internals` feature.
 internal!(bake, gather);
 pub mod grid;
+pub mod regions;
 pub mod volume;
 
 #[cfg(not(feature = "internals"))]
@@ -25,4 +27,5 @@ pub(crate) use bake::bake_volume;
 #[cfg(feature = "internals")]
 pub use bake::bake_volume;
 pub use grid::VolumeGrid;
-pub use volume::{IrradianceVolume, ProbeState, VolumeStats};
+pub use regions::plan_volumes;
+pub use volume::{IrradianceVolume, ProbeState, VolumeStats, blend};

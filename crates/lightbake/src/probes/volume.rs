@@ -105,9 +105,8 @@ impl IrradianceVolume {
     /// filtered between probe centres (clamped at the outer ones), weighted by the squared
     /// normal's components. E/π, linear RGB.
     pub fn sample(&self, position: Vec3, normal: Vec3) -> Vec3 {
-        let (centre, size) = self.grid.centre_and_size();
         let r = self.grid.resolution.as_vec3();
-        let unit = (position - centre) / size;
+        let unit = self.grid.unit_position(position);
         let stp = ((unit + 0.5) * r).clamp(Vec3::splat(0.5), r - 0.5) - 0.5;
         let base = stp.floor().as_uvec3();
         let f = stp - stp.floor();
@@ -125,6 +124,27 @@ impl IrradianceVolume {
             out += v * n * n;
         }
         out
+    }
+}
+
+/// What Bevy's shader gives a surface at `position` with unit normal `normal` from several
+/// volumes (`irradiance_volume.wesl`): each containing volume's [`IrradianceVolume::sample`]
+/// weighted by its [`VolumeGrid::weight`] there, over the sum of the weights; black where no
+/// volume holds the point. The sides stay world-axis in a turned volume: Bevy reads them
+/// with the world normal.
+pub fn blend(volumes: &[IrradianceVolume], position: Vec3, normal: Vec3) -> Vec3 {
+    let (mut sum, mut weights) = (Vec3::ZERO, 0.0);
+    for v in volumes {
+        let w = v.grid.weight(position);
+        if w > 0.0 {
+            sum += v.sample(position, normal) * w;
+            weights += w;
+        }
+    }
+    if weights > 0.0 {
+        sum / weights
+    } else {
+        Vec3::ZERO
     }
 }
 

@@ -6,7 +6,7 @@
 //! |---|---|---|---|
 //! | scene | `texel_density` | number | suggested texels per metre |
 //! | scene | `sky` | `[r, g, b]` | uniform sky luminance, nits, linear RGB |
-//! | scene | `irradiance_volumes` | list | written by the bake: each volume's image, centre, size and resolution |
+//! | scene | `irradiance_volumes` | list | written by the bake: each volume's image, centre, size, rotation, falloff and resolution |
 //! | scene | `light_groups` | list | written by the bake: each light group's name, members, page images and volume images |
 //! | node | `texel_density_scale` | number | density multiplier for this node's meshes |
 //! | node | `bake` | bool | `false`: cast shadows and reflect, but get no lightmap |
@@ -80,8 +80,9 @@ pub struct GroupExtras {
 
 /// One irradiance volume, in a scene's `extras.lightbake.irradiance_volumes` and in
 /// `manifest.json`: Bevy's light probe is the unit cube centred on the origin under
-/// `Transform::from_translation(center).with_scale(size)` (in the scene's space), with an
-/// `IrradianceVolume` whose `voxels` is `image` and whose `intensity` is `intensity`.
+/// `Transform::from_translation(center).with_rotation(rotation).with_scale(size)` (in the
+/// scene's space), with `LightProbe::falloff` `falloff` and an `IrradianceVolume` whose
+/// `voxels` is `image` and whose `intensity` is `intensity`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumeExtras {
     /// The KTX2 3D texture (`Rgba16Float`, Bevy's ambient-cube layout), relative to the
@@ -89,13 +90,24 @@ pub struct VolumeExtras {
     pub image: String,
     /// Centre of the volume's box, m.
     pub center: [f32; 3],
-    /// Size of the box, m (the light probe's scale; no rotation).
+    /// Size of the box along its own axes, m (the light probe's scale).
     pub size: [f32; 3],
+    /// The box's rotation, a unit quaternion (x, y, z, w); absent: none.
+    #[serde(default = "no_rotation")]
+    pub rotation: [f32; 4],
+    /// `LightProbe::falloff`: per axis of the box, the fraction of its size over which the
+    /// volume fades out towards its faces, where it overlaps a neighbour; absent: 0.
+    #[serde(default)]
+    pub falloff: [f32; 3],
     /// Probes along x, y, z.
     pub resolution: [u32; 3],
     /// `IrradianceVolume::intensity`: 1, since the voxels hold E/π like the lightmaps (the
     /// light from each side without the lights' direct light).
     pub intensity: f32,
+}
+
+fn no_rotation() -> [f32; 4] {
+    [0.0, 0.0, 0.0, 1.0]
 }
 
 /// A glTF node's `extras.lightbake`.

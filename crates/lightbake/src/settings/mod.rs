@@ -467,7 +467,7 @@ mod tests {
     #[test]
     fn every_limit_is_checked_at_its_edge() {
         type Edit = fn(&mut BakeSettings, bool);
-        let edges: [(&str, Edit); 15] = [
+        let edges: [(&str, Edit); 16] = [
             ("layout.texel_budget", |s, out| {
                 s.layout.texel_budget = if out { 999 } else { 1_000 }
             }),
@@ -517,6 +517,9 @@ mod tests {
             ("checks.verify_paths", |s, out| {
                 s.checks.verify_paths = if out { 1 } else { 2 }
             }),
+            ("volume.regions", |s, out| {
+                s.volume.regions = if out { 65 } else { 64 }
+            }),
         ];
         for (name, edit) in edges {
             let mut s = BakeSettings::default();
@@ -528,7 +531,7 @@ mod tests {
                 other => panic!("{name} past its limit: {other:?}"),
             }
         }
-        assert_eq!(BakeSettings::default().rules().len(), 30);
+        assert_eq!(BakeSettings::default().rules().len(), 31);
     }
 
     #[test]

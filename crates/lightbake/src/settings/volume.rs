@@ -6,6 +6,8 @@
 //! | `enabled` | – | bool | false | false | false |
 //! | `probe_spacing` | m | > 0 or none (16 texels at the bake's density) | none | none | none |
 //! | `probe_rays` | rays per probe | 1..=65 536 | 256 | 512 | 1024 |
+//! | `regions` | volumes | 1..=64 | 8 | 8 | 8 |
+//! | `oriented` | – | bool | true | true | true |
 
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +30,15 @@ pub struct VolumeSettings {
     /// Rays per probe (plus a quarter as many samples of emissive surfaces). Range
     /// 1..=65 536. Default 256 (preview), 512 (medium), 1024 (high).
     pub probe_rays: u32,
+    /// Most volumes: the level is cut at its walls into rooms, one volume each, neighbours
+    /// overlapping by a spacing and blended by Bevy's light-probe falloff
+    /// (`crate::probes::regions`). 1: one volume over every baked instance. Range 1..=64.
+    /// Default 8, the most irradiance volumes Bevy 0.20 draws in one view
+    /// (`MAX_VIEW_LIGHT_PROBES`; beyond that it keeps the nearest).
+    pub regions: u32,
+    /// Turn the volumes about the vertical with the level's walls when they are off the
+    /// world axes (a level under a rotated node). Default true.
+    pub oriented: bool,
 }
 
 impl Default for VolumeSettings {
@@ -42,6 +53,8 @@ impl VolumeSettings {
         Self {
             enabled: false,
             probe_spacing: None,
+            regions: 8,
+            oriented: true,
             probe_rays: match quality {
                 Quality::Preview => 256,
                 Quality::Medium => 512,
@@ -64,6 +77,7 @@ impl VolumeSettings {
                 "volume.probe_rays",
                 Rule::count(self.probe_rays, 1, 65_536, ""),
             ),
+            ("volume.regions", Rule::count(self.regions, 1, 64, "")),
         ]
     }
 }

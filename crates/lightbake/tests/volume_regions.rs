@@ -1,0 +1,209 @@
+//! Irradiance volumes per region (`volume.regions`, `lightbake::probes::regions`): a level of
+//! two rooms gets one volume per room, cut at the wall between them; a plate lying on the
+//! floor, lit by the volumes as Bevy blends them (`probes::blend`), against the path tracer
+//! at the same points, in each room, beside the wall and through the door at the boundary
+//! between the two volumes; the boxes overlap so that no point between them is left to no
+//! volume; a level under a turned node gets turned volumes.
+
+use glam::{Affine3A, Quat, Vec2, Vec3};
+use lightbake::analysis::points::references;
+use lightbake::bake::BakeOutput;
+use lightbake::bvh::RayScene;
+use lightbake::color::luminance;
+use lightbake::probes::{IrradianceVolume, blend};
+use lightbake::raster::SurfacePoint;
+use lightbake::scene::testscenes::office_level;
+use lightbake::scene::{LightBake, Scene};
+use lightbake::settings::BakeSettings;
+
+mod common;
+
+/// Two office rooms side by side (6 m × 5 m each, the wall between them at x = 6 m with a
+/// door at z = 1.0–1.9 m), on a ground plane narrowed from 48 m to 19.2 m across (the
+/// volumes over it are most of the probes).
+fn two_rooms() -> Scene {
+    let mut scene = office_level(2, 1);
+    for inst in &mut scene.instances {
+        if inst.name == "ground" {
+            inst.transform *= Affine3A::from_scale(Vec3::new(0.4, 1.0, 0.4));
+        }
+    }
+    scene
+}
+
+fn settings(regions: u32) -> BakeSettings {
+    let mut s = BakeSettings::preview();
+    s.volume.enabled = true;
+    s.volume.probe_spacing = Some(0.25);
+    s.volume.probe_rays = 512;
+    s.volume.regions = regions;
+    s
+}
+
+/// The plate's points: 5 cm above the floor, facing up; along x across the wall, through the
+/// door (z = 1.45 m) and beside the wall (z = 2.3 m, clear of the bookshelves against it).
+fn plate_points() -> Vec<(&'static str, Vec3)> {
+    let mut points = Vec::new();
+    for x in [2.0, 3.0, 4.0, 9.0, 10.0] {
+        for z in [1.45, 3.5] {
+            points.push(("in a room", Vec3::new(x, 0.05, z)));
+        }
+    }
+    for k in 0..=8 {
+        let x = 5.5 + 0.125 * k as f32;
+        if (5.9..=6.1).contains(&x) {
+            points.push(("in the doorway", Vec3::new(x, 0.05, 1.45)));
+        } else {
+            points.push((
+                "at the boundary, through the door",
+                Vec3::new(x, 0.05, 1.45),
+            ));
+            points.push(("at the boundary, beside the wall", Vec3::new(x, 0.05, 2.3)));
+        }
+        // (Between 5.9 and 6.1 m beside the door is the wall itself.)
+    }
+    points
+}
+
+/// Per kind of point: the relative RMS and worst difference between the volumes and the path
+/// tracer (the lights' direct light left out of both).
+fn against_the_path_tracer(scene: &Scene, volumes: &[IrradianceVolume]) -> Vec<(String, f64, f64)> {
+    let mut reference_scene = scene.clone();
+    for l in &mut reference_scene.lights {
+        l.bake = LightBake::IndirectOnly;
+    }
+    let rays = RayScene::build(&reference_scene);
+    let points = plate_points();
+    let surface: Vec<SurfacePoint> = (points.iter())
+        .map(|(_, p)| SurfacePoint {
+            position: *p,
+            normal: Vec3::Y,
+            geometric_normal: Vec3::Y,
+            triangle: 0,
+            bary: Vec2::ZERO,
+        })
+        .collect();
+    let refs = references(&reference_scene, &rays, &surface, 4096, 31);
+    let mut kinds: Vec<(String, f64, f64, usize)> = Vec::new();
+    for ((kind, p), r) in points.iter().zip(&refs) {
+        let shown = luminance(blend(volumes, *p, Vec3::Y)) as f64;
+        let truth = luminance(r.reference) as f64;
+        assert!(truth > 0.0, "{p} is inside geometry");
+        let rel = (shown - truth) / truth;
+        if std::env::var_os("LIGHTBAKE_TEST_POINTS").is_some() {
+            println!(
+                "{kind} {p}: volume {shown:.4} path tracer {truth:.4} ({:+.1}%)",
+                100.0 * rel
+            );
+        }
+        match kinds.iter_mut().find(|k| k.0 == *kind) {
+            Some(k) => {
+                k.1 += rel * rel;
+                k.2 = k.2.max(rel.abs());
+                k.3 += 1;
+            }
+            None => kinds.push((kind.to_string(), rel * rel, rel.abs(), 1)),
+        }
+    }
+    kinds
+        .into_iter()
+        .map(|(kind, sq, worst, n)| (kind, (sq / n as f64).sqrt(), worst))
+        .collect()
+}
+
+fn report(name: &str, out: &BakeOutput, errors: &[(String, f64, f64)]) {
+    for v in &out.irradiance_volumes {
+        let (c, s) = v.grid.centre_and_size();
+        println!(
+            "{name}: volume at {c:.2} size {s:.2}, {} probes {} m apart, falloff {:.3}",
+            v.grid.len(),
+            v.grid.spacing,
+            v.grid.falloff
+        );
+    }
+    for (kind, rms, worst) in errors {
+        println!(
+            "{name}: {kind}: {:.1}% RMS, worst {:.1}%",
+            100.0 * rms,
+            100.0 * worst
+        );
+    }
+}
+
+#[test]
+fn two_rooms_get_a_volume_each_that_blend_at_the_wall() {
+    let scene = two_rooms();
+    let out = common::bake(&scene, &settings(8));
+    let volumes = &out.irradiance_volumes;
+    // The building's envelope and the wall between the rooms are cut: two volumes inside the
+    // building, one on each side of the wall, each reaching a spacing past x = 6 m; the
+    // others over the ground outside.
+    let inside: Vec<&IrradianceVolume> = (volumes.iter())
+        .filter(|v| v.grid.min.cmpge(Vec3::new(-1.0, -1.0, -1.0)).all())
+        .filter(|v| v.grid.max.cmple(Vec3::new(13.0, 4.5, 6.0)).all())
+        .collect();
+    let [mut a, mut b] = inside[..] else {
+        panic!("{} volumes inside the building: {volumes:#?}", inside.len());
+    };
+    if a.grid.min.x > b.grid.min.x {
+        std::mem::swap(&mut a, &mut b);
+    }
+    assert!(a.grid.max.x >= 6.2 && a.grid.max.x < 6.8, "{:?}", a.grid);
+    assert!(b.grid.min.x <= 5.8 && b.grid.min.x > 5.2, "{:?}", b.grid);
+    assert!(a.grid.falloff.x > 0.0);
+    // Every point between the rooms is held by a volume: no black seam.
+    for k in 0..=100 {
+        let p = Vec3::new(5.0 + 0.02 * k as f32, 1.0, 1.45);
+        let w = a.grid.weight(p) + b.grid.weight(p);
+        assert!(w > 0.0, "no volume holds {p}");
+        assert!(luminance(blend(volumes, p, Vec3::Y)) > 0.0, "black at {p}");
+    }
+    let errors = against_the_path_tracer(&scene, volumes);
+    report("two volumes", &out, &errors);
+    // One volume over both rooms, for comparison: the same points.
+    let one = common::bake(&scene, &settings(1));
+    assert_eq!(one.irradiance_volumes.len(), 1);
+    report(
+        "one volume",
+        &one,
+        &against_the_path_tracer(&scene, &one.irradiance_volumes),
+    );
+    for (kind, rms, _) in &errors {
+        assert!(*rms < 0.10, "{kind}: {:.1}% RMS", 100.0 * rms);
+    }
+}
+
+#[test]
+fn a_turned_level_gets_turned_volumes() {
+    let mut scene = two_rooms();
+    let turn = Quat::from_rotation_y(25f32.to_radians());
+    for inst in &mut scene.instances {
+        inst.transform = Affine3A::from_quat(turn) * inst.transform;
+    }
+    let out = common::bake(&scene, &settings(8));
+    let straight = common::bake(&two_rooms(), &settings(8));
+    assert_eq!(
+        out.irradiance_volumes.len(),
+        straight.irradiance_volumes.len()
+    );
+    for v in &out.irradiance_volumes {
+        let angle = v.grid.rotation.angle_between(turn).to_degrees();
+        assert!(angle < 0.5, "the box is turned {angle}° off the walls");
+    }
+    // Turned with the walls, the boxes fit the rooms as tightly as on the world axes: about as
+    // many probes as the level unturned (a world-axis box over the turned rooms holds far
+    // more).
+    let probes =
+        |o: &BakeOutput| -> usize { o.irradiance_volumes.iter().map(|v| v.grid.len()).sum() };
+    let mut world_axes = settings(8);
+    world_axes.volume.oriented = false;
+    let unturned_boxes = common::bake(&scene, &world_axes);
+    println!(
+        "probes: level on the world axes {}, turned 25° {}, turned with world-axis boxes {}",
+        probes(&straight),
+        probes(&out),
+        probes(&unturned_boxes)
+    );
+    assert!(probes(&out) as f64 <= 1.1 * probes(&straight) as f64);
+    assert!(probes(&unturned_boxes) as f64 > 1.3 * probes(&straight) as f64);
+}
