@@ -10,6 +10,8 @@
 use bevy::gltf::GltfSceneExtras;
 use bevy::light::{GlobalAmbientLight, IrradianceVolume, LightProbe};
 use bevy::prelude::*;
+use bevy::render::renderer::RenderDevice;
+use bevy::render::settings::WgpuFeatures;
 use bevy::world_serialization::WorldAssetRoot;
 use lightbake::BakeOutput;
 use lightbake::scene::extras::{self, SceneExtras, VolumeExtras};
@@ -28,9 +30,12 @@ impl Plugin for VolumesPlugin {
             .add_systems(Update, attach_gltf_volumes.in_set(LightbakeSystems::Gltf))
             .add_systems(
                 PostUpdate,
-                sync_volumes
-                    .after(crate::lightmaps::sync_lightmaps)
-                    .in_set(LightbakeSystems::Lightmaps),
+                (
+                    sync_volumes
+                        .after(crate::lightmaps::sync_lightmaps)
+                        .in_set(LightbakeSystems::Lightmaps),
+                    warn_when_one_volume_is_drawn,
+                ),
             );
     }
 }
@@ -153,6 +158,46 @@ pub(crate) fn attach_gltf_volumes(
             }
         }
     }
+}
+
+/// Whether the GPU lets Bevy draw several irradiance volumes in a view, each from its own
+/// voxels. Bevy 0.20 binds them as one texture array, which needs texture binding arrays
+/// (`bevy_pbr`'s `binding_arrays_are_usable`: the features below and room for its 16
+/// material textures and 8 light probes); without them (WebGL 2, many mobile GPUs, Mesa's
+/// lavapipe) every volume a fragment lies in is read from one texture, the first volume's,
+/// so a level baked with several volumes is lit wrongly there: bake it with
+/// `--volume-regions 1` for such targets.
+pub fn draws_several_volumes(device: &RenderDevice) -> bool {
+    const BINDINGS: u32 = 16 + 8;
+    let limits = device.limits();
+    limits.max_binding_array_elements_per_shader_stage >= BINDINGS
+        && limits.max_binding_array_sampler_elements_per_shader_stage >= BINDINGS
+        && device.features().contains(
+            WgpuFeatures::TEXTURE_BINDING_ARRAY
+                | WgpuFeatures::SAMPLED_TEXTURE_AND_STORAGE_BUFFER_ARRAY_NON_UNIFORM_INDEXING,
+        )
+}
+
+/// Warns once when several baked volumes are spawned on a GPU that draws only one volume's
+/// voxels ([`draws_several_volumes`]).
+fn warn_when_one_volume_is_drawn(
+    volumes: Query<(), With<BakedVolume>>,
+    device: Option<Res<RenderDevice>>,
+    mut warned: Local<bool>,
+) {
+    let n = volumes.iter().count();
+    if *warned || n < 2 {
+        return;
+    }
+    let Some(device) = device else {
+        return;
+    };
+    if !draws_several_volumes(&device) {
+        warn!(
+            "lightbake: {n} irradiance volumes, but this GPU has no texture binding arrays, so Bevy reads every volume from one texture and moving objects are lit wrongly: bake with --volume-regions 1 (volume.regions = 1) for it"
+        );
+    }
+    *warned = true;
 }
 
 /// Gives the ambient light back the brightness a shown volume took from it.

@@ -93,16 +93,17 @@ impl Facts<'_> {
         16.0 + direct + sky + indirect
     }
 
-    /// The irradiance volume's rays: at most 65 536 probes by default (2²⁰ with an explicit
-    /// spacing), each with its rays and a quarter as many emitter samples.
+    /// The irradiance volumes' rays: at most 65 536 probes per volume by default (2²⁰ with an
+    /// explicit spacing), each with its rays and a quarter as many emitter samples.
     pub(super) fn volume_rays(&self, texels: f64) -> f64 {
         let s = self.settings;
         if !(s.volume.enabled && self.work) {
             return 0.0;
         }
+        let volumes = s.volume.regions.max(1) as f64;
         let probes = match s.volume.probe_spacing {
-            None => 65_536f64.min(texels.max(1.0)),
-            Some(_) => (1u64 << 20) as f64,
+            None => (65_536.0 * volumes).min(texels.max(1.0)),
+            Some(_) => (1u64 << 20) as f64 * volumes,
         };
         probes * 1.25 * s.volume.probe_rays as f64
     }

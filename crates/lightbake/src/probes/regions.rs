@@ -106,26 +106,45 @@ pub fn plan_volumes(
         hi,
         cut: [[false; 2]; 3],
     }];
+    // Each region's triangles and its wall cut, found once.
+    let mut within: Vec<Vec<[Vec3; 3]>> = vec![tris.clone()];
+    let mut walls: Vec<Option<(usize, f32)>> = vec![wall_cut(&tris, &regions[0], spacing)];
     while regions.len() < most {
         let mut order: Vec<usize> = (0..regions.len()).collect();
         order.sort_by(|&a, &b| volume(&regions[b]).total_cmp(&volume(&regions[a])));
         // A wall anywhere first, then a halving of a region too large for its grid.
-        let wall = order
-            .iter()
-            .find_map(|&k| wall_cut(&tris, &regions[k], spacing).map(|(a, p)| (k, a, p)));
+        let wall = (order.iter()).find_map(|&k| walls[k].map(|(a, p)| (k, a, p)));
         let Some((k, axis, plane)) = wall.or_else(|| {
             (order.iter()).find_map(|&k| halving_cut(&regions[k], spacing).map(|(a, p)| (k, a, p)))
         }) else {
             break;
         };
-        let low = regions[k].clone();
-        let mut high = low.clone();
+        let mut high = regions[k].clone();
         regions[k].hi[axis] = plane;
         regions[k].cut[axis][1] = true;
         high.lo[axis] = plane;
         high.cut[axis][0] = true;
-        regions.push(high);
+        let parent = std::mem::take(&mut within[k]);
+        for (slot, r) in [(Some(k), regions[k].clone()), (None, high)] {
+            let own: Vec<[Vec3; 3]> = (parent.iter())
+                .filter(|t| {
+                    let (a, b) = bounds(t.iter().copied());
+                    r.holds(a, b)
+                })
+                .copied()
+                .collect();
+            let cut = wall_cut(&own, &r, spacing);
+            match slot {
+                Some(k) => (within[k], walls[k]) = (own, cut),
+                None => {
+                    within.push(own);
+                    walls.push(cut);
+                    regions.push(r);
+                }
+            }
+        }
     }
+    drop(within);
     let several = regions.len() > 1;
     let mut grids = Vec::with_capacity(regions.len());
     for r in &regions {
