@@ -44,6 +44,9 @@ pub const MIN_SIDE_CELLS: f32 = 4.0;
 /// Cells per side of the grid a plane's cover is measured on.
 pub const RASTER: usize = 48;
 
+/// Most planes along an axis a wall is looked for at.
+pub const MAX_BINS: usize = 4096;
+
 /// Least agreement of the vertical faces' directions (the mean resultant length of e^{4iθ},
 /// area-weighted) for the boxes to turn with them.
 pub const FRAME_AGREEMENT: f32 = 0.5;
@@ -316,8 +319,12 @@ fn best_wall(
     min_side: f32,
 ) -> Option<(f32, f32)> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-    let bin = 0.5 * spacing;
-    let bins = ((r.hi[axis] - r.lo[axis]) / bin).ceil().max(1.0) as usize;
+    // Half a spacing, or coarser on a region so long that there would be more than
+    // MAX_BINS of them (the search's work stays bounded; such a grid is refused later).
+    let bin = (0.5 * spacing).max((r.hi[axis] - r.lo[axis]) / MAX_BINS as f32);
+    let bins = ((r.hi[axis] - r.lo[axis]) / bin)
+        .ceil()
+        .clamp(1.0, MAX_BINS as f32) as usize;
     let whole = Raster::over(
         Vec2::new(r.lo[u], r.lo[v]),
         Vec2::new(r.hi[u], r.hi[v]),
