@@ -109,9 +109,10 @@ pub fn plan_volumes(
         hi,
         cut: [[false; 2]; 3],
     }];
-    // Each region's triangles and its wall cut, found once.
-    let mut within: Vec<Vec<[Vec3; 3]>> = vec![tris.clone()];
+    // Each region's triangles (those whose bounds reach into it) and its wall cut, found
+    // once.
     let mut walls: Vec<Option<(usize, f32)>> = vec![wall_cut(&tris, &regions[0], spacing)];
+    let mut within: Vec<Vec<[Vec3; 3]>> = vec![tris];
     while regions.len() < most {
         let mut order: Vec<usize> = (0..regions.len()).collect();
         order.sort_by(|&a, &b| volume(&regions[b]).total_cmp(&volume(&regions[a])));
@@ -147,11 +148,10 @@ pub fn plan_volumes(
             }
         }
     }
-    drop(within);
     let several = regions.len() > 1;
     let mut grids = Vec::with_capacity(regions.len());
-    for r in &regions {
-        let (mut lo, mut hi) = fitted(&tris, r);
+    for (r, tris) in regions.iter().zip(&within) {
+        let (mut lo, mut hi) = fitted(tris, r);
         for axis in 0..3 {
             if r.cut[axis][0] {
                 lo[axis] = r.lo[axis] - spacing;
@@ -226,8 +226,7 @@ fn bounds(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
 /// The turn about the vertical that lines the world axes up with the level's walls (see the
 /// module docs), or the identity.
 fn wall_frame(tris: &[[Vec3; 3]]) -> Quat {
-    let (mut sum, mut total) = (Vec2::ZERO, 0.0f64);
-    let mut acc = glam::DVec2::ZERO;
+    let (mut acc, mut total) = (glam::DVec2::ZERO, 0.0f64);
     for t in tris {
         let n = (t[1] - t[0]).cross(t[2] - t[0]);
         let area = 0.5 * n.length();
@@ -240,9 +239,10 @@ fn wall_frame(tris: &[[Vec3; 3]]) -> Quat {
             glam::DVec2::new((4.0 * theta).cos() as f64, (4.0 * theta).sin() as f64) * area as f64;
         total += area as f64;
     }
-    if total > 0.0 {
-        sum = (acc / total).as_vec2();
+    if total == 0.0 {
+        return Quat::IDENTITY;
     }
+    let sum = (acc / total).as_vec2();
     if sum.length() < FRAME_AGREEMENT {
         return Quat::IDENTITY;
     }
