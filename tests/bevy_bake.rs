@@ -544,3 +544,74 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
     assert!(app.world().get::<Lightmap>(floor).is_none());
     assert_eq!(count(&mut app), names.len() - 1);
 }
+
+/// A bake in the app takes the light groups of emissive meshes from their [`LightGroup`]
+/// components and the sky's from [`LightbakeConfig::sky_group`]: the Cornell box's ceiling
+/// panel in `panel` and the sky (coming in at its open front) in `outside`. A second mesh
+/// with the panel's material and another group is warned of, and its light stays in `panel`.
+#[test]
+fn an_in_app_bake_groups_emissive_meshes_and_the_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = headless_app(dir.path(), false);
+    let world = app.world_mut();
+    {
+        let mut config = world.resource_mut::<LightbakeConfig>();
+        config.settings = settings(Method::Radiosity);
+        config.sky_group = Some("outside".into());
+    }
+    let scene = cornell_box(CornellLight::Area);
+    let entities = spawn_scene(world, &scene);
+    world.insert_resource(GlobalAmbientLight {
+        color: Color::WHITE,
+        brightness: 20.0,
+        ..default()
+    });
+    let i = scene
+        .instances
+        .iter()
+        .position(|i| i.name == "light")
+        .unwrap();
+    let panel = entities[i];
+    world.entity_mut(panel).insert(LightGroup("panel".into()));
+    let (mesh, material) = (
+        world.get::<Mesh3d>(panel).unwrap().clone(),
+        (world.get::<MeshMaterial3d<StandardMaterial>>(panel))
+            .unwrap()
+            .clone(),
+    );
+    world.spawn((
+        mesh,
+        material,
+        Transform::from_xyz(0.0, 0.2, 0.0),
+        Lightbaked::default(),
+        LightGroup("other".into()),
+        Name::new("second panel"),
+    ));
+    app.update();
+    app.world_mut().write_message(RequestBake::default());
+    run_until(&mut app, "the bake", TIMEOUT, |world| {
+        let status = world.resource::<BakeStatus>();
+        if let BakePhase::Failed(e) = &status.phase {
+            panic!("bake failed: {e}");
+        }
+        status.completed == 1
+    });
+    let report = (app.world().resource::<BakeStatus>().last_report.clone()).unwrap();
+    let groups: Vec<(&str, &[String])> = (report.groups.iter())
+        .map(|g| (g.name.as_str(), g.members.as_slice()))
+        .collect();
+    println!("{groups:?}");
+    assert_eq!(groups.len(), 2, "{groups:?}");
+    assert_eq!(groups[0].0, "panel");
+    assert!(
+        groups[0].1.len() == 1 && groups[0].1[0].starts_with("material "),
+        "{groups:?}"
+    );
+    assert_eq!(groups[1], ("outside", &["sky".to_string()][..]));
+    assert!(
+        (report.warnings.iter())
+            .any(|w| w.starts_with("second panel:") && w.contains("in light group 'panel'")),
+        "{:?}",
+        report.warnings
+    );
+}

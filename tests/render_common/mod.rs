@@ -9,6 +9,7 @@ use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::render::view::Msaa;
 use bevy_lightbake::capture::CapturedFrame;
+use bevy_lightbake::groups::GltfPage;
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::sample::sample_lightmap;
 
@@ -93,4 +94,67 @@ pub fn wait_for_bake(app: &mut App, n: u32, mut also: impl FnMut(&mut World) -> 
             return;
         }
     }
+}
+
+/// The floor of a baked glTF of the sunlit room (the mesh entity under the node named
+/// `floor`): its entity, page and albedo.
+pub fn gltf_floor(world: &mut World) -> Option<(Entity, GltfPage, Vec3)> {
+    let mut q = world.query::<(
+        Entity,
+        &GltfPage,
+        &ChildOf,
+        &MeshMaterial3d<StandardMaterial>,
+    )>();
+    let (entity, page, _, material) = q.iter(world).find(|(_, _, p, _)| {
+        world
+            .get::<Name>(p.parent())
+            .is_some_and(|n| n.as_str() == "floor")
+    })?;
+    let c = world
+        .resource::<Assets<StandardMaterial>>()
+        .get(&material.0)?
+        .base_color
+        .to_linear();
+    Some((entity, page.clone(), Vec3::new(c.red, c.green, c.blue)))
+}
+
+/// A camera 2.9 m above the sunlit room's floor looking down, its 100° view over most of the
+/// floor (in the sun and in the shade), drawing into `target`.
+pub fn sunlit_floor_camera(target: Handle<Image>) -> impl Bundle {
+    (
+        test_camera(
+            target,
+            Transform::from_xyz(-0.9, 2.9, -0.7)
+                .looking_at(Vec3::new(-0.9, 0.0, -0.7), Vec3::NEG_Z),
+            Exposure::default().ev100,
+        ),
+        Projection::Perspective(PerspectiveProjection {
+            fov: 100f32.to_radians(),
+            ..default()
+        }),
+    )
+}
+
+/// The mean of `value` over the points of the floor plane y = 0 that the (2r + 1)² pixels
+/// around `(x, y)` see: what `mean_at` reads of the picture, texel noise and all.
+pub fn mean_over_floor(
+    world: &mut World,
+    (x, y): (u32, u32),
+    r: u32,
+    value: impl Fn(&World, Vec3) -> Vec3,
+) -> Vec3 {
+    let mut q = world.query::<(&Camera, &GlobalTransform)>();
+    let (camera, t) = q.single(world).unwrap();
+    let (camera, t) = (camera.clone(), *t);
+    let mut sum = Vec3::ZERO;
+    for py in y - r..=y + r {
+        for px in x - r..=x + r {
+            let ray = camera
+                .viewport_to_world(&t, Vec2::new(px as f32 + 0.5, py as f32 + 0.5))
+                .unwrap();
+            let along = -ray.origin.y / ray.direction.y;
+            sum += value(world, ray.origin + along * *ray.direction);
+        }
+    }
+    sum / ((2 * r + 1) * (2 * r + 1)) as f32
 }

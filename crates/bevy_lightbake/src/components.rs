@@ -57,11 +57,14 @@ impl Lightbaked {
 #[reflect(Component, Default)]
 pub struct NotBaked;
 
-/// On a `PointLight`, `SpotLight`, `DirectionalLight` or `RectLight`: the light group it
-/// bakes into (`lightbake::settings::groups`). A bake in the app with grouped lights writes
-/// one set of lightmaps per group (lights without a group go to `ungrouped`), and the meshes
-/// show their sum at the [`LightGroupWeights`](crate::LightGroupWeights). The name names
-/// files: letters, digits, `_` and `-`.
+/// On a `PointLight`, `SpotLight`, `DirectionalLight` or `RectLight`, or on a [`Lightbaked`]
+/// mesh with an emissive `StandardMaterial`: the light group its light bakes into
+/// (`lightbake::settings::groups`; the sky's is [`LightbakeConfig::sky_group`]). A bake in the
+/// app with groups writes one set of lightmaps (and volumes) per group (lights and emitters
+/// without a group go to `ungrouped`), and the meshes and volumes show their sum at the
+/// [`LightGroupWeights`](crate::LightGroupWeights). A material's light belongs to one group:
+/// meshes sharing an emissive material share the first one's group (with a warning). The
+/// name names files: letters, digits, `_` and `-`.
 #[derive(Component, Clone, Debug, PartialEq, Eq, Reflect)]
 #[reflect(Component)]
 pub struct LightGroup(pub String);
@@ -113,6 +116,10 @@ pub struct LightbakeConfig {
     pub settings: BakeSettings,
     /// Where the sky comes from. Default [`SkySource::GlobalAmbient`].
     pub sky: SkySource,
+    /// The light group the sky bakes into (see [`LightGroup`]), unless a group of
+    /// `settings.groups` already holds it; a name of letters, digits, `_` and `-`. Default
+    /// none: the sky goes to `ungrouped` when the bake has groups.
+    pub sky_group: Option<String>,
     /// Write the lightmaps (EXR + PNG preview), `manifest.json` and `report.json` into
     /// `assets_folder/output_dir` and load them through the `AssetServer`, so that they are
     /// assets like any other: hot-reloaded when the `bake` command rewrites them, and kept
@@ -132,6 +139,12 @@ pub struct LightbakeConfig {
     /// result ([`BakeStatus::preview`] says which). A bake that is cancelled or fails puts the
     /// previous lightmaps back. Default `true`.
     pub previews: bool,
+    /// Load a baked glTF's BC6H pages (`bake --format exr,ktx2-bc6h`: 1 byte per texel
+    /// against `Rgba16Float`'s 8) in place of its other pages, where the bake wrote them
+    /// and the GPU samples BC textures (`TEXTURE_COMPRESSION_BC`: desktop GPUs; not WebGL 2
+    /// or most mobile GPUs, which load the other pages). Read when a glTF's meshes are
+    /// first looked up. Default `true`.
+    pub bc6h: bool,
 }
 
 impl Default for LightbakeConfig {
@@ -143,11 +156,13 @@ impl Default for LightbakeConfig {
                 ..BakeSettings::medium()
             },
             sky: SkySource::GlobalAmbient,
+            sky_group: None,
             write_files: true,
             assets_folder: FileAssetReader::get_base_path().join("assets"),
             output_dir: "lightbake".into(),
             disable_ambient_on_lightmapped: true,
             previews: true,
+            bc6h: true,
         }
     }
 }

@@ -9,6 +9,7 @@
 //! | `RectLight::{intensity, width, height}` (lumens, m, local XY facing −Z) | luminance, nits | L = Φ / (π·w·h), w and h scaled by the transform (Bevy's own conversion) |
 //! | [`BakeMode`] on a light | `LightBake` | `Full` (default; rect lights `IndirectOnly`) |
 //! | [`LightGroup`] on a light | a member `light:NAME` of `BakeSettings::groups` | the light's name made unique |
+//! | [`LightGroup`] on a `Lightbaked` mesh with an emissive material | a member `material:NAME` | one group per material |
 //! | `Color` | linear RGB | `Color::to_linear` |
 //! | `StandardMaterial::emissive` (`LinearRgba`, nits) | `emissive`, nits | same |
 //! | `StandardMaterial::{base_color, base_color_texture, metallic, double_sided}` | same | linear; sRGB texture |
@@ -394,8 +395,13 @@ pub fn extract_scene(
     };
     let mut mapping = SceneMapping::default();
 
-    let own = extract_instances(world, &mut scene, &mut mapping)?;
-    let groups = extract_lights(world, &mut scene, &mut mapping);
+    let (own, material_groups) = extract_instances(world, &mut scene, &mut mapping)?;
+    let mut groups = extract_lights(world, &mut scene, &mut mapping);
+    for g in material_groups {
+        for m in g.members {
+            lightbake::scene::groups::add_member(&mut groups, &g.name, m);
+        }
+    }
     if settings.groups.is_empty() {
         settings.groups = groups;
     }
@@ -428,13 +434,17 @@ pub fn extract_scene(
 
 /// Every `Lightbaked` mesh entity as a core instance (its mesh and material converted once
 /// per (mesh, material) pair), in the order of their names.
-/// Returns the instances whose entity asks for its own density, with that density.
+/// Returns the instances whose entity asks for its own density, with that density, and the
+/// light groups that [`LightGroup`] components on entities with emissive materials make.
 fn extract_instances(
     world: &mut World,
     scene: &mut Scene,
     mapping: &mut SceneMapping,
-) -> Result<Vec<(usize, f32)>, ConvertError> {
+) -> Result<(Vec<(usize, f32)>, Vec<lightbake::settings::LightGroup>), ConvertError> {
     let mut own = Vec::new();
+    let mut groups = Vec::new();
+    // Per emissive material, the group and the entity that put it there.
+    let mut material_group: HashMap<usize, (String, String)> = HashMap::new();
     let mut query = world.query::<(
         Entity,
         &Mesh3d,
@@ -442,17 +452,18 @@ fn extract_instances(
         &GlobalTransform,
         &Lightbaked,
         Option<&Name>,
+        Option<&LightGroup>,
     )>();
     let mut rows: Vec<_> = query
         .iter(world)
-        .map(|(e, m, mat, t, lb, n)| {
+        .map(|(e, m, mat, t, lb, n, g)| {
             (
                 entity_label(e, n),
                 e,
                 m.0.clone(),
                 mat.map(|m| m.0.clone()),
                 *t,
-                *lb,
+                (*lb, g.cloned()),
             )
         })
         .collect();
@@ -463,7 +474,7 @@ fn extract_instances(
     let mut mats = Materials::default();
     let mut core_meshes: HashMap<(AssetId<Mesh>, Option<AssetId<StandardMaterial>>), usize> =
         HashMap::new();
-    for (label, entity, mesh_handle, mat_handle, transform, baked) in rows {
+    for (label, entity, mesh_handle, mat_handle, transform, (baked, group)) in rows {
         let key = (mesh_handle.id(), mat_handle.as_ref().map(Handle::id));
         let mesh_index = match core_meshes.get(&key) {
             Some(&m) => m,
@@ -491,6 +502,21 @@ fn extract_instances(
                 m
             }
         };
+        let emitting = (scene.meshes[mesh_index].material)
+            .filter(|&m| scene.materials[m].emissive.max_element() > 0.0);
+        if let (Some(LightGroup(g)), Some(m)) = (&group, emitting) {
+            match material_group.get(&m) {
+                Some((first, by)) if first != g => scene.warnings.push(format!(
+                    "{label}: its emissive material is also on {by}, in light group '{first}', and a material's light belongs to one group: it stays in '{first}' (give {label} a material of its own to put it in '{g}')"
+                )),
+                Some(_) => {}
+                None => {
+                    let name = &scene.materials[m].name;
+                    lightbake::scene::groups::add_member(&mut groups, g, format!("material:{name}"));
+                    material_group.insert(m, (g.clone(), label.clone()));
+                }
+            }
+        }
         let mut instance = CoreInstance::new(label, mesh_index, affine(&transform));
         instance.bake = baked.receive_lightmap;
         if let Some(d) = baked.texel_density {
@@ -500,7 +526,7 @@ fn extract_instances(
         mapping.instances.push(entity);
         mapping.instance_meshes.push(mesh_index);
     }
-    Ok(own)
+    Ok((own, groups))
 }
 
 /// The core's [`LightBake`] for a light with `mode` (`None`: `default`).

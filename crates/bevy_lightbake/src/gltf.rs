@@ -6,17 +6,21 @@
 //! `GltfExtras` and spawns one child entity per primitive, whose `Mesh3d` handle is labelled
 //! `MeshM/PrimitiveP`. So each new mesh entity without a lightmap is looked up once: its
 //! parent's extras, its primitive index, and the page image (loaded through the
-//! `AssetServer`, so the file watcher reloads it when the `bake` command rewrites it).
+//! `AssetServer`, so the file watcher reloads it when the `bake` command rewrites it). Where
+//! the bake also wrote the page as BC6H (`image_bc6h`), that one is loaded instead when
+//! [`loads_bc6h`].
 //!
 //! Baked lights carry `extras.lightbake.baked = true`; Bevy puts light extras on the light
 //! entity, and the plugin turns off their diffuse light on lightmapped meshes.
 
 use bevy::gltf::GltfExtras;
 use bevy::prelude::*;
+use bevy::render::renderer::RenderDevice;
+use bevy::render::settings::WgpuFeatures;
 use lightbake::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
 
 use crate::LightbakeSystems;
-use crate::components::{BakedLight, Lightmapped};
+use crate::components::{BakedLight, LightbakeConfig, Lightmapped};
 use crate::groups::GltfPage;
 
 /// glTF scenes: the lightmaps and baked lights a baked glTF names, found when its scene
@@ -53,10 +57,20 @@ pub fn is_baked_light(extras: &str) -> bool {
     extras::read::<LightExtras>(Some(extras), "light", &mut Vec::new()).baked
 }
 
-/// Gives every mesh entity of a baked glTF its [`Lightmapped`] from its node's extras.
+/// Whether a baked glTF's BC6H pages are loaded in place of its other pages:
+/// [`LightbakeConfig::bc6h`] is set and the GPU samples BC textures.
+pub fn loads_bc6h(config: &LightbakeConfig, device: Option<&RenderDevice>) -> bool {
+    config.bc6h
+        && device.is_some_and(|d| d.features().contains(WgpuFeatures::TEXTURE_COMPRESSION_BC))
+}
+
+/// Gives every mesh entity of a baked glTF its [`Lightmapped`] from its node's extras (its
+/// BC6H page where [`loads_bc6h`]).
 pub(crate) fn attach_gltf_lightmaps(
     mut commands: Commands,
     server: Res<AssetServer>,
+    config: Res<LightbakeConfig>,
+    device: Option<Res<RenderDevice>>,
     meshes: Res<Assets<Mesh>>,
     candidates: Query<
         (Entity, &Mesh3d, Option<&ChildOf>),
@@ -64,6 +78,7 @@ pub(crate) fn attach_gltf_lightmaps(
     >,
     extras: Query<&GltfExtras>,
 ) {
+    let bc6h = loads_bc6h(&config, device.as_deref());
     for (entity, mesh3d, parent) in &candidates {
         let done = |commands: &mut Commands| {
             commands.entity(entity).insert(LightmapLookedUp);
@@ -92,13 +107,14 @@ pub(crate) fn attach_gltf_lightmaps(
             warn!("lightbake: {path} has a lightmap but no UV_1; it is left unlit by the bake");
             continue;
         }
-        let image_path = match path.without_label().resolve_embed_str(&entry.image) {
+        let image = match &entry.image_bc6h {
+            Some(compressed) if bc6h => compressed,
+            _ => &entry.image,
+        };
+        let image_path = match path.without_label().resolve_embed_str(image) {
             Ok(p) => p,
             Err(e) => {
-                warn!(
-                    "lightbake: {path}: bad lightmap path {:?}: {e}",
-                    entry.image
-                );
+                warn!("lightbake: {path}: bad lightmap path {image:?}: {e}");
                 continue;
             }
         };
@@ -164,6 +180,7 @@ mod tests {
                 primitive: 1,
                 page: 0,
                 image: "lightmaps/lightmap_0.exr".into(),
+                image_bc6h: None,
                 uv_rect: [0.0, 0.5, 0.25, 1.0],
             }]
         );

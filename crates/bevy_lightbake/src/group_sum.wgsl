@@ -1,29 +1,34 @@
-// One lightmap page shown as a weighted sum of its light groups' pages (bevy_lightbake's
-// light groups): output = Σᵢ weightᵢ × groupᵢ, texel by texel. Unused slots hold a fallback
-// texture with weight 0.
+// One lightmap page (or one irradiance volume's 3D voxel image) shown as a weighted sum of its
+// light groups' images (bevy_lightbake's light groups): output = Σᵢ weightᵢ × groupᵢ, texel
+// by texel. Unused slots hold a fallback texture with weight 0.
+//
+// The plugin (`groups::sum_shader`) puts in front of this, for pages or volumes: the alias
+// `Group` (the sources' texture type), the alias `Texel` (a texel's coordinates), the
+// storage texture `output` at binding 1, and `texel_of(id) -> At`, the texel `p` of
+// invocation `id` and whether it is `inside` the output. Bevy 0.20 passes WGSL shaders to
+// the GPU as they are (no `#ifdef`).
 
 @group(0) @binding(0) var<uniform> weights: array<vec4<f32>, 4>;
-@group(0) @binding(1) var output: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(2) var g0: texture_2d<f32>;
-@group(0) @binding(3) var g1: texture_2d<f32>;
-@group(0) @binding(4) var g2: texture_2d<f32>;
-@group(0) @binding(5) var g3: texture_2d<f32>;
-@group(0) @binding(6) var g4: texture_2d<f32>;
-@group(0) @binding(7) var g5: texture_2d<f32>;
-@group(0) @binding(8) var g6: texture_2d<f32>;
-@group(0) @binding(9) var g7: texture_2d<f32>;
-@group(0) @binding(10) var g8: texture_2d<f32>;
-@group(0) @binding(11) var g9: texture_2d<f32>;
-@group(0) @binding(12) var g10: texture_2d<f32>;
-@group(0) @binding(13) var g11: texture_2d<f32>;
-@group(0) @binding(14) var g12: texture_2d<f32>;
-@group(0) @binding(15) var g13: texture_2d<f32>;
-@group(0) @binding(16) var g14: texture_2d<f32>;
-@group(0) @binding(17) var g15: texture_2d<f32>;
+@group(0) @binding(2) var g0: Group;
+@group(0) @binding(3) var g1: Group;
+@group(0) @binding(4) var g2: Group;
+@group(0) @binding(5) var g3: Group;
+@group(0) @binding(6) var g4: Group;
+@group(0) @binding(7) var g5: Group;
+@group(0) @binding(8) var g6: Group;
+@group(0) @binding(9) var g7: Group;
+@group(0) @binding(10) var g8: Group;
+@group(0) @binding(11) var g9: Group;
+@group(0) @binding(12) var g10: Group;
+@group(0) @binding(13) var g11: Group;
+@group(0) @binding(14) var g12: Group;
+@group(0) @binding(15) var g13: Group;
+@group(0) @binding(16) var g14: Group;
+@group(0) @binding(17) var g15: Group;
 
 // Weight i times texel p of texture t, or nothing when the weight is 0 (so an unused slot's
 // fallback texture, smaller than the page, is never read).
-fn term(t: texture_2d<f32>, w: f32, p: vec2<i32>) -> vec3<f32> {
+fn term(t: Group, w: f32, p: Texel) -> vec3<f32> {
     if (w == 0.0) {
         return vec3<f32>(0.0);
     }
@@ -32,11 +37,11 @@ fn term(t: texture_2d<f32>, w: f32, p: vec2<i32>) -> vec3<f32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn sum(@builtin(global_invocation_id) id: vec3<u32>) {
-    let size = textureDimensions(output);
-    if (id.x >= size.x || id.y >= size.y) {
+    let t = texel_of(id);
+    if (!t.inside) {
         return;
     }
-    let p = vec2<i32>(id.xy);
+    let p = t.p;
     var s = term(g0, weights[0].x, p);
     s += term(g1, weights[0].y, p);
     s += term(g2, weights[0].z, p);

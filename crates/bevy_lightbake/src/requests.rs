@@ -115,6 +115,20 @@ pub(crate) fn start_bake(world: &mut World) {
     for w in &scene.warnings {
         warn!("lightbake: {w}");
     }
+    if let Some(g) = &config.sky_group
+        && scene.sky.max_element() > 0.0
+        && !(settings.groups.iter()).any(|g| {
+            g.members
+                .iter()
+                .any(|m| m == lightbake::settings::groups::SKY)
+        })
+    {
+        lightbake::scene::groups::add_member(
+            &mut settings.groups,
+            g,
+            lightbake::settings::groups::SKY.into(),
+        );
+    }
     let out_dir = config
         .write_files
         .then(|| config.assets_folder.join(&config.output_dir));

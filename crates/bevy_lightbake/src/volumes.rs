@@ -18,6 +18,7 @@ use lightbake::scene::extras::{self, SceneExtras, VolumeExtras};
 
 use crate::LightbakeSystems;
 use crate::components::{BakedVolume, ShowLightmaps};
+use crate::groups::{GltfVolume, GroupSums, SummedVolume, in_app_volume};
 use crate::images::volume_image;
 
 /// Probe volumes: baked volumes of glTF scenes found, and every volume shown or hidden with
@@ -118,15 +119,23 @@ pub(crate) fn spawn_bake_volumes(
                 .resource_mut::<Assets<Image>>()
                 .add(volume_image(volume)),
         };
-        world.spawn((volume_bundle(entry, image, carries_ambient), InAppVolume));
+        // Its light groups' sum, registered by `apply_in_app_groups` just before.
+        let key = in_app_volume(i);
+        let summed = (world.get_resource::<GroupSums>()).is_some_and(|s| s.has_volume(&key));
+        let mut e = world.spawn((volume_bundle(entry, image, carries_ambient), InAppVolume));
+        if summed {
+            e.insert(SummedVolume(key));
+        }
     }
 }
 
 /// Spawns the volumes a baked glTF lists, as children of its scene's root (so they move with
-/// it), once per spawned scene.
+/// it), once per spawned scene; a volume whose light groups the glTF lists shows their
+/// weighted sum ([`crate::groups`]).
 pub(crate) fn attach_gltf_volumes(
     mut commands: Commands,
     server: Res<AssetServer>,
+    mut sums: Option<ResMut<GroupSums>>,
     scenes: Query<(Entity, &GltfSceneExtras, Option<&ChildOf>), Without<VolumesLookedUp>>,
     roots: Query<&WorldAssetRoot>,
 ) {
@@ -143,18 +152,31 @@ pub(crate) fn attach_gltf_volumes(
             warn!("lightbake: a glTF scene lists irradiance volumes but its file is unknown");
             continue;
         };
-        for entry in &lb.irradiance_volumes {
-            match gltf_path.without_label().resolve_embed_str(&entry.image) {
-                Ok(path) => {
-                    let image = server.load(path);
-                    commands
-                        .entity(entity)
-                        .with_child(volume_bundle(entry, image, false));
+        let gltf = gltf_path.without_label().into_owned();
+        for (i, entry) in lb.irradiance_volumes.iter().enumerate() {
+            let load = |image: &str| match gltf.resolve_embed_str(image) {
+                Ok(path) => Some(server.load(path)),
+                Err(e) => {
+                    warn!("lightbake: {gltf}: bad irradiance volume path {image:?}: {e}");
+                    None
                 }
-                Err(e) => warn!(
-                    "lightbake: {gltf_path}: bad irradiance volume path {:?}: {e}",
-                    entry.image
-                ),
+            };
+            let Some(image) = load(&entry.image) else {
+                continue;
+            };
+            let mut child = commands.spawn((volume_bundle(entry, image, false), ChildOf(entity)));
+            // Its light groups' images, summed at the weights the app sets.
+            let groups: Option<Vec<(String, Handle<Image>)>> = (lb.light_groups.iter())
+                .map(|g| Some((g.name.clone(), load(g.irradiance_volumes.get(i)?)?)))
+                .collect();
+            let key = GltfVolume {
+                gltf: gltf.clone(),
+                volume: i as u32,
+            };
+            if let (Some(groups), Some(sums)) = (groups, sums.as_mut())
+                && sums.add_volume(&key, groups)
+            {
+                child.insert(SummedVolume(key));
             }
         }
     }

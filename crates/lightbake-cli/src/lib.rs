@@ -574,6 +574,15 @@ fn write_and_print(
     for f in &written.files {
         println!("  {}", f.display());
     }
+    if !written.removed.is_empty() {
+        println!(
+            "removed {} files an earlier bake into the folder wrote and this one did not:",
+            written.removed.len()
+        );
+        for f in &written.removed {
+            println!("  {}", f.display());
+        }
+    }
     Ok(())
 }
 

@@ -480,3 +480,95 @@ fn light_conventions_differ_where_bevy_departs_from_the_spec() {
     assert_eq!(bevy.lights[0].range, Some(20.0));
     assert_eq!(spec.lights[0].intensity, bevy.lights[0].intensity);
 }
+
+/// A rebake into the same folder removes the page and volume files the earlier bake wrote
+/// and this one does not (a format, the volume and a light group dropped), and nothing else:
+/// not the files it writes again, not a file of the developer's beside them, and not a file
+/// outside the bake's page and volume folders that a crafted `report.json` names.
+#[test]
+fn a_rebake_removes_the_earlier_bakes_stale_files_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_cornell(dir.path(), CornellLight::Point);
+    let imported = import(&path).unwrap();
+    let out_dir = dir.path().join("out");
+    let bake_into = |settings: &BakeSettings| {
+        let out = lightbake::bake(&imported.scene, settings, &Progress::new()).unwrap();
+        write_outputs(
+            &out_dir,
+            &out,
+            &imported.scene,
+            Some(&imported.source),
+            settings,
+        )
+        .unwrap()
+    };
+    let mut first = fast_settings();
+    first.formats.hdr = true;
+    first.volume.enabled = true;
+    first.groups = vec![lightbake::settings::LightGroup {
+        name: "lamp".into(),
+        members: vec!["ceiling_point".into()],
+    }];
+    let written = bake_into(&first);
+    assert!(written.removed.is_empty());
+    let mut stale = vec![
+        "lightmaps/lightmap_0.hdr",
+        "lightmaps/groups/lamp/lightmap_0.exr",
+        "lightmaps/groups/lamp/lightmap_0.hdr",
+        "irradiance_volumes/volume_0.ktx2",
+        "irradiance_volumes/groups/lamp/volume_0.ktx2",
+    ];
+    if first.formats.png_preview {
+        stale.push("lightmaps/groups/lamp/lightmap_0.preview.png");
+    }
+    stale.sort();
+    for &f in &stale {
+        assert!(out_dir.join(f).is_file(), "{f} written");
+    }
+    // The developer's own files in the bake's folders.
+    let own = ["lightmaps/lightmap_7.exr", "lightmaps/notes.txt"];
+    for f in own {
+        std::fs::write(out_dir.join(f), b"mine").unwrap();
+    }
+
+    let second = fast_settings();
+    let written = bake_into(&second);
+    let mut removed: Vec<String> = (written.removed.iter())
+        .map(|p| {
+            let rel = p.strip_prefix(&out_dir).unwrap();
+            rel.to_string_lossy().replace('\\', "/")
+        })
+        .collect();
+    removed.sort();
+    assert_eq!(removed, stale);
+    for &f in &stale {
+        assert!(!out_dir.join(f).exists(), "{f} removed");
+    }
+    assert!(!out_dir.join("lightmaps/groups/lamp").exists());
+    assert!(out_dir.join("lightmaps/lightmap_0.exr").is_file());
+    for f in own {
+        assert_eq!(std::fs::read(out_dir.join(f)).unwrap(), b"mine");
+    }
+
+    // A report that names files outside the page and volume folders, or leaves them.
+    let outside = dir.path().join("outside");
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::write(outside.join("lightmap_0.exr"), b"theirs").unwrap();
+    let crafted = serde_json::json!({ "outputs": [
+        "../outside/lightmap_0.exr",
+        "lightmaps/../../outside/lightmap_0.exr",
+        outside.join("lightmap_0.exr").to_string_lossy(),
+        "lightmaps/notes.txt",
+        "cornell_box.gltf.bak",
+    ]});
+    std::fs::write(out_dir.join("report.json"), crafted.to_string()).unwrap();
+    std::fs::write(out_dir.join("cornell_box.gltf.bak"), b"mine").unwrap();
+    let written = bake_into(&second);
+    assert!(written.removed.is_empty(), "{:?}", written.removed);
+    assert_eq!(
+        std::fs::read(outside.join("lightmap_0.exr")).unwrap(),
+        b"theirs"
+    );
+    assert!(out_dir.join("lightmaps/notes.txt").is_file());
+    assert!(out_dir.join("cornell_box.gltf.bak").is_file());
+}

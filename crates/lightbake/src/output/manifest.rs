@@ -45,6 +45,13 @@ impl PageFiles {
             .or(self.hdr.as_deref())
             .or(self.ktx2_bc6h.as_deref())
     }
+
+    /// The BC6H file when one was written besides [`Self::primary`] (which names it only when
+    /// it is the only one).
+    pub fn bc6h_besides_primary(&self) -> Option<&str> {
+        let bc6h = self.ktx2_bc6h.as_deref()?;
+        (self.primary() != Some(bc6h)).then_some(bc6h)
+    }
 }
 
 /// One baked instance in the manifest.

@@ -43,6 +43,10 @@ pub struct Written {
     pub files: Vec<PathBuf>,
     /// Per BC6H page written, what the compression changed (empty without BC6H pages).
     pub bc6h: Vec<bc6h::Bc6hError>,
+    /// Page and volume files an earlier bake into the folder wrote and this one did not
+    /// (fewer pages, volumes or groups, other formats), removed so that no stale image lies
+    /// beside the ones the manifest and glTF list.
+    pub removed: Vec<PathBuf>,
 }
 
 fn encode_err(path: &Path) -> impl FnOnce(String) -> BakeError + '_ {
@@ -150,6 +154,9 @@ pub fn write_outputs(
                 .into_owned()
         })
         .collect();
+    // What an earlier bake into `dir` wrote and this one does not: read before the new
+    // report replaces the old one, removed once the new files are in place.
+    let stale = stale_outputs(dir, &report.outputs);
     stage_json(&mut staged, &report_path, &report)?;
     if let Some(source) = source {
         for dest in staged.destinations() {
@@ -168,10 +175,76 @@ pub fn write_outputs(
         .into_iter()
         .map(|p| p.strip_prefix(&root).map_or(p.clone(), |rel| dir.join(rel)))
         .collect();
+    let removed: Vec<PathBuf> = (stale.into_iter())
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .collect();
+    for p in &removed {
+        // A group the new bake lacks leaves its folder empty (removed only when empty).
+        if let Some(group) = p.parent()
+            && group.parent().and_then(Path::file_name) == Some("groups".as_ref())
+        {
+            let _ = std::fs::remove_dir(group);
+        }
+    }
     Ok(Written {
         files,
         bc6h: compressed,
+        removed,
     })
+}
+
+/// The page and volume files an earlier bake into `dir` wrote (its `report.json`'s
+/// `outputs`) that this one does not (`kept`, relative to `dir`): after a rebake with fewer
+/// pages, volumes or groups, or other formats, they would lie beside the files the new
+/// manifest and glTF list. Only regular files named as the bake names pages and volumes
+/// (`lightmaps/[groups/G/]lightmap_N.*`, `irradiance_volumes/[groups/G/]volume_N.ktx2`)
+/// inside `dir` are taken; an earlier report that cannot be read gives none.
+fn stale_outputs(dir: &Path, kept: &[String]) -> Vec<PathBuf> {
+    #[derive(serde::Deserialize)]
+    struct Earlier {
+        #[serde(default)]
+        outputs: Vec<String>,
+    }
+    let Ok(text) = std::fs::read(dir.join("report.json")) else {
+        return Vec::new();
+    };
+    let Ok(earlier) = serde_json::from_slice::<Earlier>(&text) else {
+        return Vec::new();
+    };
+    (earlier.outputs.iter())
+        .filter(|f| is_page_or_volume_file(f) && !kept.contains(f))
+        .map(|f| dir.join(f))
+        .filter(|p| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file()))
+        .collect()
+}
+
+/// Whether `rel` is named as the bake names a page or volume file (see [`stale_outputs`]).
+fn is_page_or_volume_file(rel: &str) -> bool {
+    let parts: Vec<&str> = rel.split('/').collect();
+    let plain = |s: &str| !s.is_empty() && s != "." && s != ".." && !s.contains(['\\', ':', '\0']);
+    if !parts.iter().all(|s| plain(s)) {
+        return false;
+    }
+    let numbered = |name: &str, stem: &str, exts: &[&str]| {
+        name.strip_prefix(stem)
+            .and_then(|rest| rest.split_once('.'))
+            .is_some_and(|(n, ext)| {
+                !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) && exts.contains(&ext)
+            })
+    };
+    let (folder, name) = match parts.as_slice() {
+        [folder, name] | [folder, "groups", _, name] => (*folder, *name),
+        _ => return false,
+    };
+    match folder {
+        "lightmaps" => numbered(
+            name,
+            "lightmap_",
+            &["exr", "hdr", "ktx2", "bc6h.ktx2", "preview.png"],
+        ),
+        "irradiance_volumes" => numbered(name, "volume_", &["ktx2"]),
+        _ => false,
+    }
 }
 
 /// Refuses an output folder that is the scene's own (its outputs would sit among, and may
@@ -274,13 +347,12 @@ fn stage_baked_gltf(
         ) else {
             continue;
         };
+        let files = &pages[rect.page as usize];
         let lightmap = NodeLightmap {
             primitive: src.primitive,
             page: rect.page,
-            image: pages[rect.page as usize]
-                .primary()
-                .unwrap_or_default()
-                .to_string(),
+            image: files.primary().unwrap_or_default().to_string(),
+            image_bc6h: files.bc6h_besides_primary().map(str::to_string),
             uv_rect: rect.uv_rect(output.layout.pages[rect.page as usize]),
         };
         node_lightmaps.push((node, lightmap));
@@ -301,6 +373,10 @@ fn stage_baked_gltf(
                 pages: (g.pages.iter())
                     .map(|p| p.primary().unwrap_or_default().to_string())
                     .collect(),
+                pages_bc6h: (g.pages.iter())
+                    .map(|p| p.bc6h_besides_primary().map(str::to_string))
+                    .collect::<Option<Vec<_>>>()
+                    .unwrap_or_default(),
                 irradiance_volumes: g.irradiance_volumes,
             })
             .collect(),

@@ -73,6 +73,10 @@ pub struct GroupExtras {
     /// Per page of the scene, in page order, the group's image of it, relative to the glTF
     /// file (or the output directory, in the manifest).
     pub pages: Vec<String>,
+    /// Per page, the group's BC6H image of it when the bake wrote one besides `pages`' (as
+    /// [`NodeLightmap::image_bc6h`]); empty otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pages_bc6h: Vec<String>,
     /// Per irradiance volume of the scene, in order, the group's volume image.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub irradiance_volumes: Vec<String>,
@@ -139,6 +143,11 @@ pub struct NodeLightmap {
     pub page: u32,
     /// The page image, relative to the glTF file.
     pub image: String,
+    /// The same page as BC6H blocks (`lightmaps/lightmap_N.bc6h.ktx2`), when the bake wrote
+    /// one besides `image` (`--format ...,ktx2-bc6h`): an engine whose GPU samples BC
+    /// textures may load it instead, at an eighth of the memory. Absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_bc6h: Option<String>,
     /// Bevy's `Lightmap::uv_rect`: [min u, min v, max u, max v] on the page.
     pub uv_rect: [f32; 4],
 }
