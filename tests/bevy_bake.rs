@@ -547,8 +547,9 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
 
 /// A bake in the app takes the light groups of emissive meshes from their [`LightGroup`]
 /// components and the sky's from [`LightbakeConfig::sky_group`]: the Cornell box's ceiling
-/// panel in `panel` and the sky (coming in at its open front) in `outside`. A second mesh
-/// with the panel's material and another group is warned of, and its light stays in `panel`.
+/// panel in `panel` and the sky (coming in at its open front) in `outside`. Two more meshes
+/// with the panel's material, one in another group and one in none, are warned of: their
+/// light is in `panel` too.
 #[test]
 fn an_in_app_bake_groups_emissive_meshes_and_the_sky() {
     let dir = tempfile::tempdir().unwrap();
@@ -580,12 +581,19 @@ fn an_in_app_bake_groups_emissive_meshes_and_the_sky() {
             .clone(),
     );
     world.spawn((
-        mesh,
-        material,
+        mesh.clone(),
+        material.clone(),
         Transform::from_xyz(0.0, 0.2, 0.0),
         Lightbaked::default(),
         LightGroup("other".into()),
         Name::new("second panel"),
+    ));
+    world.spawn((
+        mesh,
+        material,
+        Transform::from_xyz(0.0, 0.3, 0.0),
+        Lightbaked::default(),
+        Name::new("third panel"),
     ));
     app.update();
     app.world_mut().write_message(RequestBake::default());
@@ -608,10 +616,16 @@ fn an_in_app_bake_groups_emissive_meshes_and_the_sky() {
         "{groups:?}"
     );
     assert_eq!(groups[1], ("outside", &["sky".to_string()][..]));
-    assert!(
-        (report.warnings.iter())
-            .any(|w| w.starts_with("second panel:") && w.contains("in light group 'panel'")),
-        "{:?}",
-        report.warnings
-    );
+    for (who, own) in [
+        ("second panel:", "to put it in 'other'"),
+        ("third panel:", "to keep it ungrouped"),
+    ] {
+        assert!(
+            (report.warnings.iter()).any(|w| w.starts_with(who)
+                && w.contains("in light group 'panel'")
+                && w.contains(own)),
+            "{:?}",
+            report.warnings
+        );
+    }
 }

@@ -442,9 +442,9 @@ fn extract_instances(
     mapping: &mut SceneMapping,
 ) -> Result<(Vec<(usize, f32)>, Vec<lightbake::settings::LightGroup>), ConvertError> {
     let mut own = Vec::new();
-    let mut groups = Vec::new();
-    // Per emissive material, the group and the entity that put it there.
-    let mut material_group: HashMap<usize, (String, String)> = HashMap::new();
+    // Per emissive material, the entities with it and their groups.
+    let mut emitters: std::collections::BTreeMap<usize, Vec<(String, Option<String>)>> =
+        Default::default();
     let mut query = world.query::<(
         Entity,
         &Mesh3d,
@@ -504,18 +504,9 @@ fn extract_instances(
         };
         let emitting = (scene.meshes[mesh_index].material)
             .filter(|&m| scene.materials[m].emissive.max_element() > 0.0);
-        if let (Some(LightGroup(g)), Some(m)) = (&group, emitting) {
-            match material_group.get(&m) {
-                Some((first, by)) if first != g => scene.warnings.push(format!(
-                    "{label}: its emissive material is also on {by}, in light group '{first}', and a material's light belongs to one group: it stays in '{first}' (give {label} a material of its own to put it in '{g}')"
-                )),
-                Some(_) => {}
-                None => {
-                    let name = &scene.materials[m].name;
-                    lightbake::scene::groups::add_member(&mut groups, g, format!("material:{name}"));
-                    material_group.insert(m, (g.clone(), label.clone()));
-                }
-            }
+        if let Some(m) = emitting {
+            let group = group.map(|LightGroup(g)| g);
+            emitters.entry(m).or_default().push((label.clone(), group));
         }
         let mut instance = CoreInstance::new(label, mesh_index, affine(&transform));
         instance.bake = baked.receive_lightmap;
@@ -526,7 +517,37 @@ fn extract_instances(
         mapping.instances.push(entity);
         mapping.instance_meshes.push(mesh_index);
     }
-    Ok((own, groups))
+    Ok((own, emissive_groups(scene, &emitters)))
+}
+
+/// The light groups of emissive materials: each material goes to the group of the first of
+/// its entities (in the order of their names) that has a [`LightGroup`]; the others with
+/// another group or none are warned of (a material's light belongs to one group).
+fn emissive_groups(
+    scene: &mut Scene,
+    emitters: &std::collections::BTreeMap<usize, Vec<(String, Option<String>)>>,
+) -> Vec<lightbake::settings::LightGroup> {
+    let mut groups = Vec::new();
+    for (&m, users) in emitters {
+        let Some((by, first)) = (users.iter()).find_map(|(l, g)| Some((l, g.as_ref()?))) else {
+            continue;
+        };
+        let name = &scene.materials[m].name;
+        lightbake::scene::groups::add_member(&mut groups, first, format!("material:{name}"));
+        for (label, group) in users {
+            if group.as_ref() == Some(first) {
+                continue;
+            }
+            let own = match group {
+                Some(g) => format!("to put it in '{g}'"),
+                None => "to keep it ungrouped".into(),
+            };
+            scene.warnings.push(format!(
+                "{label}: its emissive material is also on {by}, in light group '{first}', and a material's light belongs to one group: its light is in '{first}' too (give {label} a material of its own {own})"
+            ));
+        }
+    }
+    groups
 }
 
 /// The core's [`LightBake`] for a light with `mode` (`None`: `default`).

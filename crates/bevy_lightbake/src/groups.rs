@@ -441,21 +441,18 @@ fn find_summed_pages(
 fn create_targets(mut sums: ResMut<GroupSums>, mut images: ResMut<Assets<Image>>) {
     let sums = &mut *sums;
     for (key, page) in sums.pages.iter_mut() {
-        create_target(
-            &format!("{} page {}", key.gltf, key.page),
-            page,
-            &mut images,
-        );
+        let what = || format!("{} page {}", key.gltf, key.page);
+        create_target(what, page, &mut images);
     }
     for (key, volume) in sums.volumes.iter_mut() {
-        let what = format!("{} irradiance volume {}", key.gltf, key.volume);
-        create_target(&what, volume, &mut images);
+        let what = || format!("{} irradiance volume {}", key.gltf, key.volume);
+        create_target(what, volume, &mut images);
     }
 }
 
 /// Creates `page`'s sum image (`what` names it in a warning) when its sources are loaded and
 /// it has none of their size.
-fn create_target(what: &str, page: &mut SumPage, images: &mut Assets<Image>) {
+fn create_target(what: impl Fn() -> String, page: &mut SumPage, images: &mut Assets<Image>) {
     let shapes: Option<Vec<(Extent3d, TextureDimension)>> = (page.sources.iter())
         .map(|(_, h)| {
             let d = &images.get(h)?.texture_descriptor;
@@ -468,7 +465,8 @@ fn create_target(what: &str, page: &mut SumPage, images: &mut Assets<Image>) {
     let shape = shapes[0];
     if shapes.iter().any(|s| *s != shape) {
         warn!(
-            "lightbake: {what}: its light groups' images differ in size; it shows every group at weight 1"
+            "lightbake: {}: its light groups' images differ in size; it shows every group at weight 1",
+            what()
         );
         return;
     }

@@ -115,19 +115,13 @@ pub(crate) fn start_bake(world: &mut World) {
     for w in &scene.warnings {
         warn!("lightbake: {w}");
     }
-    if let Some(g) = &config.sky_group
+    // The sky's group, unless a group of the settings already holds the sky.
+    let sky = lightbake::settings::groups::SKY;
+    if let Some(sky_group) = &config.sky_group
         && scene.sky.max_element() > 0.0
-        && !(settings.groups.iter()).any(|g| {
-            g.members
-                .iter()
-                .any(|m| m == lightbake::settings::groups::SKY)
-        })
+        && !(settings.groups.iter()).any(|g| g.members.iter().any(|m| m == sky))
     {
-        lightbake::scene::groups::add_member(
-            &mut settings.groups,
-            g,
-            lightbake::settings::groups::SKY.into(),
-        );
+        lightbake::scene::groups::add_member(&mut settings.groups, sky_group, sky.into());
     }
     let out_dir = config
         .write_files
