@@ -16,12 +16,12 @@
 use bevy::gltf::GltfExtras;
 use bevy::prelude::*;
 use bevy::render::renderer::RenderDevice;
-use bevy::render::settings::WgpuFeatures;
 use lightbake::scene::extras::{self, LightExtras, NodeExtras, NodeLightmap};
 
 use crate::LightbakeSystems;
 use crate::components::{BakedLight, LightbakeConfig, Lightmapped};
 use crate::groups::GltfPage;
+use crate::images::loads_bc6h;
 
 /// glTF scenes: the lightmaps and baked lights a baked glTF names, found when its scene
 /// spawns ([`LightbakeSystems::Gltf`]).
@@ -55,13 +55,6 @@ pub fn primitive_of_label(label: &str) -> Option<usize> {
 /// Whether a light's extras say it was baked (the core's [`LightExtras`] schema).
 pub fn is_baked_light(extras: &str) -> bool {
     extras::read::<LightExtras>(Some(extras), "light", &mut Vec::new()).baked
-}
-
-/// Whether a baked glTF's BC6H pages are loaded in place of its other pages:
-/// [`LightbakeConfig::bc6h`] is set and the GPU samples BC textures.
-pub fn loads_bc6h(config: &LightbakeConfig, device: Option<&RenderDevice>) -> bool {
-    config.bc6h
-        && device.is_some_and(|d| d.features().contains(WgpuFeatures::TEXTURE_COMPRESSION_BC))
 }
 
 /// Gives every mesh entity of a baked glTF its [`Lightmapped`] from its node's extras (its

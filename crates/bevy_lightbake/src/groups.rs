@@ -376,7 +376,7 @@ pub(crate) fn apply_in_app_groups(
 }
 
 /// Registers the pages of newly lightmapped glTF meshes whose scene has light groups (their
-/// BC6H images where [`crate::gltf::loads_bc6h`]).
+/// BC6H images where [`crate::images::loads_bc6h`]).
 fn find_summed_pages(
     mut commands: Commands,
     server: Res<AssetServer>,
@@ -389,7 +389,7 @@ fn find_summed_pages(
 ) {
     // Each scene's extras are read once, however many of its meshes are new.
     let mut scenes: HashMap<Entity, Vec<GroupExtras>> = HashMap::new();
-    let bc6h = crate::gltf::loads_bc6h(&config, device.as_deref());
+    let bc6h = crate::images::loads_bc6h(&config, device.as_deref());
     for (entity, page) in &new {
         commands.entity(entity).insert(GroupsLookedUp);
         if sums.pages.contains_key(page) {

@@ -3,13 +3,18 @@
 //! Bevy samples a lightmap with a filtering sampler, so its format must be filterable on every
 //! backend: `Rgba16Float`. The baker writes half-float EXR, which Bevy's EXR loader expands
 //! to `Rgba32Float` (filterable only where the device has `FLOAT32_FILTERABLE`); the plugin
-//! narrows it back to `Rgba16Float`, losslessly, as soon as it loads.
+//! narrows it back to `Rgba16Float`, losslessly, as soon as it loads. BC6H pages are loaded
+//! instead where the GPU samples them ([`loads_bc6h`]).
 
 use bevy::asset::RenderAssetUsages;
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use bevy::render::renderer::RenderDevice;
+use bevy::render::settings::WgpuFeatures;
 use half::f16;
 use lightbake::lightmap::{HALF_MAX, LightmapPage, bilinear_taps};
+
+use crate::components::LightbakeConfig;
 
 /// A baked page as an `Rgba16Float` image (alpha 1), kept on the CPU as well so that games
 /// and tests can read it.
@@ -116,6 +121,13 @@ pub fn sample_bilinear(image: &Image, uv: Vec2) -> Option<Vec3> {
         .try_fold(Vec3::ZERO, |sum, &((x, y), w)| {
             Some(sum + texel(image, x, y)? * w)
         })
+}
+
+/// Whether a baked glTF's BC6H pages are loaded in place of its other pages:
+/// [`LightbakeConfig::bc6h`] is set and the GPU samples BC textures.
+pub fn loads_bc6h(config: &LightbakeConfig, device: Option<&RenderDevice>) -> bool {
+    config.bc6h
+        && device.is_some_and(|d| d.features().contains(WgpuFeatures::TEXTURE_COMPRESSION_BC))
 }
 
 #[cfg(test)]
