@@ -544,7 +544,8 @@ fn a_rebake_removes_the_earlier_bakes_stale_files_and_nothing_else() {
     for &f in &stale {
         assert!(!out_dir.join(f).exists(), "{f} removed");
     }
-    assert!(!out_dir.join("lightmaps/groups/lamp").exists());
+    assert!(!out_dir.join("lightmaps/groups").exists());
+    assert!(!out_dir.join("irradiance_volumes").exists());
     assert!(out_dir.join("lightmaps/lightmap_0.exr").is_file());
     for f in own {
         assert_eq!(std::fs::read(out_dir.join(f)).unwrap(), b"mine");
@@ -565,6 +566,20 @@ fn a_rebake_removes_the_earlier_bakes_stale_files_and_nothing_else() {
     std::fs::write(out_dir.join("cornell_box.gltf.bak"), b"mine").unwrap();
     let written = bake_into(&second);
     assert!(written.removed.is_empty(), "{:?}", written.removed);
+    // Nor one that a linked folder inside leads to.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&outside, out_dir.join("irradiance_volumes")).unwrap();
+        std::fs::write(outside.join("volume_0.ktx2"), b"theirs").unwrap();
+        let crafted = serde_json::json!({ "outputs": ["irradiance_volumes/volume_0.ktx2"] });
+        std::fs::write(out_dir.join("report.json"), crafted.to_string()).unwrap();
+        let written = bake_into(&second);
+        assert!(written.removed.is_empty(), "{:?}", written.removed);
+        assert_eq!(
+            std::fs::read(outside.join("volume_0.ktx2")).unwrap(),
+            b"theirs"
+        );
+    }
     assert_eq!(
         std::fs::read(outside.join("lightmap_0.exr")).unwrap(),
         b"theirs"

@@ -179,11 +179,12 @@ pub fn write_outputs(
         .filter(|p| std::fs::remove_file(p).is_ok())
         .collect();
     for p in &removed {
-        // A group the new bake lacks leaves its folder empty (removed only when empty).
-        if let Some(group) = p.parent()
-            && group.parent().and_then(Path::file_name) == Some("groups".as_ref())
-        {
-            let _ = std::fs::remove_dir(group);
+        // The folders a removed file leaves empty (a group's, `groups/`, `irradiance_volumes/`)
+        // go too; `remove_dir` takes only empty ones.
+        for folder in p.ancestors().skip(1).take_while(|a| *a != dir) {
+            if std::fs::remove_dir(folder).is_err() {
+                break;
+            }
         }
     }
     Ok(Written {
@@ -211,10 +212,17 @@ fn stale_outputs(dir: &Path, kept: &[String]) -> Vec<PathBuf> {
     let Ok(earlier) = serde_json::from_slice::<Earlier>(&text) else {
         return Vec::new();
     };
+    let Ok(root) = dir.canonicalize() else {
+        return Vec::new();
+    };
+    // Not through a linked folder that leads out of `dir`.
+    let inside = |p: &Path| {
+        (p.parent().and_then(|d| d.canonicalize().ok())).is_some_and(|d| d.starts_with(&root))
+    };
     (earlier.outputs.iter())
         .filter(|f| is_page_or_volume_file(f) && !kept.contains(f))
         .map(|f| dir.join(f))
-        .filter(|p| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file()))
+        .filter(|p| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file()) && inside(p))
         .collect()
 }
 
