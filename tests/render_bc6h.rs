@@ -153,6 +153,15 @@ fn file_of(world: &World, dir: &Path, image: &Handle<Image>) -> std::path::PathB
     dir.join(path.path())
 }
 
+/// E/π of `image`, a page of the mesh `floor` shows at `rect`, at floor point `p`.
+fn floor_value(world: &World, (floor, rect): (Entity, Rect), image: &Image, p: Vec3) -> Vec3 {
+    let mesh = (world.resource::<Assets<Mesh>>())
+        .get(&world.get::<Mesh3d>(floor).unwrap().0)
+        .unwrap();
+    let t = world.get::<GlobalTransform>(floor).unwrap();
+    sample_lightmap(mesh, t, rect, image, p).unwrap()
+}
+
 /// A spot in the sun and one in the shade (as the volume's render test picks them).
 const SPOTS: [Vec3; 2] = [Vec3::new(1.0, 0.0, 0.6), Vec3::new(-2.8, 0.0, -2.0)];
 
@@ -182,21 +191,12 @@ fn bc6h_pages_load_where_the_gpu_samples_them_and_render_as_decoded() {
     );
     let mut worst: f32 = 0.0;
     for (s, spot) in SPOTS.iter().enumerate() {
-        let at = |image: &Image| {
-            let image = image.clone();
-            let rect = lightmapped.uv_rect;
-            move |world: &World, p: Vec3| {
-                let mesh = (world.resource::<Assets<Mesh>>())
-                    .get(&world.get::<Mesh3d>(floor).unwrap().0)
-                    .unwrap();
-                let t = world.get::<GlobalTransform>(floor).unwrap();
-                sample_lightmap(mesh, t, rect, &image, p).unwrap()
-            }
-        };
+        let rect = lightmapped.uv_rect;
         let world = app.world_mut();
         let px = pixel(world, *spot);
-        let expected = albedo * mean_over_floor(world, px, 2, at(&page));
-        let half_float = albedo * mean_over_floor(world, px, 2, at(&exr));
+        let on = (floor, rect);
+        let expected = albedo * mean_over_floor(world, px, 2, |w, p| floor_value(w, on, &page, p));
+        let half_float = albedo * mean_over_floor(world, px, 2, |w, p| floor_value(w, on, &exr, p));
         let rel = rendered_against(&mut app, camera, *spot, expected);
         println!(
             "{}: rendered against albedo × the loaded page {:.2}%; the loaded page against the EXR page {:.2}%",
@@ -247,13 +247,9 @@ fn light_groups_sum_their_bc6h_pages() {
             let world = app.world_mut();
             let at = pixel(world, spot);
             let sum = mean_over_floor(world, at, 2, |world, p| {
-                let mesh = (world.resource::<Assets<Mesh>>())
-                    .get(&world.get::<Mesh3d>(floor).unwrap().0)
-                    .unwrap();
-                let t = world.get::<GlobalTransform>(floor).unwrap();
                 let w = [weights.0, weights.1];
                 (files.iter().zip(w))
-                    .map(|((_, image), w)| w * sample_lightmap(mesh, t, rect, image, p).unwrap())
+                    .map(|((_, image), w)| w * floor_value(world, (floor, rect), image, p))
                     .sum()
             });
             let rel = rendered_against(&mut app, camera, spot, albedo * sum);

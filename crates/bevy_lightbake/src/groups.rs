@@ -148,22 +148,9 @@ impl GroupSums {
             .unwrap_or_default()
     }
 
-    /// Volumes shown as sums.
-    pub fn volumes(&self) -> usize {
-        self.volumes.len()
-    }
-
     /// The sum image of `volume`, once created.
     pub fn volume_target(&self, volume: &GltfVolume) -> Option<&Handle<Image>> {
         self.volumes.get(volume)?.target.as_ref()
-    }
-
-    /// The group images of `volume` by group name.
-    pub fn volume_sources(&self, volume: &GltfVolume) -> Vec<(String, Handle<Image>)> {
-        self.volumes
-            .get(volume)
-            .map(|p| p.sources.clone())
-            .unwrap_or_default()
     }
 
     /// Whether `volume` is shown as a sum.
@@ -182,15 +169,7 @@ impl GroupSums {
         if self.volumes.contains_key(volume) {
             return true;
         }
-        if sources.len() > MAX_SUMMED {
-            warn!(
-                "lightbake: {} has {} light groups; at most {MAX_SUMMED} are summed, so its irradiance volumes show every group at weight 1",
-                volume.gltf,
-                sources.len()
-            );
-            return false;
-        }
-        if sources.is_empty() {
+        if !summable(&volume.gltf, &sources, "irradiance volumes") {
             return false;
         }
         self.volumes.insert(volume.clone(), SumPage::new(sources));
@@ -421,19 +400,25 @@ fn find_summed_pages(
                 ),
             }
         }
-        if sources.len() > MAX_SUMMED {
-            warn!(
-                "lightbake: {} has {} light groups; at most {MAX_SUMMED} are summed, so its pages show every group at weight 1",
-                page.gltf,
-                sources.len()
-            );
-            sources.clear();
-        }
-        if !sources.is_empty() {
+        if summable(&page.gltf, &sources, "pages") {
             sums.pages.insert(page.clone(), SumPage::new(sources));
             commands.entity(entity).insert(SummedPage(page.clone()));
         }
     }
+}
+
+/// Whether the group images `sources` of one of `gltf`'s `what` (pages, volumes) can be
+/// summed: some, and no more than [`MAX_SUMMED`] (warned of: then it shows every group at
+/// weight 1).
+fn summable(gltf: &AssetPath, sources: &[(String, Handle<Image>)], what: &str) -> bool {
+    if sources.len() > MAX_SUMMED {
+        warn!(
+            "lightbake: {gltf} has {} light groups; at most {MAX_SUMMED} are summed, so its {what} show every group at weight 1",
+            sources.len()
+        );
+        return false;
+    }
+    !sources.is_empty()
 }
 
 /// Creates each page's and volume's sum image once its group images are loaded, at their size
