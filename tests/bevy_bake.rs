@@ -612,8 +612,8 @@ fn an_in_app_bake_groups_emissive_meshes_and_the_sky() {
     assert_eq!(groups.len(), 2, "{groups:?}");
     assert_eq!(groups[0].0, "panel");
     assert!(
-        groups[0].1.len() == 1 && groups[0].1[0].starts_with("material "),
-        "{groups:?}"
+        groups[0].1.len() == 1 && groups[0].1[0].starts_with("material unnamed "),
+        "a material made in code is named by its place: {groups:?}"
     );
     assert_eq!(groups[1], ("outside", &["sky".to_string()][..]));
     for (who, own) in [

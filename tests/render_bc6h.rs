@@ -3,7 +3,8 @@
 //! samples BC textures the plugin loads the BC6H pages (`LightbakeConfig::bc6h`), else the EXR
 //! ones; the floor, in the sun and in the shade, renders as its albedo times the page it
 //! loaded (the file decoded on the CPU) within 1%. With light groups, the groups' BC6H pages
-//! are the ones summed. Skips when no Vulkan driver is installed (fails instead with
+//! are the ones summed. An in-app bake writing BC6H pages shows them too, once read from
+//! its files. Skips when no Vulkan driver is installed (fails instead with
 //! `LIGHTBAKE_REQUIRE_VULKAN=1`, which `.ci/run` sets after installing one).
 
 mod render_common;
@@ -21,7 +22,9 @@ use bevy_lightbake::groups::{GltfPage, GroupSums};
 use bevy_lightbake::images::{loads_bc6h, page_image};
 use bevy_lightbake::prelude::*;
 use bevy_lightbake::sample::sample_lightmap;
+use bevy_lightbake::spawn::spawn_scene;
 use lightbake::lightmap::LightmapPage;
+use lightbake::scene::testscenes::{CORNELL_WHITE, CornellLight, cornell_box};
 use lightbake::settings::LightGroup as GroupSetting;
 use render_common::{gltf_floor, mean_at, mean_over_floor, pixel};
 
@@ -76,6 +79,12 @@ fn decoded(file: &Path) -> Image {
         exr.layer_data.channel_data.pixels
     };
     page_image(&page)
+}
+
+/// The EXR page beside a BC6H page file (the same file when it is one).
+fn exr_beside(file: &Path) -> std::path::PathBuf {
+    let name = file.file_name().unwrap().to_string_lossy();
+    file.with_file_name(name.replace(".bc6h.ktx2", ".exr"))
 }
 
 /// The relative difference between the floor rendered at `at` and `expected` (albedo × the
@@ -181,14 +190,7 @@ fn bc6h_pages_load_where_the_gpu_samples_them_and_render_as_decoded() {
     assert_eq!(name.ends_with(".bc6h.ktx2"), bc6h, "{name}");
     assert_eq!(!bc6h, name.ends_with(".exr"), "{name}");
     let page = decoded(&file);
-    let exr = decoded(
-        &file.with_file_name(
-            file.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .replace(".bc6h.ktx2", ".exr"),
-        ),
-    );
+    let exr = decoded(&exr_beside(&file));
     let mut worst: f32 = 0.0;
     for (s, spot) in SPOTS.iter().enumerate() {
         let rect = lightmapped.uv_rect;
@@ -263,4 +265,115 @@ fn light_groups_sum_their_bc6h_pages() {
         }
     }
     assert!(worst < 0.01, "{:.2}%", 100.0 * worst);
+}
+
+/// The Cornell box's floor (Cornell coordinates / 1000, centred) where the camera above it
+/// sees no block: in the open, beside the red wall, and in the back corner by the green
+/// wall.
+const CORNELL_SPOTS: [Vec3; 3] = [
+    Vec3::new(-0.15, 0.0, 0.2),
+    Vec3::new(-0.24, 0.0, 0.15),
+    Vec3::new(0.22, 0.0, -0.22),
+];
+
+#[test]
+fn an_in_app_bake_shows_its_bc6h_pages_where_the_gpu_samples_them() {
+    if !support::render_tests_can_run() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (mut app, target) = support::render_test_app(dir.path(), W, H);
+    let bc6h = loads_bc6h(
+        app.world().resource::<LightbakeConfig>(),
+        app.world().get_resource::<RenderDevice>(),
+    );
+    {
+        let mut config = app.world_mut().resource_mut::<LightbakeConfig>();
+        config.settings = BakeSettings::preview();
+        config.settings.layout.texel_density = Some(96.0);
+        config.settings.formats.ktx2_bc6h = true;
+    }
+    let world = app.world_mut();
+    let scene = cornell_box(CornellLight::Point);
+    let entities = spawn_scene(world, &scene);
+    let floor = entities[(scene.instances.iter())
+        .position(|i| i.name == "floor")
+        .unwrap()];
+    // Inside the box under its ceiling, looking down at the floor.
+    let camera = world
+        .spawn((
+            render_common::test_camera(
+                target,
+                Transform::from_xyz(-0.05, 0.5, 0.05)
+                    .looking_at(Vec3::new(-0.05, 0.0, 0.05), Vec3::NEG_Z),
+                Exposure::default().ev100,
+            ),
+            Projection::Perspective(PerspectiveProjection {
+                fov: 70f32.to_radians(),
+                ..default()
+            }),
+        ))
+        .id();
+    world.insert_resource(GlobalAmbientLight::NONE);
+    world.write_message(RequestBake::default());
+    // The bake finishes, the floor shows its page, and (on a GPU that samples BC textures)
+    // that page's asset is the BC6H file's blocks.
+    for frame in 0.. {
+        app.update();
+        let world = app.world_mut();
+        if let BakePhase::Failed(e) = &world.resource::<BakeStatus>().phase {
+            panic!("bake failed: {e}");
+        }
+        assert!(frame < 20_000, "the bake's pages never showed");
+        if world.resource::<BakeStatus>().completed == 0 {
+            continue;
+        }
+        let lightmapped = world.get::<Lightmapped>(floor).unwrap();
+        let format = (world.resource::<Assets<Image>>())
+            .get(&lightmapped.image)
+            .map(|i| i.texture_descriptor.format);
+        if !lightmapped.is_shown_by(world.get::<bevy::pbr::Lightmap>(floor)) {
+            continue;
+        }
+        let want = if bc6h {
+            bevy::render::render_resource::TextureFormat::Bc6hRgbUfloat
+        } else {
+            bevy::render::render_resource::TextureFormat::Rgba16Float
+        };
+        if format == Some(want) {
+            break;
+        }
+    }
+    // The lamp's light is baked: only its specular would remain.
+    let world = app.world_mut();
+    let mut lights = world.query_filtered::<Entity, With<PointLight>>();
+    for l in lights.iter(world).collect::<Vec<_>>() {
+        world.despawn(l);
+    }
+    let lightmapped = world.get::<Lightmapped>(floor).unwrap().clone();
+    let file = file_of(world, dir.path(), &lightmapped.image);
+    let name = file.to_string_lossy().into_owned();
+    println!("BC6H on this GPU: {bc6h}; the floor's page: {name}");
+    assert_eq!(name.ends_with(".bc6h.ktx2"), bc6h, "{name}");
+    let page = decoded(&file);
+    let exr = decoded(&exr_beside(&file));
+    let albedo = Vec3::from_array(CORNELL_WHITE.to_array());
+    let mut worst: f32 = 0.0;
+    for spot in CORNELL_SPOTS {
+        let world = app.world_mut();
+        let px = pixel(world, spot);
+        let on = (floor, lightmapped.uv_rect);
+        let expected = albedo * mean_over_floor(world, px, 2, |w, p| floor_value(w, on, &page, p));
+        let half_float = albedo * mean_over_floor(world, px, 2, |w, p| floor_value(w, on, &exr, p));
+        let rel = rendered_against(&mut app, camera, spot, expected);
+        println!(
+            "in-app bake, floor at {spot}: rendered against albedo × the loaded page {:.2}%; the loaded page against the EXR page {:.2}%",
+            100.0 * rel,
+            100.0 * (expected - half_float).abs().max_element() / half_float.max_element()
+        );
+        worst = worst.max(rel);
+    }
+    // Showing the half-float page instead would be 1.2–1.5% off beside the walls, where the
+    // BC6H page differs from it most.
+    assert!(worst < 0.005, "{:.2}%", 100.0 * worst);
 }

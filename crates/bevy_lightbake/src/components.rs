@@ -139,11 +139,13 @@ pub struct LightbakeConfig {
     /// result ([`BakeStatus::preview`] says which). A bake that is cancelled or fails puts the
     /// previous lightmaps back. Default `true`.
     pub previews: bool,
-    /// Load a baked glTF's BC6H pages (`bake --format exr,ktx2-bc6h`: 1 byte per texel
-    /// against `Rgba16Float`'s 8) in place of its other pages, where the bake wrote them
-    /// and the GPU samples BC textures (`TEXTURE_COMPRESSION_BC`: desktop GPUs; not WebGL 2
-    /// or most mobile GPUs, which load the other pages). Read when a glTF's meshes are
-    /// first looked up. Default `true`.
+    /// Load BC6H pages (1 byte per texel against `Rgba16Float`'s 8) in place of the other
+    /// pages, where the bake wrote them (`bake --format exr,ktx2-bc6h`; in the app,
+    /// `settings.formats.ktx2_bc6h` with [`Self::write_files`]) and the GPU samples BC
+    /// textures (`TEXTURE_COMPRESSION_BC`: desktop GPUs; not WebGL 2 or most mobile GPUs,
+    /// which load the other pages). Read when a baked glTF's meshes are first looked up, and
+    /// when an in-app bake finishes (its pages show as half floats until the BC6H files are
+    /// read). Default `true`.
     pub bc6h: bool,
 }
 

@@ -271,6 +271,18 @@ pub fn core_texture(image: &Image, label: &str) -> Result<CoreTexture, ConvertEr
     })
 }
 
+/// A material's name in the bake's reports and light groups: its asset path
+/// (`level.gltf#Material2`), else `unnamed K` for the K-th core material.
+fn material_label(
+    handle: &Handle<StandardMaterial>,
+    server: Option<&AssetServer>,
+    k: usize,
+) -> String {
+    server
+        .and_then(|s| s.get_path(handle.id()))
+        .map_or_else(|| format!("unnamed {k}"), |p| p.to_string())
+}
+
 /// Builds core materials (with their textures) from Bevy materials, once per asset.
 #[derive(Default)]
 struct Materials {
@@ -318,22 +330,24 @@ impl Materials {
     fn get(
         &mut self,
         scene: &mut Scene,
-        images: &Assets<Image>,
-        materials: &Assets<StandardMaterial>,
+        (images, materials, server): (
+            &Assets<Image>,
+            &Assets<StandardMaterial>,
+            Option<&AssetServer>,
+        ),
         handle: Option<&Handle<StandardMaterial>>,
     ) -> Option<usize> {
         let handle = handle?;
         if let Some(&m) = self.by_id.get(&handle.id()) {
             return Some(m);
         }
+        let label = material_label(handle, server, scene.materials.len());
         let Some(mat) = materials.get(handle) else {
             scene.warnings.push(format!(
-                "material {:?} is not loaded; the glTF default (white) was used",
-                handle.id()
+                "material {label} is not loaded; the glTF default (white) was used"
             ));
             return None;
         };
-        let label = format!("material {:?}", handle.id());
         let base = mat.base_color.to_linear();
         let core = CoreMaterial {
             name: label.clone(),
@@ -471,6 +485,7 @@ fn extract_instances(
     let meshes = world.resource::<Assets<Mesh>>();
     let images = world.resource::<Assets<Image>>();
     let materials = world.resource::<Assets<StandardMaterial>>();
+    let server = world.get_resource::<AssetServer>();
     let mut mats = Materials::default();
     let mut core_meshes: HashMap<(AssetId<Mesh>, Option<AssetId<StandardMaterial>>), usize> =
         HashMap::new();
@@ -490,7 +505,8 @@ fn extract_instances(
                     ));
                 }
                 let mut core = core_mesh(mesh, &label)?;
-                core.material = mats.get(scene, images, materials, mat_handle.as_ref());
+                let sources = (images, materials, server);
+                core.material = mats.get(scene, sources, mat_handle.as_ref());
                 let needs_own_asset = mapping.meshes.iter().any(|s| s.handle == mesh_handle);
                 mapping.meshes.push(MeshSource {
                     handle: mesh_handle.clone(),

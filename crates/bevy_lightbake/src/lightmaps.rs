@@ -10,6 +10,7 @@ use bevy::light::GlobalAmbientLight;
 use bevy::mesh::{Indices, MeshAccessError};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
 use lightbake::{Layout, MeshUnwrap, UvOrigin};
 
 use crate::LightbakeSystems;
@@ -40,7 +41,7 @@ impl Plugin for LightmapsPlugin {
 #[derive(Resource, Default)]
 pub(crate) struct MemoryPages(Vec<Handle<Image>>);
 
-/// Images whose size changed this frame (their `Lightmap`s must be re-inserted).
+/// Images whose size or format changed this frame (their `Lightmap`s must be re-inserted).
 #[derive(Resource, Default)]
 pub(crate) struct ResizedImages(HashSet<AssetId<Image>>);
 
@@ -104,27 +105,37 @@ pub(crate) fn apply_meshes(
 /// asset of each path (loaded now if it was not) gets the new texels in memory, so the entities
 /// never show a file's previous content while the file is read again; the asset stays tied
 /// to its file, so a later rewrite by the `bake` command reloads it.
+///
+/// `reread`: the files hold another encoding of the pages (BC6H, for a GPU that samples BC
+/// textures, [`crate::images::loads_bc6h`]): each asset shows the half-float texels until
+/// its file is read (again, when it was loaded before), and then the file's blocks, a
+/// quarter of the `Rgba16Float` page's memory.
 pub(crate) fn file_pages(
     world: &mut World,
     paths: &[String],
     pages: &[lightbake::LightmapPage],
+    reread: bool,
 ) -> Vec<Handle<Image>> {
     let server = world.resource::<AssetServer>().clone();
-    let handles: Vec<Handle<Image>> = paths
+    let handles: Vec<(Handle<Image>, bool)> = paths
         .iter()
-        .map(|p| {
-            server
-                .get_handle::<Image>(p)
-                .unwrap_or_else(|| server.load(p))
+        .map(|p| match server.get_handle::<Image>(p) {
+            Some(h) => (h, true),
+            None => (server.load(p), false),
         })
         .collect();
     let mut images = world.resource_mut::<Assets<Image>>();
-    for (h, page) in handles.iter().zip(pages) {
+    for ((h, _), page) in handles.iter().zip(pages) {
         if images.insert(h.id(), page_image(page)).is_err() {
             warn!("lightbake: a lightmap image was removed while it was being replaced");
         }
     }
-    handles
+    for ((_, loaded_before), path) in handles.iter().zip(paths) {
+        if reread && *loaded_before {
+            server.reload(path.clone());
+        }
+    }
+    handles.into_iter().map(|(h, _)| h).collect()
 }
 
 /// The pages as images made in memory, reusing the assets of earlier bakes and previews (so a
@@ -240,14 +251,15 @@ pub(crate) fn affects_lightmapped(e: &EntityRef<'_>) -> Option<bool> {
 }
 
 /// Narrows lightmap images Bevy loaded as `Rgba32Float` (EXR, HDR) to `Rgba16Float`, and
-/// notes those whose size changed. Runs in `PostUpdate` right after the asset events are
-/// published, so the render world never sees the wide version (a same-size reload then
-/// updates the GPU texture in place).
+/// notes those whose size or format changed (an in-app bake's half-float page replaced by
+/// its BC6H file, say), for which Bevy makes a new GPU texture. Runs in `PostUpdate` right
+/// after the asset events are published, so the render world never sees the wide version
+/// (a reload of the same size and format then updates the GPU texture in place).
 pub(crate) fn prepare_lightmap_images(
     mut events: MessageReader<AssetEvent<Image>>,
     mut images: ResMut<Assets<Image>>,
     lightmapped: Query<&Lightmapped>,
-    mut sizes: Local<HashMap<AssetId<Image>, UVec2>>,
+    mut sizes: Local<HashMap<AssetId<Image>, (UVec2, TextureFormat)>>,
     mut resized: ResMut<ResizedImages>,
 ) {
     let ours: HashSet<AssetId<Image>> = lightmapped.iter().map(|l| l.image.id()).collect();
@@ -279,8 +291,9 @@ pub(crate) fn prepare_lightmap_images(
         let Some(image) = images.get(id) else {
             continue;
         };
-        if let Some(old) = sizes.insert(id, image.size())
-            && old != image.size()
+        let now = (image.size(), image.texture_descriptor.format);
+        if let Some(old) = sizes.insert(id, now)
+            && old != now
         {
             resized.0.insert(id);
         }
@@ -332,6 +345,13 @@ pub(crate) fn sync_lightmaps(
                 respecialize();
             }
             (false, None) => {}
+            (true, None) if resized.0.contains(&wanted.image.id()) => {
+                // The image changed size or format this frame: Bevy's renderer takes a new
+                // `Lightmap`'s texture as it finds it, and the old one may still be there.
+                commands
+                    .entity(entity)
+                    .insert(ReinsertAfter(frame.0.wrapping_add(1)));
+            }
             (true, None) => {
                 if wait.is_none_or(|w| frame.0 >= w.0) {
                     commands

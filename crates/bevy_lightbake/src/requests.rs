@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use bevy::prelude::*;
+use bevy::render::renderer::RenderDevice;
 use lightbake::bake::{PreviewKind, PreviewSlot};
 use lightbake::{BakeError, BakeHandle, BakeOutput, BakeSettings, Scene};
 
@@ -13,6 +14,7 @@ use crate::components::{
     BakeFinished, BakeOutcome, BakePhase, BakeStatus, CancelBake, LightbakeConfig, RequestBake,
 };
 use crate::convert::{SceneMapping, extract_scene};
+use crate::images::loads_bc6h;
 use crate::lightmaps::{
     apply_meshes, attach_lightmaps, file_pages, mark_lights_baked, memory_pages,
 };
@@ -52,6 +54,9 @@ struct Finished {
     output: BakeOutput,
     /// Asset paths of the page images written, when files were written.
     page_paths: Option<Vec<String>>,
+    /// Asset paths of the BC6H pages written besides them (`formats.ktx2_bc6h` with another
+    /// format), one per page; empty when there are none.
+    bc6h_paths: Vec<String>,
     /// Asset paths of the irradiance volumes written, when files were written.
     volume_paths: Option<Vec<String>>,
 }
@@ -177,11 +182,14 @@ fn write_files(
     out_dir: Option<&std::path::Path>,
     output_dir: &str,
 ) -> Result<Finished, BakeError> {
-    let (page_paths, volume_paths) = match out_dir {
+    let (page_paths, bc6h_paths, volume_paths) = match out_dir {
         Some(dir) => {
             lightbake::write_outputs(dir, &output, scene, None, settings)?;
             let pages = lightbake::output::page_files(&output, settings);
             let volumes = lightbake::output::volumes(&output);
+            let bc6h: Option<Vec<String>> = (pages.iter())
+                .map(|p| Some(format!("{output_dir}/{}", p.bc6h_besides_primary()?)))
+                .collect();
             (
                 Some(
                     pages
@@ -189,6 +197,7 @@ fn write_files(
                         .map(|p| format!("{output_dir}/{}", p.primary().unwrap_or_default()))
                         .collect(),
                 ),
+                bc6h.unwrap_or_default(),
                 Some(
                     volumes
                         .iter()
@@ -197,11 +206,12 @@ fn write_files(
                 ),
             )
         }
-        None => (None, None),
+        None => (None, Vec::new(), None),
     };
     Ok(Finished {
         output,
         page_paths,
+        bc6h_paths,
         volume_paths,
     })
 }
@@ -276,11 +286,18 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
     let Finished {
         output,
         page_paths,
+        bc6h_paths,
         volume_paths,
     } = finished;
     let new_handles = apply_meshes(world, &output.layout, mapping);
+    let bc6h = !bc6h_paths.is_empty()
+        && loads_bc6h(
+            world.resource::<LightbakeConfig>(),
+            world.get_resource::<RenderDevice>(),
+        );
     let handles = match page_paths.as_deref() {
-        Some(paths) => file_pages(world, paths, &output.pages),
+        Some(_) if bc6h => file_pages(world, &bc6h_paths, &output.pages, true),
+        Some(paths) => file_pages(world, paths, &output.pages, false),
         None => memory_pages(world, &output.pages),
     };
     let lightmapped = attach_lightmaps(world, &output.layout, mapping, &new_handles, &handles);
