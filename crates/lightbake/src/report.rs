@@ -338,10 +338,11 @@ pub struct GroupReport {
     pub name: String,
     /// Its members: `light NAME`, `material NAME`, `sky`.
     pub members: Vec<String>,
-    /// Wall time of its lighting and finishing stages, seconds (the shared stages before
-    /// them, from the plan to the texel patches, are not counted).
+    /// Wall time of its own lighting and finishing stages, seconds. Not counted: the stages
+    /// before them, from the plan to the texel patches, and those its radiosity shares with
+    /// the other groups (its nodes and gathers, marked `[shared]` in the stage table).
     pub seconds: f64,
-    /// Rays its stages traced.
+    /// Rays its own stages traced (the shared ones not counted).
     pub rays: u64,
     /// Its stages' error estimate, relative to its own RMS texel (none when nothing was
     /// sampled).

@@ -51,10 +51,23 @@ fn mean(pages: &[lightbake::LightmapPage]) -> f64 {
     sum / n.max(1) as f64
 }
 
+/// The sunlit room with only the sun, and with only the sky.
+fn sun_and_sky_alone(scene: &Scene) -> [Scene; 2] {
+    let mut sun_only = scene.clone();
+    sun_only.sky = Vec3::ZERO;
+    let mut sky_only = scene.clone();
+    sky_only.lights.clear();
+    [sun_only, sky_only]
+}
+
 #[test]
 fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
     let scene = sunlit_room().scene;
-    let mut s = settings();
+    // Every node's gather takes the settings' rays: with the rays not shared out by the
+    // whole light's noise, a group's shared gathers trace exactly the rays of its own bake.
+    let mut plain = settings();
+    plain.radiosity.adaptive_gather = false;
+    let mut s = plain.clone();
     s.groups = vec![group("day", &["sun"])];
     let grouped = bake(&scene, &s);
     let names: Vec<&str> = grouped.groups.iter().map(|g| g.name.as_str()).collect();
@@ -67,14 +80,22 @@ fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
     assert_eq!(grouped.groups[1].report.members, ["sky"]);
     assert_eq!(grouped.report.groups.len(), 2);
     assert!(grouped.report.groups.iter().all(|g| g.rays > 0));
+    // The transport was shared: one set of nodes and one final gather for both groups.
+    let shared: Vec<&str> = (grouped.report.stages.iter())
+        .filter(|st| st.note.starts_with("[shared]"))
+        .map(|st| st.run.stage.name())
+        .collect();
+    println!("shared stages: {shared:?}");
+    for stage in ["nodes", "final gather", "correction", "reflection"] {
+        assert_eq!(
+            shared.iter().filter(|&&n| n == stage).count(),
+            1,
+            "{stage}: {shared:?}"
+        );
+    }
 
-    // Each group against a bake of the scene with only its emitters.
-    let mut sun_only = scene.clone();
-    sun_only.sky = Vec3::ZERO;
-    let mut sky_only = scene.clone();
-    sky_only.lights.clear();
-    let plain = settings();
-    for (g, alone) in grouped.groups.iter().zip([sun_only, sky_only]) {
+    // Each group against a bake of the scene with only its emitters: the same bits.
+    for (g, alone) in grouped.groups.iter().zip(sun_and_sky_alone(&scene)) {
         let reference = bake(&alone, &plain);
         assert_eq!(g.pages.len(), reference.pages.len());
         for (a, b) in g.pages.iter().zip(&reference.pages) {
@@ -110,6 +131,54 @@ fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
     );
     assert!(relative < 0.01, "{relative}");
     assert!(estimate.relative_rms > 0.0 && estimate.relative_rms < 0.2);
+}
+
+#[test]
+fn with_rays_shared_out_by_the_whole_light_each_group_is_its_bake_within_the_noise() {
+    // The default gather: each node's rays follow the noise of the groups' summed light, so a
+    // group's rays are not its own bake's, and the two agree within their noise.
+    let scene = sunlit_room().scene;
+    let mut s = settings();
+    s.groups = vec![group("day", &["sun"])];
+    let grouped = bake(&scene, &s);
+    let mut other = settings();
+    other.seed = 1;
+    for ((g, alone), r) in (grouped.groups.iter())
+        .zip(sun_and_sky_alone(&scene))
+        .zip(&grouped.report.groups)
+    {
+        let reference = bake(&alone, &other);
+        let (mut diff_sq, mut ref_sq, mut diff_sum, mut ref_sum) = (0.0, 0.0, 0.0, 0.0);
+        for (a, b) in g.pages.iter().zip(&reference.pages) {
+            for (x, y) in a.texels.iter().zip(&b.texels) {
+                let (x, y) = (f64::from(luminance(*x)), f64::from(luminance(*y)));
+                diff_sq += (x - y) * (x - y);
+                ref_sq += y * y;
+                diff_sum += x - y;
+                ref_sum += y;
+            }
+        }
+        let measured = (diff_sq / ref_sq).sqrt();
+        let bias = diff_sum / ref_sum;
+        let (e_group, e_ref) = (
+            r.error.as_ref().unwrap().relative_rms,
+            reference.report.error.as_ref().unwrap().relative_rms,
+        );
+        let expected = e_group.hypot(e_ref);
+        println!(
+            "group {}: against a bake of its emitters alone (another seed) {:.2}% RMS (the two bakes' noise: {:.2}%), mean {:+.3}%",
+            g.name,
+            100.0 * measured,
+            100.0 * expected,
+            100.0 * bias
+        );
+        assert!(bias.abs() < 0.01, "{}: {bias}", g.name);
+        assert!(
+            measured < 1.5 * expected,
+            "{}: {measured} against {expected}",
+            g.name
+        );
+    }
 }
 
 #[test]
@@ -218,4 +287,33 @@ fn a_weighted_sum_is_a_bake_at_those_intensities() {
     );
     assert!(bias.abs() < 0.01, "{bias}");
     assert!(measured < 1.5 * expected, "{measured} against {expected}");
+}
+
+#[test]
+fn groups_whose_shared_solve_is_over_the_budget_each_run_their_own() {
+    // The sunlit room at preview: one hierarchical solve holds 38 MiB, two groups' shared
+    // one over 100 MiB; at 64 MiB each group's radiosity runs on its own, said in a warning.
+    let scene = sunlit_room().scene;
+    let mut plain = settings();
+    plain.radiosity.transport_budget_mib = 64;
+    let mut s = plain.clone();
+    s.groups = vec![group("day", &["sun"])];
+    let grouped = bake(&scene, &s);
+    let warning = (grouped.report.warnings.iter())
+        .find(|w| w.contains("shared radiosity would hold"))
+        .unwrap_or_else(|| panic!("no warning: {:?}", grouped.report.warnings));
+    println!("{warning}");
+    assert!(warning.contains("over the solvers' 64 MiB"), "{warning}");
+    let shared: Vec<&str> = (grouped.report.stages.iter())
+        .filter(|st| st.note.starts_with("[shared]"))
+        .map(|st| st.run.stage.name())
+        .collect();
+    assert_eq!(shared, ["nodes"], "only the nodes are shared");
+    // Each group's own radiosity, the rays shared out by its own noise: its own bake's bits.
+    for (g, alone) in grouped.groups.iter().zip(sun_and_sky_alone(&scene)) {
+        let reference = bake(&alone, &plain);
+        for (a, b) in g.pages.iter().zip(&reference.pages) {
+            assert!(a.texels == b.texels, "group {}", g.name);
+        }
+    }
 }

@@ -1,21 +1,27 @@
 //! Light groups in the driver: the lighting and finishing passes once per group
 //! ([`crate::settings::groups`]), over the texel patches, the unwrap and the BVH every group
-//! shares, each group seeing only its own emitters. Light adds up, so the bake's own pages
-//! and volume are the groups' sum, and a game shows any weighted sum of the groups' pages.
+//! shares, each group seeing only its own emitters. Their radiosity shares its nodes and the
+//! hierarchical solve's gathers ([`super::group_lighting`]) where the bake runs in one round
+//! and one process. Light adds up, so the bake's own pages and volume are the groups' sum,
+//! and a game shows any weighted sum of the groups' pages.
 
 use std::time::Instant;
 
 use glam::Vec3;
 
+use super::group_lighting::{self, GroupCost};
+use super::passes::Lighting;
 use super::stages::Stages;
-use super::{Lit, light_patches, valid};
+use super::{Lit, emitters_of, finish_patches, light_patches, valid};
 use crate::context::BakeContext;
 use crate::error::Result;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
 use crate::lightmap::LightmapPage;
+use crate::lights::Emitters;
 use crate::plan::BakePlan;
 use crate::probes::{IrradianceVolume, VolumeGrid};
 use crate::report::GroupReport;
+use crate::scene::Scene;
 use crate::scene::groups::GroupMembers;
 use crate::unwrap::Layout;
 
@@ -36,7 +42,9 @@ pub struct GroupPages {
 /// Lights the scene of `ctx` once per group in `groups` and returns `lit` with the groups'
 /// pages, their sum as the bake's pages (and volume) and the estimate of the sum; the floor
 /// calibration, the filled-texel counts and the reports of the radiosity, instant-radiosity
-/// and finishing passes are the first lit group's.
+/// and finishing passes are the first lit group's. Where they can
+/// ([`group_lighting::shares_transport`]) the groups' radiosity shares its nodes and its
+/// gathers' rays.
 pub(super) fn light_groups(
     ctx: &BakeContext<'_>,
     groups: &[GroupMembers],
@@ -45,37 +53,85 @@ pub(super) fn light_groups(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
+    let scenes: Vec<Scene> = groups.iter().map(|g| g.scene_of(ctx.scene)).collect();
+    let plans: Vec<BakePlan> = (scenes.iter())
+        .map(|scene| {
+            let mut plan = BakePlan::new(scene, ctx.settings);
+            // The layout is the whole scene's: the density that follows the light was decided
+            // on every group's light.
+            plan.texel_density = ctx.plan.texel_density;
+            plan.texel_density_source = ctx.plan.texel_density_source.clone();
+            plan
+        })
+        .collect();
+    let gctxs: Vec<BakeContext<'_>> = (scenes.iter().zip(&plans))
+        .map(|(scene, plan)| BakeContext {
+            scene,
+            plan,
+            ..*ctx
+        })
+        .collect();
+    // The groups with something to light, and (when they share their transport) their
+    // lighting passes, run together.
+    let lit_groups: Vec<usize> = (0..groups.len())
+        .filter(|&g| !plans[g].nothing_to_bake)
+        .collect();
+    let mut own: Vec<Vec<String>> = vec![Vec::new(); groups.len()];
+    let mut shared: Vec<Option<(Lighting, GroupCost)>> = (0..groups.len()).map(|_| None).collect();
+    let mut emitters: Vec<Option<Emitters>> = (0..groups.len()).map(|_| None).collect();
+    if lit_groups.len() > 1 && group_lighting::shares_transport(ctx, stages) {
+        let sharing: Vec<BakeContext<'_>> = lit_groups.iter().map(|&g| gctxs[g]).collect();
+        let found: Vec<Emitters> = (lit_groups.iter())
+            .map(|&g| emitters_of(&gctxs[g], &mut own[g]))
+            .collect();
+        let names: Vec<&str> = lit_groups
+            .iter()
+            .map(|&g| groups[g].name.as_str())
+            .collect();
+        let mut group_warnings: Vec<Vec<String>> = vec![Vec::new(); lit_groups.len()];
+        let (lights, costs) = group_lighting::lighting_groups(
+            &sharing,
+            &found,
+            &names,
+            stages,
+            (&mut group_warnings, warnings),
+        )?;
+        for ((((&g, light), cost), e), w) in (lit_groups.iter().zip(lights))
+            .zip(costs)
+            .zip(found)
+            .zip(group_warnings)
+        {
+            shared[g] = Some((light, cost));
+            emitters[g] = Some(e);
+            own[g].extend(w);
+        }
+    }
     let mut sum = vec![Vec3::ZERO; ctx.patches.patches.len()];
     let mut errors: Vec<ErrorEstimate> = Vec::new();
-    for g in groups {
-        let scene = g.scene_of(ctx.scene);
-        let mut plan = BakePlan::new(&scene, ctx.settings);
-        // The layout is the whole scene's: the density that follows the light was decided on
-        // every group's light.
-        plan.texel_density = ctx.plan.texel_density;
-        plan.texel_density_source = ctx.plan.texel_density_source.clone();
-        let gctx = BakeContext {
-            scene: &scene,
-            plan: &plan,
-            ..*ctx
-        };
+    for (gi, g) in groups.iter().enumerate() {
+        let (plan, gctx) = (&plans[gi], &gctxs[gi]);
         let first = stages.list.len();
         let start = Instant::now();
-        let mut own = Vec::new();
-        let mut got = if plan.nothing_to_bake {
-            Lit::black(ctx.layout)
+        let mut own = std::mem::take(&mut own[gi]);
+        let calibrate = lit.rates.closest_per_second == 0.0;
+        let (mut got, lighting) = if plan.nothing_to_bake {
+            (Lit::black(ctx.layout), None)
+        } else if let Some((light, cost)) = shared[gi].take() {
+            let e = emitters[gi].take().expect("found with the lighting");
+            let grids = (volume_grids.clone(), calibrate);
+            let got = finish_patches(gctx, &e, light, grids, Lit::default(), stages, &mut own)?;
+            (got, Some(cost))
         } else {
-            let calibrate = lit.rates.closest_per_second == 0.0;
-            light_patches(
-                &gctx,
-                volume_grids.clone(),
-                calibrate,
-                Lit::default(),
-                stages,
-                &mut own,
-            )?
+            let grids = volume_grids.clone();
+            let got = light_patches(gctx, grids, calibrate, Lit::default(), stages, &mut own)?;
+            (got, None)
         };
-        let seconds = start.elapsed().as_secs_f64();
+        let mut seconds = start.elapsed().as_secs_f64();
+        let mut rays: u64 = stages.list[first..].iter().map(|s| s.rays).sum();
+        if let Some(cost) = lighting {
+            seconds += cost.seconds;
+            rays += cost.rays;
+        }
         for s in &mut stages.list[first..] {
             s.note = format!("[{}] {}", g.name, s.note);
         }
@@ -98,7 +154,7 @@ pub(super) fn light_groups(
                 name: g.name.clone(),
                 members: g.describe(ctx.scene),
                 seconds,
-                rays: stages.list[first..].iter().map(|s| s.rays).sum(),
+                rays,
                 error: got.error.clone(),
             },
         });
@@ -161,7 +217,7 @@ fn sum_pages(layout: &Layout, groups: &[GroupPages]) -> Vec<LightmapPage> {
 pub(super) fn black_groups(
     layout: &Layout,
     groups: &[GroupMembers],
-    scene: &crate::scene::Scene,
+    scene: &Scene,
 ) -> Vec<GroupPages> {
     groups
         .iter()

@@ -20,6 +20,7 @@ mod prefix;
 #[cfg(feature = "internals")]
 pub use finite::inject_nan;
 mod builder;
+mod group_lighting;
 mod groups;
 mod handle;
 mod passes;
@@ -432,15 +433,44 @@ fn light_patches(
     ctx: &BakeContext<'_>,
     volume_grids: Vec<VolumeGrid>,
     calibrate: bool,
+    lit: Lit,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<Lit> {
+    let emitters = emitters_of(ctx, warnings);
+    let light = passes::lighting(ctx, &emitters, stages, warnings)?;
+    finish_patches(
+        ctx,
+        &emitters,
+        light,
+        (volume_grids, calibrate),
+        lit,
+        stages,
+        warnings,
+    )
+}
+
+/// The emitters of `ctx`'s scene, and the warnings about them.
+fn emitters_of(ctx: &BakeContext<'_>, warnings: &mut Vec<String>) -> Emitters {
+    let emitters = Emitters::collect(ctx.scene, ctx.rays);
+    warnings.extend(emitter_warnings(&emitters, ctx.rays, ctx.scene));
+    emitters
+}
+
+/// After the lighting passes of `ctx`'s scene (`light`, from `emitters`): the floor
+/// calibration (when `calibrate`), the pages and the finishing passes on them, and the
+/// volumes on `volume_grids`, added to `lit`.
+fn finish_patches(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    mut light: passes::Lighting,
+    (volume_grids, calibrate): (Vec<VolumeGrid>, bool),
     mut lit: Lit,
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
     let (scene, layout, rays, patches) = (ctx.scene, ctx.layout, ctx.rays, ctx.patches);
     let (settings, plan) = (ctx.settings, ctx.plan);
-    let emitters = Emitters::collect(scene, rays);
-    warnings.extend(emitter_warnings(&emitters, rays, scene));
-    let mut light = passes::lighting(ctx, &emitters, stages, warnings)?;
     stages.scope().stop_after_split()?;
     let mut irradiance = std::mem::take(&mut light.irradiance);
     lit.take_lighting(&mut light, patches, &irradiance);
@@ -460,7 +490,7 @@ fn light_patches(
             .unwrap_or_else(|| rms_luminance(&valid(patches, &irradiance)));
         let (direct, se) = (&light.direct, &light.texel_error);
         let before = lit.error.take();
-        lit.error = with_grid_error(ctx, rays, &emitters, stages, direct, se, before, value)?;
+        lit.error = with_grid_error(ctx, rays, emitters, stages, direct, se, before, value)?;
     }
     if settings.groups.is_empty() {
         drop(irradiance);
@@ -477,7 +507,7 @@ fn light_patches(
     }
     lit.pages = assembly.pages;
     if !volume_grids.is_empty() {
-        let volumes = finish::volume_stage(ctx, volume_grids, &emitters, &lit.pages, stages)?;
+        let volumes = finish::volume_stage(ctx, volume_grids, emitters, &lit.pages, stages)?;
         for (k, (_, st)) in volumes.iter().enumerate() {
             if st.unfilled > 0 {
                 warnings.push(format!(

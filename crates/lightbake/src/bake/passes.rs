@@ -52,6 +52,23 @@ pub(super) fn lighting(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lighting> {
+    let (mut light, realtime, share) = direct_lighting(ctx, emitters, stages, warnings)?;
+    if ctx.plan.runs(Stage::Indirect) {
+        indirect(ctx, emitters, share, stages, warnings, &mut light)?;
+    }
+    without_realtime(&mut light, &realtime);
+    Ok(light)
+}
+
+/// The direct pass alone: the lighting so far, the part of its irradiance from lights baked
+/// indirect only (lux per patch; empty when there are none) and the indirect pass's share of
+/// a target error.
+pub(super) fn direct_lighting(
+    ctx: &BakeContext<'_>,
+    emitters: &Emitters,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<(Lighting, Vec<Vec3>, Option<f64>)> {
     let settings = ctx.settings;
     let direct_runs = direct_pass_runs(settings.method);
     let indirect_runs = ctx.plan.runs(Stage::Indirect);
@@ -94,15 +111,15 @@ pub(super) fn lighting(
         // No split stage follows (instant radiosity and direct-only bakes): a shard stops.
         stages.scope().stop_after_split()?;
     }
-    if indirect_runs {
-        indirect(ctx, emitters, share, stages, warnings, &mut light)?;
-    }
-    // Lights baked indirect only: their direct light fed the interreflections above and
-    // leaves the lightmaps now (the engine draws it in real time).
-    for (e, r) in light.irradiance.iter_mut().zip(&realtime) {
+    Ok((light, realtime, share))
+}
+
+/// Lights baked indirect only: their direct light fed the interreflections and leaves the
+/// lightmaps now (the engine draws it in real time).
+pub(super) fn without_realtime(light: &mut Lighting, realtime: &[Vec3]) {
+    for (e, r) in light.irradiance.iter_mut().zip(realtime) {
         *e = (*e - *r).max(Vec3::ZERO);
     }
-    Ok(light)
 }
 
 /// The method's indirect pass (instant radiosity or radiosity), added to `light`.
@@ -131,12 +148,19 @@ fn indirect(
         light.vpl = Some(report);
         return Ok(());
     }
+    let reflected = radiosity(ctx, &light.irradiance, share, stages, warnings)?;
+    add_reflected(ctx, light, reflected);
+    Ok(())
+}
+
+/// Adds radiosity's reflected light to `light`, with its error and report.
+pub(super) fn add_reflected(ctx: &BakeContext<'_>, light: &mut Lighting, reflected: Reflected) {
     let Reflected {
         irradiance: reflected,
         texel_error,
         report,
         error,
-    } = radiosity(ctx, &light.irradiance, share, stages, warnings)?;
+    } = reflected;
     for (e, r) in light.irradiance.iter_mut().zip(&reflected) {
         *e += *r;
     }
@@ -152,7 +176,6 @@ fn indirect(
         report.solver, report.solver_reason
     ));
     light.radiosity = Some(report);
-    Ok(())
 }
 
 /// What the direct stage gives.
@@ -430,20 +453,20 @@ fn vpl_warnings(
 }
 
 /// One radiosity round's result.
-struct Solved {
-    plan: radiosity::SolverPlan,
-    transport: Option<Transport>,
-    solution: Solution,
-    error: ErrorEstimate,
+pub(super) struct Solved {
+    pub(super) plan: radiosity::SolverPlan,
+    pub(super) transport: Option<Transport>,
+    pub(super) solution: Solution,
+    pub(super) error: ErrorEstimate,
     /// The hierarchical solve's coarse level and its estimated bias (relative RMS).
-    coarse: Option<(CoarseReport, f64)>,
+    pub(super) coarse: Option<(CoarseReport, f64)>,
     /// Per node, the standard error of its reflected irradiance (luminance, lux), where the
     /// solver estimates it node by node (the hierarchical solve's gathers).
-    node_error: Option<Vec<f32>>,
+    pub(super) node_error: Option<Vec<f32>>,
 }
 
 /// What the radiosity stages give.
-struct Reflected {
+pub(super) struct Reflected {
     /// Reflected irradiance per patch, lux.
     irradiance: Vec<Vec3>,
     /// Its standard error per patch (luminance, lux), when the solver estimates it node by
@@ -462,16 +485,34 @@ fn radiosity(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Reflected> {
-    let settings = ctx.settings;
-    let nodes = stages.run(Stage::Nodes, 1, || {
-        let nodes = Nodes::new(ctx, settings.radiosity.basis);
+    let nodes = radiosity_nodes(ctx, stages)?;
+    radiosity_over(ctx, &nodes, direct, share, stages, warnings)
+}
+
+/// The radiosity nodes, as a stage.
+pub(super) fn radiosity_nodes(ctx: &BakeContext<'_>, stages: &mut Stages<'_>) -> Result<Nodes> {
+    stages.run(Stage::Nodes, 1, || {
+        let nodes = Nodes::new(ctx, ctx.settings.radiosity.basis);
         let note = format!(
             "{} nodes, max albedo {:.3}",
             nodes.len(),
             nodes.max_albedo()
         );
         Ok((nodes, 0, note))
-    })?;
+    })
+}
+
+/// Rounds of transport, solve and error estimate over `nodes` towards the stage's share of a
+/// target error.
+pub(super) fn radiosity_over(
+    ctx: &BakeContext<'_>,
+    nodes: &Nodes,
+    direct: &[Vec3],
+    share: Option<f64>,
+    stages: &mut Stages<'_>,
+    warnings: &mut Vec<String>,
+) -> Result<Reflected> {
+    let settings = ctx.settings;
     let mut s = settings.clone();
     if let Some(t) = settings.target_error {
         s.radiosity.solver_tolerance = s.radiosity.solver_tolerance.min(t as f64 / 4.0);
@@ -485,7 +526,7 @@ fn radiosity(
                 settings: s,
                 ..*ctx
             };
-            let solved = radiosity_round(&c, &nodes, direct, round, stages)?;
+            let solved = radiosity_round(&c, nodes, direct, round, stages)?;
             let relative = solved.error.relative_rms;
             Ok((solved, Some(relative)))
         },
@@ -533,12 +574,12 @@ fn radiosity(
             solution.solver, solution.stop_reason
         ));
     }
-    Ok(reflected(ctx, &nodes, rounds.value))
+    Ok(reflected(ctx, nodes, rounds.value))
 }
 
 /// The solved round `solved` per patch, and its report (which outlives the lighting
 /// passes, so it keeps no per-node vectors).
-fn reflected(ctx: &BakeContext<'_>, nodes: &Nodes, solved: Solved) -> Reflected {
+pub(super) fn reflected(ctx: &BakeContext<'_>, nodes: &Nodes, solved: Solved) -> Reflected {
     let Solved {
         plan,
         transport,

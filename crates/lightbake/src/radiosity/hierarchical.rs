@@ -40,7 +40,7 @@ use serde::Serialize;
 use super::clusters::{Clusters, Links};
 use super::exitance_grid::ExitanceGrid;
 use super::hit_mapper::HitMapper;
-use super::monte_carlo::{self, STREAM_TRANSPORT};
+use super::monte_carlo::{self, GatherSample, STREAM_TRANSPORT};
 use super::nodes::Nodes;
 use super::{coarse, residual_tolerance};
 use crate::color::luminance;
@@ -359,37 +359,66 @@ pub fn final_gather(
     only: Option<&[bool]>,
     progress: &Progress,
 ) -> (Vec<Vec3>, Vec<f32>, GatherRays) {
+    let (mut fields, traced) =
+        final_gather_fields(ctx, mapper, nodes, &[b], rays, which, only, progress);
+    let (out, error) = fields.pop().expect("one field");
+    (out, error, traced)
+}
+
+/// One field's gather: the irradiance per node (lux) and its standard error (luminance, lux).
+pub type GatheredField = (Vec<Vec3>, Vec<f32>);
+
+/// [`final_gather`] of several fields `bs` at once, each ray traced once and read in every
+/// field (the light groups' shared transport): per field, the irradiance per node and its
+/// standard error.
+#[allow(clippy::too_many_arguments)]
+pub fn final_gather_fields(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    bs: &[&[Vec3]],
+    rays: &(dyn Fn(usize) -> Range<u32> + Sync),
+    which: Gather,
+    only: Option<&[bool]>,
+    progress: &Progress,
+) -> (Vec<GatheredField>, GatherRays) {
     let stream = match which {
         Gather::Final => STREAM_TRANSPORT,
         Gather::Correction => STREAM_CORRECTION,
         Gather::Reflection => STREAM_CORRECTION + 1,
     };
-    let grid = ExitanceGrid::new(mapper, b);
+    let grids: Vec<ExitanceGrid<'_>> = bs.iter().map(|b| ExitanceGrid::new(mapper, b)).collect();
+    let grids: Vec<&ExitanceGrid<'_>> = grids.iter().collect();
+    let k = bs.len();
     let (visibility, closest) = (AtomicU64::new(0), AtomicU64::new(0));
-    let (out, error): (Vec<Vec3>, Vec<f32>) = (0..nodes.len())
+    let per_node: Vec<Vec<GatherSample>> = (0..nodes.len())
         .into_par_iter()
         .with_min_len(64)
         .map(|i| {
+            let mut out = vec![GatherSample::default(); k];
             if progress.is_cancelled() || only.is_some_and(|o| !o[i]) {
-                return (Vec3::ZERO, 0.0);
+                return out;
             }
             let range = rays(i);
             if range.is_empty() {
                 progress.advance(1);
-                return (Vec3::ZERO, 0.0);
+                return out;
             }
             closest.fetch_add(range.len() as u64, Ordering::Relaxed);
-            let g = monte_carlo::gather(ctx, mapper, nodes, i, range, stream, &grid);
-            visibility.fetch_add(g.visibility, Ordering::Relaxed);
+            monte_carlo::gather_fields(ctx, mapper, nodes, i, range, stream, &grids, &mut out);
+            visibility.fetch_add(out[0].visibility, Ordering::Relaxed);
             progress.advance(1);
-            (g.h, g.se)
+            out
         })
-        .unzip();
+        .collect();
+    let fields = (0..k)
+        .map(|f| per_node.iter().map(|g| (g[f].h, g[f].se)).unzip())
+        .collect();
     let traced = GatherRays {
         closest: closest.into_inner(),
         visibility: visibility.into_inner(),
     };
-    (out, error, traced)
+    (fields, traced)
 }
 
 /// The reflected irradiance per node, H₁ + Δ, each channel held at zero or above, and how many

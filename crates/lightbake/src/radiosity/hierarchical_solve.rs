@@ -82,7 +82,22 @@ pub fn solve_round<'p>(
         correction: &correction,
         gather_rays: gathered.rays.as_deref(),
     };
-    let (error, bias) = error_stage(ctx, &mapper, nodes, &fields, direct, round, stages)?;
+    let estimate = error_stage(ctx, &mapper, nodes, &fields, direct, round, stages)?;
+    let words = format!("{}, correction of {correction_rays}", gathered.words);
+    let light = (b, indirect, clamped);
+    Ok(finished_round(coarse, light, &words, estimate, node_error))
+}
+
+/// A round from its coarse level, its exitance b, its reflected light per node (and how many
+/// nodes were held at zero), its gathers' rays in words, its error estimate and coarse bias,
+/// and each node's standard error.
+pub(super) fn finished_round(
+    coarse: Coarse,
+    (b, indirect, clamped): (Vec<Vec3>, Vec<Vec3>, usize),
+    gathers: &str,
+    (error, bias): (ErrorEstimate, f64),
+    node_error: Vec<f32>,
+) -> HierarchicalRound {
     let Coarse {
         solution: c,
         report,
@@ -97,21 +112,21 @@ pub fn solve_round<'p>(
         iterations: c.iterations,
         rays: 0,
         stop_reason: format!(
-            "coarse level of {} cells ({}): {}; final gather of {}, correction of {correction_rays} ({clamped} node(s) held at zero)",
-            report.cells, c.solver, c.stop_reason, gathered.words
+            "coarse level of {} cells ({}): {}; final gather of {gathers} ({clamped} node(s) held at zero)",
+            report.cells, c.solver, c.stop_reason
         ),
     };
-    Ok(HierarchicalRound {
+    HierarchicalRound {
         solution,
         error,
         coarse: report,
         bias,
         node_error,
-    })
+    }
 }
 
 /// The coarse level as a stage, and its preview (each node the reflected light of its cell).
-fn coarse_stage<'p>(
+pub(super) fn coarse_stage<'p>(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
@@ -232,7 +247,7 @@ fn correction_stages<'p>(
 }
 
 /// The round's error estimate as a stage: the estimate and the coarse level's bias.
-fn error_stage<'p>(
+pub(super) fn error_stage<'p>(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
@@ -280,7 +295,7 @@ pub fn correction_rays(gather_rays: u32) -> u32 {
 
 /// A gather stage's note: its rays per node (in words), and the visibility rays of its start
 /// points.
-fn gather_note(per_node: impl std::fmt::Display, rays: GatherRays) -> String {
+pub(super) fn gather_note(per_node: impl std::fmt::Display, rays: GatherRays) -> String {
     format!(
         "{per_node}, {} visibility rays of start points near geometry",
         rays.visibility

@@ -27,6 +27,7 @@
 //! | [`coarse`] | the clusters' form factors and the refinement oracle |
 //! | [`hierarchical`] | the coarse solve, its refinement and the per-texel final gather |
 //! | [`hierarchical_solve`] | one round of the hierarchical solve as stages: coarse level, final gather, correction, reflection, error |
+//! | [`group_solve`] | the same round for several light groups at once, their gathers' rays shared |
 //! | [`ray_allocation`] | the final gather's rays per node, by each node's noise in a pilot |
 //! | [`gather_cache`] | the final gather at sparse records, interpolated between them (irradiance caching) |
 //! | [`error_estimate`] | the pass's estimate of its own error |
@@ -39,6 +40,7 @@ pub mod coarse;
 pub mod error_estimate;
 pub mod exitance_grid;
 pub mod gather_cache;
+pub mod group_solve;
 pub mod hemicube;
 pub mod hierarchical;
 pub mod hierarchical_solve;
@@ -130,13 +132,8 @@ pub fn hierarchy_options(ctx: &BakeContext<'_>, nodes: &Nodes, budget: u64) -> H
 /// fit; [`BakeError::BadSetting`] when `direct` is asked for too many nodes.
 pub fn plan_solver(ctx: &BakeContext<'_>, nodes: &Nodes) -> Result<SolverPlan> {
     let s = ctx.settings;
-    // The matrix and the solver share the memory budget with the rest of the bake (patches,
-    // pages, ray tracing; see `crate::memory`), and the transport budget caps them on their
-    // own: the smaller room applies.
     const MIB: u64 = 1024 * 1024;
-    let rest = crate::memory::estimate_from_layout(ctx.scene, ctx.layout).total;
-    let memory_room = (s.memory_budget_mib * MIB).saturating_sub(rest);
-    let budget = (s.radiosity.transport_budget_mib * MIB).min(memory_room);
+    let (budget, memory_room, rest) = solver_budget(ctx);
     let limit = if memory_room < s.radiosity.transport_budget_mib * MIB {
         format!(
             "the memory budget ({} MiB) leaves {:.0} MiB beside the rest of the bake ({:.0} MiB); raise --memory-budget",
@@ -227,6 +224,29 @@ fn common_bytes(ctx: &BakeContext<'_>, nodes: usize) -> u64 {
     nodes as u64 * (4 + 4 + 12 + 1 + 1)
         + ctx.layout.page_texels() * 12
         + ctx.rays.triangles.len() as u64 * 32
+}
+
+/// The bytes the solvers may take: the smaller of the transport budget and what the memory
+/// budget leaves beside the rest of the bake (patches, pages, ray tracing; see
+/// `crate::memory`); also that room and the rest.
+fn solver_budget(ctx: &BakeContext<'_>) -> (u64, u64, u64) {
+    const MIB: u64 = 1024 * 1024;
+    let s = ctx.settings;
+    let rest = crate::memory::estimate_from_layout(ctx.scene, ctx.layout).total;
+    let memory_room = (s.memory_budget_mib * MIB).saturating_sub(rest);
+    let budget = (s.radiosity.transport_budget_mib * MIB).min(memory_room);
+    (budget, memory_room, rest)
+}
+
+/// The bytes the hierarchical solve of `groups` light groups at once holds at its peak
+/// ([`group_solve`]: each group's fields, grids and coarse level held together, and the
+/// gathers' per-field samples), and the solvers' budget ([`plan_solver`]'s).
+pub fn groups_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, groups: usize) -> (u64, u64) {
+    let n = nodes.len();
+    let one = hierarchical::planned_bytes(n, ctx.layout.page_texels(), ctx.rays.triangles.len());
+    let k = groups as u64;
+    let needed = common_bytes(ctx, n) + k * one + (k + 1) * 48 * n as u64;
+    (needed, solver_budget(ctx).0)
 }
 
 /// S = ρ∘H_d per node, from per-patch direct irradiance.

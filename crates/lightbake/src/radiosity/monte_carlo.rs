@@ -237,36 +237,68 @@ pub fn gather(
     stream: u32,
     grid: &ExitanceGrid<'_>,
 ) -> GatherSample {
-    let (mut total, mut sum, mut inverse) = (0.0f32, Vec3::ZERO, 0.0f64);
-    let mut blocks = [(0.0f64, 0.0f64); GATHER_BLOCKS];
+    let mut out = [GatherSample::default()];
+    gather_fields(ctx, mapper, nodes, i, rays, stream, &[grid], &mut out);
+    out[0]
+}
+
+/// [`gather`] of several fields at once (`grids`, one sample each into `out`): each ray is
+/// traced once and reads every field at its hit, so the fields' estimates share their rays
+/// (the light groups' transport, [`super::group_solve`]). Every sample's `visibility` and
+/// `distance` are the rays' (the same in all).
+#[allow(clippy::too_many_arguments)]
+pub fn gather_fields(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    i: usize,
+    rays: Range<u32>,
+    stream: u32,
+    grids: &[&ExitanceGrid<'_>],
+    out: &mut [GatherSample],
+) {
+    let k = grids.len();
+    let (mut total, mut inverse) = (0.0f32, 0.0f64);
+    let mut sums = vec![Vec3::ZERO; k];
+    // Per field, per block: (Σw, Σw·luminance).
+    let mut blocks = vec![[(0.0f64, 0.0f64); GATHER_BLOCKS]; k];
     let (first, len) = (rays.start, rays.len().max(1));
-    let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, k| {
+    let visibility = for_each_ray(ctx, mapper, nodes, i, rays, stream, |weight, end, r| {
         total += weight;
-        let b = &mut blocks[((k - first) as usize * GATHER_BLOCKS) / len];
-        b.0 += weight as f64;
+        let block = ((r - first) as usize * GATHER_BLOCKS) / len;
+        for b in blocks.iter_mut() {
+            b[block].0 += weight as f64;
+        }
         if let RayEnd::Hit(hit) = end {
-            let v = grid.at(&hit) * weight;
-            sum += v;
-            b.1 += luminance(v) as f64;
+            for ((grid, sum), b) in grids.iter().zip(&mut sums).zip(&mut blocks) {
+                let v = grid.at(&hit) * weight;
+                *sum += v;
+                b[block].1 += luminance(v) as f64;
+            }
             inverse += weight as f64 / (hit.t as f64).max(1e-6);
         }
     });
-    let h = if total > 0.0 { sum / total } else { Vec3::ZERO };
     let distance = if inverse > 0.0 {
         (total as f64 / inverse) as f32
     } else {
         f32::INFINITY
     };
-    GatherSample {
-        h,
-        se: block_error(&blocks),
-        visibility,
-        distance,
+    for ((o, sum), b) in out.iter_mut().zip(&sums).zip(&blocks) {
+        *o = GatherSample {
+            h: if total > 0.0 {
+                *sum / total
+            } else {
+                Vec3::ZERO
+            },
+            se: block_error(b),
+            visibility,
+            distance,
+        };
     }
 }
 
 /// One node's gather ([`gather`]).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct GatherSample {
     /// The gathered irradiance, lux.
     pub h: Vec3,
