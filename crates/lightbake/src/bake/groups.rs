@@ -53,24 +53,24 @@ pub(super) fn light_groups(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
-    let scenes: Vec<Scene> = groups.iter().map(|g| g.scene_of(ctx.scene)).collect();
-    let plans: Vec<BakePlan> = (scenes.iter())
-        .map(|scene| {
-            let mut plan = BakePlan::new(scene, ctx.settings);
-            // The layout is the whole scene's: the density that follows the light was decided
-            // on every group's light.
-            plan.texel_density = ctx.plan.texel_density;
-            plan.texel_density_source = ctx.plan.texel_density_source.clone();
-            plan
-        })
-        .collect();
-    let gctxs: Vec<BakeContext<'_>> = (scenes.iter().zip(&plans))
-        .map(|(scene, plan)| BakeContext {
-            scene,
-            plan,
-            ..*ctx
-        })
-        .collect();
+    // Each group's scene (its emitters only) and plan. The scenes are held together only
+    // when the groups may share their transport; else each is made again when lit.
+    let share = groups.len() > 1 && group_lighting::shares_transport(ctx, stages);
+    let plan_of = |scene: &Scene| {
+        let mut plan = BakePlan::new(scene, ctx.settings);
+        // The layout is the whole scene's: the density that follows the light was decided on
+        // every group's light.
+        plan.texel_density = ctx.plan.texel_density;
+        plan.texel_density_source = ctx.plan.texel_density_source.clone();
+        plan
+    };
+    let mut scenes: Vec<Option<Scene>> = Vec::with_capacity(groups.len());
+    let mut plans: Vec<BakePlan> = Vec::with_capacity(groups.len());
+    for g in groups {
+        let scene = g.scene_of(ctx.scene);
+        plans.push(plan_of(&scene));
+        scenes.push(share.then_some(scene));
+    }
     // The groups with something to light, and (when they share their transport) their
     // lighting passes, run together.
     let lit_groups: Vec<usize> = (0..groups.len())
@@ -79,10 +79,16 @@ pub(super) fn light_groups(
     let mut own: Vec<Vec<String>> = vec![Vec::new(); groups.len()];
     let mut shared: Vec<Option<(Lighting, GroupCost)>> = (0..groups.len()).map(|_| None).collect();
     let mut emitters: Vec<Option<Emitters>> = (0..groups.len()).map(|_| None).collect();
-    if lit_groups.len() > 1 && group_lighting::shares_transport(ctx, stages) {
-        let sharing: Vec<BakeContext<'_>> = lit_groups.iter().map(|&g| gctxs[g]).collect();
-        let found: Vec<Emitters> = (lit_groups.iter())
-            .map(|&g| emitters_of(&gctxs[g], &mut own[g]))
+    if share && lit_groups.len() > 1 {
+        let sharing: Vec<BakeContext<'_>> = (lit_groups.iter())
+            .map(|&g| BakeContext {
+                scene: scenes[g].as_ref().expect("held when shared"),
+                plan: &plans[g],
+                ..*ctx
+            })
+            .collect();
+        let found: Vec<Emitters> = (lit_groups.iter().zip(&sharing))
+            .map(|(&g, c)| emitters_of(c, &mut own[g]))
             .collect();
         let names: Vec<&str> = lit_groups
             .iter()
@@ -109,7 +115,13 @@ pub(super) fn light_groups(
     let mut sum = vec![Vec3::ZERO; ctx.patches.patches.len()];
     let mut errors: Vec<ErrorEstimate> = Vec::new();
     for (gi, g) in groups.iter().enumerate() {
-        let (plan, gctx) = (&plans[gi], &gctxs[gi]);
+        let scene = scenes[gi].take().unwrap_or_else(|| g.scene_of(ctx.scene));
+        let plan = &plans[gi];
+        let gctx = &BakeContext {
+            scene: &scene,
+            plan,
+            ..*ctx
+        };
         let first = stages.list.len();
         let start = Instant::now();
         let mut own = std::mem::take(&mut own[gi]);

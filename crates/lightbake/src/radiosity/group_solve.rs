@@ -104,7 +104,9 @@ pub fn solve_round_groups<'p>(
             correction_rays(c.settings.radiosity.transport_rays)
         );
         let light = (b, indirect, clamped);
-        out.push(finished_round(coarse, light, &gathers, estimate, node_error));
+        out.push(finished_round(
+            coarse, light, &gathers, estimate, node_error,
+        ));
     }
     Ok(out)
 }

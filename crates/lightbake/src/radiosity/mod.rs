@@ -239,14 +239,28 @@ fn solver_budget(ctx: &BakeContext<'_>) -> (u64, u64, u64) {
 }
 
 /// The bytes the hierarchical solve of `groups` light groups at once holds at its peak
-/// ([`group_solve`]: each group's fields, grids and coarse level held together, and the
-/// gathers' per-field samples), and the solvers' budget ([`plan_solver`]'s).
+/// ([`group_solve`]: each group's fields, grids and coarse level held together, the
+/// gathers' per-field samples, and each group's copy of the scene), and the solvers' budget
+/// ([`plan_solver`]'s).
 pub fn groups_bytes(ctx: &BakeContext<'_>, nodes: &Nodes, groups: usize) -> (u64, u64) {
     let n = nodes.len();
     let one = hierarchical::planned_bytes(n, ctx.layout.page_texels(), ctx.rays.triangles.len());
     let k = groups as u64;
-    let needed = common_bytes(ctx, n) + k * one + (k + 1) * 48 * n as u64;
+    let needed =
+        common_bytes(ctx, n) + k * one + (k + 1) * 48 * n as u64 + k * scene_bytes(ctx.scene);
     (needed, solver_budget(ctx).0)
+}
+
+/// Bytes of a scene's meshes and textures (what a copy of it holds).
+fn scene_bytes(scene: &crate::scene::Scene) -> u64 {
+    let meshes: usize = (scene.meshes.iter())
+        .map(|m| {
+            let uvs = m.uv0.as_ref().map_or(0, Vec::len) + m.uv1.as_ref().map_or(0, Vec::len);
+            (m.positions.len() + m.normals.len()) * 12 + uvs * 8 + m.indices.len() * 4
+        })
+        .sum();
+    let textures: usize = scene.textures.iter().map(|t| t.rgba8.len() * 4).sum();
+    (meshes + textures) as u64
 }
 
 /// S = ρ∘H_d per node, from per-patch direct irradiance.
