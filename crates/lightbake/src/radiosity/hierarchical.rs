@@ -391,29 +391,47 @@ pub fn final_gather_fields(
     let grids: Vec<&ExitanceGrid<'_>> = grids.iter().collect();
     let k = bs.len();
     let (visibility, closest) = (AtomicU64::new(0), AtomicU64::new(0));
-    let per_node: Vec<Vec<GatherSample>> = (0..nodes.len())
-        .into_par_iter()
-        .with_min_len(64)
-        .map(|i| {
-            let mut out = vec![GatherSample::default(); k];
-            if progress.is_cancelled() || only.is_some_and(|o| !o[i]) {
-                return out;
-            }
-            let range = rays(i);
-            if range.is_empty() {
-                progress.advance(1);
-                return out;
-            }
-            closest.fetch_add(range.len() as u64, Ordering::Relaxed);
-            monte_carlo::gather_fields(ctx, mapper, nodes, i, range, stream, &grids, &mut out);
-            visibility.fetch_add(out[0].visibility, Ordering::Relaxed);
+    // Node i's samples into `out`, one per field (left at zero where it is not gathered).
+    let sample_at = |i: usize, out: &mut [GatherSample]| {
+        if progress.is_cancelled() || only.is_some_and(|o| !o[i]) {
+            return;
+        }
+        let range = rays(i);
+        if range.is_empty() {
             progress.advance(1);
-            out
-        })
-        .collect();
-    let fields = (0..k)
-        .map(|f| per_node.iter().map(|g| (g[f].h, g[f].se)).unzip())
-        .collect();
+            return;
+        }
+        closest.fetch_add(range.len() as u64, Ordering::Relaxed);
+        monte_carlo::gather_fields(ctx, mapper, nodes, i, range, stream, &grids, out);
+        visibility.fetch_add(out[0].visibility, Ordering::Relaxed);
+        progress.advance(1);
+    };
+    let fields: Vec<GatheredField> = if k == 1 {
+        // One field straight into its two vectors: nothing per node beside them.
+        let one = (0..nodes.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|i| {
+                let mut out = [GatherSample::default()];
+                sample_at(i, &mut out);
+                (out[0].h, out[0].se)
+            })
+            .unzip();
+        vec![one]
+    } else {
+        let mut flat = vec![GatherSample::default(); nodes.len() * k];
+        flat.par_chunks_mut(k.max(1))
+            .with_min_len(64)
+            .enumerate()
+            .for_each(|(i, out)| sample_at(i, out));
+        (0..k)
+            .map(|f| {
+                (flat.iter().skip(f).step_by(k))
+                    .map(|g| (g.h, g.se))
+                    .unzip()
+            })
+            .collect()
+    };
     let traced = GatherRays {
         closest: closest.into_inner(),
         visibility: visibility.into_inner(),
