@@ -86,14 +86,14 @@ pub(super) fn lighting_groups(
             drop(directs);
             // A group's own stages in the solve: its coarse level and its error estimate, in
             // the order of the groups; the gathers are shared.
-            let (mut coarse, mut estimates) = (0, 0);
+            let (mut coarse, mut estimates) = (runs.iter(), runs.iter());
             for s in &stages.list[from..] {
                 let own = match s.run.stage {
-                    Stage::CoarseSolve => (coarse += 1, Some(runs[coarse - 1])).1,
-                    Stage::ErrorEstimate => (estimates += 1, Some(runs[estimates - 1])).1,
+                    Stage::CoarseSolve => coarse.next(),
+                    Stage::ErrorEstimate => estimates.next(),
                     _ => None,
                 };
-                owner.push(own);
+                owner.push(own.copied());
             }
             for (&g, r) in runs.iter().zip(rounds) {
                 if !r.solution.converged {

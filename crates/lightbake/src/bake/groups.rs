@@ -53,38 +53,37 @@ pub(super) fn light_groups(
     stages: &mut Stages<'_>,
     warnings: &mut Vec<String>,
 ) -> Result<Lit> {
-    // Each group's scene (its emitters only) and plan. The scenes are held together only
-    // when the groups may share their transport; else each is made again when lit.
+    // Each group's scene (its emitters only) and plan, made once. They are held together only
+    // when the groups may share their transport; else each is made when its group is lit.
     let share = groups.len() > 1 && group_lighting::shares_transport(ctx, stages);
-    let plan_of = |scene: &Scene| {
-        let mut plan = BakePlan::new(scene, ctx.settings);
+    let made = |g: &GroupMembers| {
+        let scene = g.scene_of(ctx.scene);
+        let mut plan = BakePlan::new(&scene, ctx.settings);
         // The layout is the whole scene's: the density that follows the light was decided on
         // every group's light.
         plan.texel_density = ctx.plan.texel_density;
         plan.texel_density_source = ctx.plan.texel_density_source.clone();
-        plan
+        (scene, plan)
     };
-    let mut scenes: Vec<Option<Scene>> = Vec::with_capacity(groups.len());
-    let mut plans: Vec<BakePlan> = Vec::with_capacity(groups.len());
-    for g in groups {
-        let scene = g.scene_of(ctx.scene);
-        plans.push(plan_of(&scene));
-        scenes.push(share.then_some(scene));
-    }
+    let mut held: Vec<Option<(Scene, BakePlan)>> =
+        (groups.iter()).map(|g| share.then(|| made(g))).collect();
     // The groups with something to light, and (when they share their transport) their
     // lighting passes, run together.
     let lit_groups: Vec<usize> = (0..groups.len())
-        .filter(|&g| !plans[g].nothing_to_bake)
+        .filter(|&g| held[g].as_ref().is_some_and(|(_, p)| !p.nothing_to_bake))
         .collect();
     let mut own: Vec<Vec<String>> = vec![Vec::new(); groups.len()];
     let mut shared: Vec<Option<(Lighting, GroupCost)>> = (0..groups.len()).map(|_| None).collect();
     let mut emitters: Vec<Option<Emitters>> = (0..groups.len()).map(|_| None).collect();
     if share && lit_groups.len() > 1 {
         let sharing: Vec<BakeContext<'_>> = (lit_groups.iter())
-            .map(|&g| BakeContext {
-                scene: scenes[g].as_ref().expect("held when shared"),
-                plan: &plans[g],
-                ..*ctx
+            .map(|&g| {
+                let (scene, plan) = held[g].as_ref().expect("held when shared");
+                BakeContext {
+                    scene,
+                    plan,
+                    ..*ctx
+                }
             })
             .collect();
         let found: Vec<Emitters> = (lit_groups.iter().zip(&sharing))
@@ -115,8 +114,8 @@ pub(super) fn light_groups(
     let mut sum = vec![Vec3::ZERO; ctx.patches.patches.len()];
     let mut errors: Vec<ErrorEstimate> = Vec::new();
     for (gi, g) in groups.iter().enumerate() {
-        let scene = scenes[gi].take().unwrap_or_else(|| g.scene_of(ctx.scene));
-        let plan = &plans[gi];
+        let (scene, plan) = held[gi].take().unwrap_or_else(|| made(g));
+        let plan = &plan;
         let gctx = &BakeContext {
             scene: &scene,
             plan,
