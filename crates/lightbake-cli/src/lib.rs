@@ -257,10 +257,15 @@ struct Args {
     /// Keep the volumes on the world axes even when the level's walls are turned.
     #[arg(long)]
     volume_world_axes: bool,
-    /// Distance between the volumes' probes, m (default: 16 texels at the bake's density,
-    /// widened to at most 65 536 probes per volume).
+    /// Distance between the volumes' probes, m (default: 16 texels at the bake's density, or
+    /// the level's median headroom over its roofed floors divided by --probes-per-headroom
+    /// where that is finer; widened to at most 65 536 probes per volume).
     #[arg(long, value_name = "M")]
     probe_spacing: Option<f32>,
+    /// Without --probe-spacing: the least probes from a floor up to the ceiling over it
+    /// (default 4 preview, 6 medium, 8 high).
+    #[arg(long, value_name = "N")]
+    probes_per_headroom: Option<u32>,
     /// Rays per probe of the volume (default 256 preview, 512 medium, 1024 high).
     #[arg(long)]
     probe_rays: Option<u32>,
@@ -451,6 +456,7 @@ fn settings_from(args: &Args) -> BakeSettings {
     set(&mut s.volume.regions, args.volume_regions);
     s.volume.oriented = !args.volume_world_axes;
     set(&mut s.volume.probe_rays, args.probe_rays);
+    set(&mut s.volume.probes_per_headroom, args.probes_per_headroom);
     s.threads = args.threads;
     s.seed = args.seed;
     if let Some(v) = args.memory_budget {
@@ -724,6 +730,7 @@ mod tests {
             "--irradiance-volume",
             "--probe-spacing=0.5",
             "--probe-rays=43",
+            "--probes-per-headroom=5",
             "--volume-regions=3",
             "--volume-world-axes",
             "--threads=1",

@@ -20,7 +20,7 @@ use lightbake::context::{BakeContext, Prepared};
 use lightbake::direct::direct_light;
 use lightbake::lights::Emitters;
 use lightbake::probes::gather::Solution;
-use lightbake::probes::{VolumeGrid, bake_volume};
+use lightbake::probes::{AutoSpacing, VolumeGrid, bake_volume};
 use lightbake::progress::Progress;
 use lightbake::radiosity::{self, Nodes, monte_carlo};
 use lightbake::raster::Patches;
@@ -167,7 +167,8 @@ fn volumes(c: &mut Criterion) {
     for scene in [cornell_box(CornellLight::Area), sunlit_room()] {
         let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
         let density = out.report.plan.texel_density;
-        let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, density)
+        let auto = AutoSpacing::of_texels(density);
+        let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, &auto)
             .expect("grid")
             .expect("baked instances");
         // One volume over the scene (each of these is one room).

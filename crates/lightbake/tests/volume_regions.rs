@@ -2,10 +2,11 @@
 //! two rooms gets one volume per room, cut at the wall between them; a plate lying on the
 //! floor, lit by the volumes as Bevy blends them (`probes::blend`), against the path tracer
 //! at the same points, in each room, beside the wall and through the door at the boundary
-//! between the two volumes; the boxes overlap so that no point between them is left to no
-//! volume; a level under a turned node gets turned volumes; the FZK house from Debian's
+//! between the two volumes, at 0.25 m and at the high preset's default spacing; the boxes
+//! overlap so that no point between them is left to no volume; a level under a turned node gets turned volumes; the FZK house from Debian's
 //! assimp-testmodels (a model nobody here made), cut into rooms, no further from the path
-//! tracer at points where a moving object stands than one volume over it.
+//! tracer at points where a moving object stands than one volume over it, and at the default
+//! spacing (which resolves its rooms' headroom) closer to it than at 16 texels.
 
 use glam::{Affine3A, Quat, Vec2, Vec3};
 use lightbake::analysis::points::{ScorePoint, references};
@@ -181,6 +182,23 @@ fn two_rooms_get_a_volume_each_that_blend_at_the_wall() {
     for (kind, rms, _) in &errors {
         assert!(*rms < 0.10, "{kind}: {:.1}% RMS", 100.0 * rms);
     }
+    // At the high preset's default spacing: 8 probes over the rooms' 3 m headroom.
+    let mut auto = settings(8);
+    auto.volume.probe_spacing = None;
+    auto.volume.probes_per_headroom = BakeSettings::high().volume.probes_per_headroom;
+    let out = common::bake(&scene, &auto);
+    let errors = against_the_path_tracer(&scene, &out.irradiance_volumes);
+    report("default spacing (high)", &out, &errors);
+    for v in &out.irradiance_volumes {
+        assert!((v.grid.spacing - 0.375).abs() < 1e-3, "{:?}", v.grid);
+    }
+    for (kind, rms, _) in &errors {
+        assert!(
+            *rms < 0.10,
+            "default spacing, {kind}: {:.1}% RMS",
+            100.0 * rms
+        );
+    }
 }
 
 #[test]
@@ -270,18 +288,7 @@ fn the_house_gets_a_volume_per_room_as_close_to_the_path_tracer_as_one() {
     let mut results = Vec::new();
     for (name, s) in [("per room", &per_room), ("one", &one)] {
         let out = common::bake(&scene, s);
-        let (mut sq, mut truth2, mut n) = (0.0f64, 0.0f64, 0);
-        for (p, r) in points.iter().zip(&refs) {
-            let truth = luminance(r.reference) as f64;
-            if truth <= 0.0 {
-                continue; // inside a solid
-            }
-            let shown = luminance(blend(&out.irradiance_volumes, *p, Vec3::Y)) as f64;
-            sq += (shown - truth).powi(2) - r.variance;
-            truth2 += truth * truth;
-            n += 1;
-        }
-        let rms = (sq.max(0.0) / truth2).sqrt();
+        let (rms, n) = standing_error(&out.irradiance_volumes, &points, &refs);
         println!(
             "house, {name}: {} volumes, {} probes; at {n} standing points {:.1}% RMS against the path tracer",
             out.irradiance_volumes.len(),
@@ -301,4 +308,80 @@ fn the_house_gets_a_volume_per_room_as_close_to_the_path_tracer_as_one() {
         results[0].1,
         results[1].1
     );
+}
+
+/// The error of `volumes` against the path tracer at `points` (`refs`): RMS over the RMS
+/// reference, each point's sampling variance taken out; points inside a solid left out (how
+/// many are kept: the second value).
+fn standing_error(
+    volumes: &[IrradianceVolume],
+    points: &[Vec3],
+    refs: &[ScorePoint],
+) -> (f64, usize) {
+    let (mut sq, mut truth2, mut n) = (0.0f64, 0.0f64, 0);
+    for (p, r) in points.iter().zip(refs) {
+        let truth = luminance(r.reference) as f64;
+        if truth <= 0.0 {
+            continue;
+        }
+        let shown = luminance(blend(volumes, *p, Vec3::Y)) as f64;
+        sq += (shown - truth).powi(2) - r.variance;
+        truth2 += truth * truth;
+        n += 1;
+    }
+    ((sq.max(0.0) / truth2).sqrt(), n)
+}
+
+/// `file` of the corpus at preview, with the volumes' default spacing and with 16 texels
+/// apart: (default, 16 texels) error at 300 standing points (those not inside a solid)
+/// against the path tracer.
+fn default_against_texels(file: &str, seed: u32) -> (f64, f64) {
+    let scene = common::corpus_scene(file);
+    let mut auto = settings(8);
+    auto.volume.probe_spacing = None;
+    auto.volume.probe_rays = 256;
+    let out = common::bake(&scene, &auto);
+    let texels = 16.0 / out.report.plan.texel_density;
+    assert!(
+        (out.irradiance_volumes.iter()).all(|v| v.grid.reason.contains("headroom")),
+        "{:#?}",
+        out.report.decisions
+    );
+    for v in &out.irradiance_volumes {
+        assert!(v.grid.spacing < 0.5 * texels, "{:?}", v.grid);
+    }
+    let mut by_texels = auto.clone();
+    by_texels.volume.probe_spacing = Some(texels);
+    let coarse = common::bake(&scene, &by_texels);
+    let points = standing_points(&scene, 300);
+    let refs = facing_up(&scene, &points, 2048, seed);
+    let probes =
+        |o: &BakeOutput| -> usize { o.irradiance_volumes.iter().map(|v| v.grid.len()).sum() };
+    let ((fine, n), (by_texel, _)) = (
+        standing_error(&out.irradiance_volumes, &points, &refs),
+        standing_error(&coarse.irradiance_volumes, &points, &refs),
+    );
+    let rms = (fine, by_texel);
+    println!(
+        "{file}, preview, at {n} standing points against the path tracer: default spacing ({:.2} m) {} probes in {} volumes, {:.1}% RMS; 16 texels ({texels:.2} m) {} probes in {} volumes, {:.1}% RMS",
+        out.irradiance_volumes[0].grid.spacing,
+        probes(&out),
+        out.irradiance_volumes.len(),
+        100.0 * rms.0,
+        probes(&coarse),
+        coarse.irradiance_volumes.len(),
+        100.0 * rms.1
+    );
+    rms
+}
+
+#[test]
+fn the_default_spacing_resolves_the_rooms_of_a_house_and_an_arena() {
+    // The FZK house at preview: 16 texels at its 5.5 texels/m are 2.9 m, more than its rooms
+    // are high; the default spacing follows their 2.5 m headroom instead. OpenArena's
+    // q3dm6ish: 5.8 m against a 3.3 m headroom.
+    for (file, seed) in [("house.gltf", 43), ("openarena/q3dm6ish.gltf", 44)] {
+        let (default, texels) = default_against_texels(file, seed);
+        assert!(default < 0.8 * texels, "{file}: {default} against {texels}");
+    }
 }

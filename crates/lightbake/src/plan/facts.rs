@@ -430,7 +430,7 @@ impl Facts<'_> {
                     "irradiance volume for dynamic objects, {} rays per probe, spacing {}",
                     s.volume.probe_rays,
                     s.volume.probe_spacing.map_or_else(
-                        || "from the texel density".to_string(),
+                        || "from the texel density and the level's headroom".to_string(),
                         |d| format!("{d} m")
                     )
                 ),

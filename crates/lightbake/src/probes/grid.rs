@@ -6,6 +6,7 @@
 use glam::{Quat, UVec3, Vec3};
 use serde::Serialize;
 
+use super::headroom::{ROOFED_SHARE, headroom};
 use crate::error::{BakeError, Result};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -15,6 +16,10 @@ use crate::unwrap::Layout;
 /// this many texels at the bake's density (16 texels: 6 cm in a Cornell box at 256
 /// texels/m, 0.5 m in a house at 32).
 pub const TEXELS_PER_PROBE: f32 = 16.0;
+
+/// Thinnest gap above a floor that holds a moving object, in lightmap texels (the lightmaps
+/// resolve nothing thinner).
+pub const LEAST_GAP_TEXELS: f32 = 2.0;
 
 /// Most probes a volume gets when its spacing is chosen automatically; the spacing grows
 /// until the grid fits (the plan says so).
@@ -50,10 +55,56 @@ pub struct VolumeGrid {
     pub falloff: Vec3,
 }
 
+/// The spacing a volume's probes want when `volume.probe_spacing` is not set: the finer of
+/// [`TEXELS_PER_PROBE`] lightmap texels and the level's median headroom over
+/// `volume.probes_per_headroom`, so that a moving object in a room is lit by probes in that
+/// room, not by ones in the walls, floors and ceilings around it. [`VolumeGrid::for_bounds`]
+/// widens it when a box would hold over [`MAX_AUTO_PROBES`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoSpacing {
+    /// The spacing, m.
+    pub spacing: f32,
+    /// Why, in words (for the plan).
+    pub reason: String,
+}
+
+impl AutoSpacing {
+    /// [`TEXELS_PER_PROBE`] texels at `texel_density` (texels per metre).
+    pub fn of_texels(texel_density: f32) -> Self {
+        Self {
+            spacing: TEXELS_PER_PROBE / texel_density,
+            reason: format!(
+                "{} texels at {} texels/m",
+                TEXELS_PER_PROBE,
+                crate::plan::density_text(texel_density)
+            ),
+        }
+    }
+
+    /// The spacing for a level of triangles `tris` (in a frame whose y axis is up), baked at
+    /// `texel_density`: [`Self::of_texels`], or the headroom over its floors over
+    /// `per_headroom` where that is finer and at least [`ROOFED_SHARE`] of their area is
+    /// roofed.
+    pub fn for_level(tris: &[[Vec3; 3]], texel_density: f32, per_headroom: u32) -> Self {
+        let texels = Self::of_texels(texel_density);
+        let per = per_headroom.max(1) as f32;
+        match headroom(tris, LEAST_GAP_TEXELS / texel_density) {
+            Some(h) if h.roofed >= ROOFED_SHARE && h.median / per < texels.spacing => Self {
+                spacing: h.median / per,
+                reason: format!(
+                    "{per} probes over the floors' median headroom of {:.3e} m ({:.0}% of the floor area roofed)",
+                    h.median,
+                    100.0 * h.roofed
+                ),
+            },
+            _ => texels,
+        }
+    }
+}
+
 impl VolumeGrid {
     /// The grid over the bounds of the instances `layout` gives a lightmap, at
-    /// `settings.volume.probe_spacing` or [`TEXELS_PER_PROBE`] texels at `texel_density`. `None` when
-    /// no instance is baked.
+    /// `settings.volume.probe_spacing` or `auto`. `None` when no instance is baked.
     ///
     /// # Errors
     /// [`BakeError::BadSetting`] (`volume.probe_spacing`) when an explicit spacing gives more
@@ -62,7 +113,7 @@ impl VolumeGrid {
         scene: &Scene,
         layout: &Layout,
         settings: &BakeSettings,
-        texel_density: f32,
+        auto: &AutoSpacing,
     ) -> Result<Option<Self>> {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -76,11 +127,11 @@ impl VolumeGrid {
         if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
             return Ok(None);
         }
-        Self::for_bounds(lo, hi, settings.volume.probe_spacing, texel_density).map(Some)
+        Self::for_bounds(lo, hi, settings.volume.probe_spacing, auto).map(Some)
     }
 
-    /// The grid over `[lo, hi]` at `spacing`, or (`None`) at [`TEXELS_PER_PROBE`] texels at
-    /// `texel_density`, widened to [`MAX_AUTO_PROBES`].
+    /// The grid over `[lo, hi]` at `spacing`, or (`None`) at `auto`'s, widened to
+    /// [`MAX_AUTO_PROBES`].
     ///
     /// # Errors
     /// As [`Self::plan`].
@@ -88,7 +139,7 @@ impl VolumeGrid {
         lo: Vec3,
         hi: Vec3,
         spacing: Option<f32>,
-        texel_density: f32,
+        auto: &AutoSpacing,
     ) -> Result<Self> {
         match spacing {
             Some(s) => {
@@ -108,7 +159,7 @@ impl VolumeGrid {
                 Ok(grid)
             }
             None => {
-                let wanted = TEXELS_PER_PROBE / texel_density;
+                let wanted = auto.spacing;
                 let mut s = wanted;
                 let mut grid = Self::over(lo, hi, s, String::new());
                 while grid.too_large(MAX_AUTO_PROBES).is_some() {
@@ -116,16 +167,11 @@ impl VolumeGrid {
                     grid = Self::over(lo, hi, s, String::new());
                 }
                 grid.reason = if s == wanted {
-                    format!(
-                        "{} texels at {} texels/m",
-                        TEXELS_PER_PROBE,
-                        crate::plan::density_text(texel_density)
-                    )
+                    auto.reason.clone()
                 } else {
                     format!(
-                        "widened from {} texels at {} texels/m ({wanted:.3e} m) to keep the volume within {MAX_AUTO_PROBES} probes (set volume.probe_spacing, --probe-spacing, to choose)",
-                        TEXELS_PER_PROBE,
-                        crate::plan::density_text(texel_density)
+                        "widened from {} ({wanted:.3e} m) to keep the volume within {MAX_AUTO_PROBES} probes (set volume.probe_spacing, --probe-spacing, to choose)",
+                        auto.reason
                     )
                 };
                 Ok(grid)
@@ -255,21 +301,49 @@ mod tests {
     }
 
     #[test]
+    fn the_spacing_resolves_the_rooms_headroom() {
+        // A 6 × 5 m floor under a ceiling 2.5 m up: at 4 texels/m, 16 texels are 4 m; four
+        // probes over the headroom ask for 2.5 / 4 m.
+        let quad = |y: f32, up: bool| {
+            let c =
+                [(0.0, 0.0), (6.0, 0.0), (6.0, 5.0), (0.0, 5.0)].map(|(x, z)| Vec3::new(x, y, z));
+            let (a, b) = if up { (2, 1) } else { (1, 2) };
+            [[c[0], c[a], c[b]], [c[0], c[a + 1], c[b + 1]]]
+        };
+        let mut room: Vec<[Vec3; 3]> = quad(0.0, true).to_vec();
+        room.extend(quad(2.5, false));
+        let a = AutoSpacing::for_level(&room, 4.0, 4);
+        assert!((a.spacing - 0.625).abs() < 1e-3, "{a:?}");
+        assert!(a.reason.contains("headroom"), "{}", a.reason);
+        // At 256 texels/m the texels' 6 cm are finer: kept.
+        assert_eq!(
+            AutoSpacing::for_level(&room, 256.0, 4),
+            AutoSpacing::of_texels(256.0)
+        );
+        // The floor alone is open: the texels' spacing.
+        assert_eq!(
+            AutoSpacing::for_level(&quad(0.0, true), 4.0, 4),
+            AutoSpacing::of_texels(4.0)
+        );
+    }
+
+    #[test]
     fn the_spacing_follows_the_density_and_widens_to_the_budget() {
         let (lo, hi) = (Vec3::ZERO, Vec3::new(8.0, 3.0, 6.0));
         // 32 texels/m: 16 texels = 0.5 m, 16 × 6 × 12 probes.
-        let g = VolumeGrid::for_bounds(lo, hi, None, 32.0).unwrap();
+        let g = VolumeGrid::for_bounds(lo, hi, None, &AutoSpacing::of_texels(32.0)).unwrap();
         assert_eq!(g.spacing, 0.5);
         assert_eq!(g.resolution, UVec3::new(16, 6, 12));
         assert!(g.reason.starts_with("16 texels"), "{}", g.reason);
         // 400 texels/m would be 200 × 75 × 150 probes: widened to the budget.
-        let g = VolumeGrid::for_bounds(lo, hi, None, 400.0).unwrap();
+        let fine = AutoSpacing::of_texels(400.0);
+        let g = VolumeGrid::for_bounds(lo, hi, None, &fine).unwrap();
         assert!(g.len() as u64 <= MAX_AUTO_PROBES && g.len() as u64 > MAX_AUTO_PROBES / 2);
         assert!(g.reason.contains("widened"), "{}", g.reason);
         // An explicit spacing is kept, or refused by name.
-        let g = VolumeGrid::for_bounds(lo, hi, Some(0.25), 400.0).unwrap();
+        let g = VolumeGrid::for_bounds(lo, hi, Some(0.25), &fine).unwrap();
         assert_eq!(g.resolution, UVec3::new(32, 12, 24));
-        let e = VolumeGrid::for_bounds(lo, hi, Some(0.01), 400.0).unwrap_err();
+        let e = VolumeGrid::for_bounds(lo, hi, Some(0.01), &fine).unwrap_err();
         assert!(e.to_string().contains("probe_spacing"), "{e}");
     }
 }

@@ -9,6 +9,8 @@
 //! of every light *excluded*, since the engine draws that on dynamic objects itself, with its
 //! shadows.
 //!
+//! * [`headroom`]: how much room the level leaves a moving object above its floors (what the
+//!   spacing resolves);
 //! * [`grid`]: where one volume's probes go (its box, the spacing and why);
 //! * [`regions`]: the volumes of a level, one per room, cut at its walls;
 //! * `gather`: one probe's six sides from the solution (rays read the baked lightmaps);
@@ -19,6 +21,7 @@
 // `internals` feature.
 internal!(bake, gather);
 pub mod grid;
+pub mod headroom;
 pub mod regions;
 pub mod volume;
 
@@ -26,6 +29,6 @@ pub mod volume;
 pub(crate) use bake::bake_volume;
 #[cfg(feature = "internals")]
 pub use bake::bake_volume;
-pub use grid::VolumeGrid;
+pub use grid::{AutoSpacing, VolumeGrid};
 pub use regions::plan_volumes;
 pub use volume::{IrradianceVolume, ProbeState, VolumeStats, blend};

@@ -28,7 +28,7 @@
 
 use glam::{Quat, Vec2, Vec3};
 
-use super::grid::{MAX_AUTO_PROBES, TEXELS_PER_PROBE, VolumeGrid};
+use super::grid::{AutoSpacing, MAX_AUTO_PROBES, VolumeGrid};
 use crate::error::Result;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -65,7 +65,9 @@ struct Region {
 
 /// The grids of the volumes over the instances `layout` gives a lightmap: one per region
 /// (see the module docs), at most `settings.volume.regions`; one over them all when that is
-/// 1. Empty when no instance is baked.
+/// one. Empty when no instance is baked. Without `volume.probe_spacing` the probes are
+/// [`AutoSpacing::for_level`] apart (finer than the texels' spacing where the level's rooms
+/// are lower than it resolves).
 ///
 /// # Errors
 /// As [`VolumeGrid::plan`], for any region.
@@ -79,12 +81,16 @@ pub fn plan_volumes(
     let baked: Vec<usize> = (0..scene.instances.len())
         .filter(|&i| layout.instances.get(i).is_some_and(Option::is_some))
         .collect();
-    if most == 1 || baked.is_empty() {
-        return Ok(VolumeGrid::plan(scene, layout, settings, texel_density)?
+    if baked.is_empty() {
+        return Ok(Vec::new());
+    }
+    let world = triangles(scene, &baked, Quat::IDENTITY);
+    let auto = AutoSpacing::for_level(&world, texel_density, settings.volume.probes_per_headroom);
+    if most == 1 {
+        return Ok(VolumeGrid::plan(scene, layout, settings, &auto)?
             .into_iter()
             .collect());
     }
-    let world = triangles(scene, &baked, Quat::IDENTITY);
     let rotation = if settings.volume.oriented {
         wall_frame(&world)
     } else {
@@ -100,10 +106,7 @@ pub fn plan_volumes(
     if !(lo.cmple(hi).all() && lo.is_finite() && hi.is_finite()) {
         return Ok(Vec::new());
     }
-    let spacing = settings
-        .volume
-        .probe_spacing
-        .unwrap_or(TEXELS_PER_PROBE / texel_density);
+    let spacing = settings.volume.probe_spacing.unwrap_or(auto.spacing);
     let mut regions = vec![Region {
         lo,
         hi,
@@ -160,8 +163,7 @@ pub fn plan_volumes(
                 hi[axis] = r.hi[axis] + spacing;
             }
         }
-        let mut grid =
-            VolumeGrid::for_bounds(lo, hi, settings.volume.probe_spacing, texel_density)?;
+        let mut grid = VolumeGrid::for_bounds(lo, hi, settings.volume.probe_spacing, &auto)?;
         grid.rotation = rotation;
         for axis in 0..3 {
             if !(r.cut[axis][0] || r.cut[axis][1]) {

@@ -467,7 +467,7 @@ mod tests {
     #[test]
     fn every_limit_is_checked_at_its_edge() {
         type Edit = fn(&mut BakeSettings, bool);
-        let edges: [(&str, Edit); 16] = [
+        let edges: [(&str, Edit); 18] = [
             ("layout.texel_budget", |s, out| {
                 s.layout.texel_budget = if out { 999 } else { 1_000 }
             }),
@@ -520,6 +520,12 @@ mod tests {
             ("volume.regions", |s, out| {
                 s.volume.regions = if out { 65 } else { 64 }
             }),
+            ("volume.probes_per_headroom", |s, out| {
+                s.volume.probes_per_headroom = if out { 65 } else { 64 }
+            }),
+            ("volume.probes_per_headroom", |s, out| {
+                s.volume.probes_per_headroom = if out { 0 } else { 1 }
+            }),
         ];
         for (name, edit) in edges {
             let mut s = BakeSettings::default();
@@ -531,7 +537,7 @@ mod tests {
                 other => panic!("{name} past its limit: {other:?}"),
             }
         }
-        assert_eq!(BakeSettings::default().rules().len(), 31);
+        assert_eq!(BakeSettings::default().rules().len(), 32);
     }
 
     #[test]
