@@ -12,9 +12,9 @@ use crate::scene::Scene;
 use crate::settings::BakeSettings;
 use crate::unwrap::Layout;
 
-/// Probes per metre of spacing, in lightmap texels: with no `probe_spacing` the spacing is
-/// this many texels at the bake's density (16 texels: 6 cm in a Cornell box at 256
-/// texels/m, 0.5 m in a house at 32).
+/// The spacing of the probes in lightmap texels when neither `probe_spacing` nor the level's
+/// headroom ([`AutoSpacing::for_level`]) asks for a finer one (16 texels: 6 cm in a Cornell
+/// box at 256 texels/m, 0.5 m in a house at 32).
 pub const TEXELS_PER_PROBE: f32 = 16.0;
 
 /// Thinnest gap above a floor that holds a moving object, in lightmap texels (the lightmaps
