@@ -1,7 +1,7 @@
 //! The bake's check of its own texel grid (`lightbake::lightmap::grid_error`): known answers
 //! (smooth light reads almost nothing, a lightmap 10% too bright reads 10%, a sharp shadow's
-//! error shrinks with the texel) and, on a real scene, an estimate that now meets what the
-//! path tracer measures.
+//! error shrinks with the texel, a point shows 2/3 of a texel's independent noise) and, on a
+//! real scene, an estimate that now meets what the path tracer measures.
 
 mod common;
 
@@ -148,26 +148,80 @@ fn a_hard_shadow_reads_grid_error_that_shrinks_with_the_texel() {
     assert!((0.35..0.7).contains(&(f / c)), "{f} against {c}");
 }
 
+/// `scene` baked with `settings` and the grid check at `grid_points` points, then checked
+/// against the path tracer at 2 048 points: the estimate (relative RMS) and its ratio to the
+/// measured error.
+fn verified(scene: &Scene, mut settings: BakeSettings, grid_points: u32) -> (f64, f64) {
+    settings.checks.grid_error_points = grid_points;
+    settings.checks.verify_points = 2048;
+    settings.checks.verify_paths = 1024;
+    let mut out = lightbake::bake(scene, &settings, &Progress::new()).unwrap();
+    lightbake::analysis::verify::verify(scene, &mut out);
+    let v = out.report.verification.clone().unwrap();
+    println!("grid points {grid_points}: {}", v.summary());
+    assert_eq!(v.estimate_covers_grid, grid_points > 0);
+    let estimate = out.report.error.as_ref().unwrap().relative_rms;
+    (estimate, v.estimate_ratio.unwrap())
+}
+
 /// On a real scene (assimp's teapots, `assets/corpus/assimp/`, at medium) the texel grid is
 /// most of the error: without its check the estimate is about a quarter of what the path tracer
 /// measures; with it, within 0.7–1.5× of it.
 #[test]
 fn on_the_teapots_the_estimate_meets_the_measured_error_once_the_grid_is_checked() {
     let scene = common::corpus_scene("assimp/teapots.gltf");
-    let ratio = |grid_points: u32| {
-        let mut settings = BakeSettings::medium();
-        settings.checks.grid_error_points = grid_points;
-        settings.checks.verify_points = 2048;
-        settings.checks.verify_paths = 1024;
-        let mut out = lightbake::bake(&scene, &settings, &Progress::new()).unwrap();
-        lightbake::analysis::verify::verify(&scene, &mut out);
-        let v = out.report.verification.clone().unwrap();
-        println!("grid points {grid_points}: {}", v.summary());
-        assert_eq!(v.estimate_covers_grid, grid_points > 0);
-        v.estimate_ratio.unwrap()
-    };
-    let without = ratio(0);
-    let with = ratio(16_384);
+    let without = verified(&scene, BakeSettings::medium(), 0).1;
+    let with = verified(&scene, BakeSettings::medium(), 16_384).1;
     assert!(without < 0.5, "{without}");
     assert!((0.7..=1.5).contains(&with), "{with}");
+}
+
+/// A point reads four texels bilinearly, and their independent noise partly cancels: a
+/// uniform point of a chart's middle shows (2/3)² of a texel's variance. Under a sky the box's
+/// contact shadow is noisy texel by texel.
+#[test]
+fn a_point_shows_two_thirds_of_a_texels_noise() {
+    let mut scene = box_in_the_sun();
+    scene.lights.clear();
+    scene.sky = Vec3::splat(1000.0);
+    let (grid, direct) = check(&scene, 8.0, 1.0);
+    assert!(direct.standard_error.iter().any(|&s| s > 0.0));
+    println!(
+        "under a sky: a point shows {:.3}× a texel's noise",
+        grid.point_noise
+    );
+    assert!(
+        (0.62..0.74).contains(&grid.point_noise),
+        "{}",
+        grid.point_noise
+    );
+    // A sun without a disc over a bare floor: the same light at every sample, no noise, and
+    // nothing to scale.
+    let mut sunlit = floor();
+    let sun = LightKind::Directional {
+        angular_radius: 0.0,
+    };
+    sunlit
+        .lights
+        .push(light(sun, Vec3::ZERO, Vec3::NEG_Y, 10_000.0));
+    let (grid, direct) = check(&sunlit, 8.0, 1.0);
+    assert!(direct.standard_error.iter().all(|&s| s == 0.0));
+    assert_eq!(grid.point_noise, 1.0);
+}
+
+/// At preview (no denoiser) the bake's estimate is of what a point shows: in the Cornell box,
+/// whose texel grid adds nothing, the estimate with the grid check is that share of the one
+/// without it, and within 0.7–1.5× of what `--verify` measures (1.61× per texel).
+#[test]
+fn at_preview_the_estimate_is_of_the_noise_a_point_shows() {
+    let scene =
+        lightbake::scene::testscenes::cornell_box(lightbake::scene::testscenes::CornellLight::Area);
+    let (per_texel, _) = verified(&scene, BakeSettings::preview(), 0);
+    let (at_points, ratio) = verified(&scene, BakeSettings::preview(), 16_384);
+    let share = at_points / per_texel;
+    println!(
+        "estimate {per_texel:.4} per texel, {at_points:.4} at points ({share:.3}), {ratio:.2}× measured"
+    );
+    assert!((0.6..0.72).contains(&share), "{share}");
+    assert!((0.7..=1.5).contains(&ratio), "{ratio}");
 }

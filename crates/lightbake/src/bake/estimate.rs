@@ -49,8 +49,9 @@ pub(super) fn denoised_error(
 
 /// The "grid error" stage: the texel grid's error of the direct light `direct` (lux per
 /// patch; `direct_se` its standard error) added in quadrature to the sampling stages'
-/// `estimate` (relative to `value_rms`, lux). The estimate as it was when no point could be
-/// checked.
+/// `estimate` (relative to `value_rms`, lux), that estimate first scaled to the noise a point
+/// shows between texels (`GridError::point_noise`) unless the texels were `denoised`. The
+/// estimate as it was when no point could be checked.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn with_grid_error(
     ctx: &BakeContext<'_>,
@@ -59,7 +60,7 @@ pub(super) fn with_grid_error(
     stages: &mut Stages<'_>,
     direct: &[Vec3],
     direct_se: &[f32],
-    estimate: Option<ErrorEstimate>,
+    (estimate, denoised): (Option<ErrorEstimate>, bool),
     value_rms: f64,
 ) -> Result<Option<ErrorEstimate>> {
     let grid = stages.run(Stage::GridError, 1, || {
@@ -81,11 +82,19 @@ pub(super) fn with_grid_error(
                 (
                     g.rays,
                     format!(
-                        "{:.2}% at {} points (95th percentile {:.2}%; the worst point carries {:.0}% of the squared error), added to the estimate",
+                        "{:.2}% at {} points (95th percentile {:.2}%; the worst point carries {:.0}% of the squared error), added to the estimate{}",
                         100.0 * g.estimate.relative_rms,
                         g.points,
                         100.0 * g.estimate.p95,
-                        100.0 * g.worst_share
+                        100.0 * g.worst_share,
+                        if denoised {
+                            String::new()
+                        } else {
+                            format!(
+                                "; a point shows {:.2}× a texel's noise",
+                                g.point_noise
+                            )
+                        }
                     ),
                 )
             },
@@ -96,9 +105,22 @@ pub(super) fn with_grid_error(
     Ok(match (estimate, grid) {
         (estimate, None) => estimate,
         (None, Some(g)) => Some(g.estimate),
-        (Some(e), Some(g)) => Some(ErrorEstimate {
-            method: format!("{}, and {}", e.method, g.estimate.method),
-            ..ErrorEstimate::combine([&e, &g.estimate], value_rms)
-        }),
+        (Some(e), Some(g)) => {
+            let k = if denoised { 1.0 } else { g.point_noise };
+            let at_points = ErrorEstimate {
+                rms: k * e.rms,
+                p95_abs: k * e.p95_abs,
+                ..e.clone()
+            };
+            let scaled = if denoised {
+                String::new()
+            } else {
+                format!(" (×{k:.2}: the noise a point shows between texels)")
+            };
+            Some(ErrorEstimate {
+                method: format!("{}{scaled}, and {}", e.method, g.estimate.method),
+                ..ErrorEstimate::combine([&at_points, &g.estimate], value_rms)
+            })
+        }
     })
 }

@@ -490,7 +490,17 @@ fn finish_patches(
             .unwrap_or_else(|| rms_luminance(&valid(patches, &irradiance)));
         let (direct, se) = (&light.direct, &light.texel_error);
         let before = lit.error.take();
-        lit.error = with_grid_error(ctx, rays, emitters, stages, direct, se, before, value)?;
+        let denoised = lit.denoise.is_some();
+        lit.error = with_grid_error(
+            ctx,
+            rays,
+            emitters,
+            stages,
+            direct,
+            se,
+            (before, denoised),
+            value,
+        )?;
     }
     if settings.groups.is_empty() {
         drop(irradiance);

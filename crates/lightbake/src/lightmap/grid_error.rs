@@ -42,6 +42,13 @@
 //!   lux; p95 the 95th percentile of |B_d − E_d| by weight, scaled by the same share (the
 //!   noise taken out).
 //!   It is added in quadrature to the sampling stages' estimate: the two are independent.
+//! * **Noise at a point**: the sampling stages estimate each texel's noise, and a point a
+//!   viewer sees reads four texels bilinearly, whose independent noise partly cancels: a
+//!   uniform point of a chart's middle shows (2/3)² of a texel's variance. The points give the
+//!   factor for the bake's own charts ([`GridError::point_noise`], from the direct light's
+//!   per-texel errors), and the sampling stages' estimate is scaled by it before the two are
+//!   added, so that the sum estimates what `bake --verify` measures at points. Not after the
+//!   denoiser, whose filter leaves neighbouring texels' errors correlated.
 //!
 //! What it does not see: the indirect light's grid error (smooth away from contacts), and
 //! what the denoiser and the stitch change. Beside a lamp a few points can carry most of the
@@ -78,11 +85,17 @@ pub struct GridError {
     pub worst_share: f64,
     /// Shadow and sky rays traced (and the footprint checks near geometry).
     pub rays: u64,
+    /// How much of a texel's noise a point shows, as a factor on an RMS: √(Σ w_j²σ_j² /
+    /// Σ w_j σ_j²) over the points, σ_j the direct light's standard error at the texels the
+    /// bilinear read takes with weights w_j. Texels whose noise is independent give 2/3 in
+    /// the middle of a chart (E[Σw²] = (2/3)² for a uniform point), nearer 1 along its edges;
+    /// 1 when no texel carries noise.
+    pub point_noise: f64,
 }
 
-/// One checked point: (B_d − E_d)², var E_d, var B_d (lux²), its rays, and its weight (see
-/// the module docs).
-type Checked = (f64, f64, f64, u64, f64);
+/// One checked point: (B_d − E_d)², var E_d, var B_d (lux²), its rays, its weight (see the
+/// module docs), and Σ w_j σ_j² (lux²: the taps' own variances, as texels carry them).
+type Checked = (f64, f64, f64, u64, f64, f64);
 
 /// The texel grid's error of the direct light `direct` (lux per patch, what the lightmap
 /// shows; `direct_se` its per-patch standard error) at `settings.checks.grid_error_points` points,
@@ -122,7 +135,7 @@ pub fn grid_error(
             let page = &pages[p.page as usize];
             let (u, v) = (q.x / page.width as f32, q.y / page.height as f32);
             let b = std::f64::consts::PI * luminance(page.sample_bilinear(u, v)) as f64;
-            let var_b: f64 = bilinear_taps(page.width, page.height, u, v)
+            let (var_b, var_texels) = bilinear_taps(page.width, page.height, u, v)
                 .iter()
                 .map(|&((x, y), w)| {
                     let k = patches.page_index[p.page as usize][(y * page.width + x) as usize];
@@ -131,14 +144,14 @@ pub fn grid_error(
                     } else {
                         direct_se.get(k as usize).copied().unwrap_or(0.0) as f64
                     };
-                    (w as f64 * se).powi(2)
+                    ((w as f64 * se).powi(2), w as f64 * se * se)
                 })
-                .sum();
+                .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
             // Texels drawn uniformly, weighted by their area × the instance's density scale²:
             // by area over charts the density pass drew finer or coarser.
             let scale = scene.instances[p.instance as usize].texel_density_scale as f64;
             let weight = (p.texel_size as f64 * scale).powi(2);
-            Some(((b - e).powi(2), var_e, var_b, n_rays, weight))
+            Some(((b - e).powi(2), var_e, var_b, n_rays, weight, var_texels))
         })
         .collect();
     // A point whose light overflows (a lamp touching the surface) says nothing about the
@@ -146,7 +159,8 @@ pub fn grid_error(
     let done: Vec<Checked> = checked
         .into_iter()
         .flatten()
-        .filter(|c| c.0.is_finite() && c.1.is_finite() && c.2.is_finite() && c.4 > 0.0)
+        .filter(|c| c.0.is_finite() && c.1.is_finite() && c.2.is_finite() && c.5.is_finite())
+        .filter(|c| c.4 > 0.0)
         .collect();
     if done.is_empty() {
         return None;
@@ -155,6 +169,12 @@ pub fn grid_error(
     let (sq, var_e, var_b) = done.iter().fold((0.0, 0.0, 0.0), |(s, a, b), c| {
         (s + c.4 * c.0, a + c.4 * c.1, b + c.4 * c.2)
     });
+    let var_texels: f64 = done.iter().map(|c| c.4 * c.5).sum();
+    let point_noise = if var_texels > 0.0 {
+        (var_b / var_texels).sqrt().min(1.0)
+    } else {
+        1.0
+    };
     let worst = done.iter().map(|c| c.4 * c.0).fold(0.0, f64::max);
     let method = format!(
         "the texel grid: the direct light's bilinear reconstruction against its value at {} points",
@@ -184,6 +204,7 @@ pub fn grid_error(
         points: done.len(),
         worst_share: if sq > 0.0 { worst / sq } else { 0.0 },
         rays: done.iter().map(|c| c.3).sum(),
+        point_noise,
     })
 }
 
