@@ -84,13 +84,25 @@ pub fn plan_volumes(
     if baked.is_empty() {
         return Ok(Vec::new());
     }
-    let world = triangles(scene, &baked, Quat::IDENTITY);
-    let auto = AutoSpacing::for_level(&world, texel_density, settings.volume.probes_per_headroom);
+    // The automatic spacing, measured only when no spacing is set (an explicit one leaves it
+    // unused: the texels' stands in).
+    let auto_for = |world: &[[Vec3; 3]]| match settings.volume.probe_spacing {
+        Some(_) => AutoSpacing::of_texels(texel_density),
+        None => AutoSpacing::for_level(world, texel_density, settings.volume.probes_per_headroom),
+    };
     if most == 1 {
-        return Ok(VolumeGrid::plan(scene, layout, settings, &auto)?
-            .into_iter()
-            .collect());
+        let world = match settings.volume.probe_spacing {
+            Some(_) => Vec::new(),
+            None => triangles(scene, &baked, Quat::IDENTITY),
+        };
+        return Ok(
+            VolumeGrid::plan(scene, layout, settings, &auto_for(&world))?
+                .into_iter()
+                .collect(),
+        );
     }
+    let world = triangles(scene, &baked, Quat::IDENTITY);
+    let auto = auto_for(&world);
     let rotation = if settings.volume.oriented {
         wall_frame(&world)
     } else {
