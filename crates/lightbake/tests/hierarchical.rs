@@ -1,15 +1,21 @@
 //! The hierarchical solve (a coarse solve over texel clusters, then a per-texel final gather)
 //! against the full transport matrix on the shipped scenes; its error estimate sees a coarse
-//! level that is too coarse; its refinement reaches the tolerance; `auto` takes it beyond the
+//! level that is too coarse; its refinement reaches the tolerance, also with several fields
+//! (light groups) on one cut; `auto` takes it beyond the
 //! full matrix's node limit and says why; the final gather's rays shared out by noise give
 //! less noise than the same rays spread evenly. (The furnace at ρ = 0.3 … 0.999, the hard furnace
 //! and the thread-count determinism cover it with the other solvers.)
 
 mod common;
 
+use glam::Vec3;
 use lightbake::BakeOutput;
 use lightbake::Stage;
 use lightbake::analysis::study::relative_rms_error;
+use lightbake::context::Prepared;
+use lightbake::progress::Progress;
+use lightbake::radiosity::hierarchical::{Coarse, coarse_solve_fields};
+use lightbake::radiosity::{HitMapper, Nodes, hierarchy_options};
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
 use lightbake::settings::{BakeSettings, SolverChoice};
@@ -157,6 +163,82 @@ fn refinement_splits_cells_until_the_missed_detail_is_within_the_tolerance() {
         coarse.missed_detail <= 0.004 || !coarse.stop_reason.contains("within"),
         "{coarse:?}"
     );
+}
+
+#[test]
+fn fields_share_one_cut_refined_until_each_ones_detail_is_within_the_tolerance() {
+    // Light groups' coarse level: one cut for every group's field, its rows and oracle traced
+    // once. Two direct fields over the sunlit room's texels: light on one end of the room only
+    // (a sharp edge across the floor and walls), an even light, and their sum. The first
+    // needs no refinement on its own, the second does: the shared cut follows the second.
+    let scene = sunlit_room();
+    let mut s = settings(24.0, SolverChoice::Hierarchical);
+    s.radiosity.cluster_texels = 16;
+    s.radiosity.cluster_tolerance = 0.004;
+    let prep = Prepared::new(&scene, &s).unwrap_or_else(|e| panic!("{e}"));
+    let ctx = prep.ctx();
+    let nodes = Nodes::new(&ctx, s.radiosity.basis);
+    let mapper = HitMapper::new(ctx, &nodes, s.radiosity.basis);
+    let options = hierarchy_options(&ctx, &nodes, u64::MAX);
+    let patches = &prep.patches.patches;
+    let (lo, hi) = (patches.iter()).fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+        (lo.min(p.position.x), hi.max(p.position.x))
+    });
+    let even = vec![Vec3::splat(100.0); patches.len()];
+    let end: Vec<Vec3> = (patches.iter())
+        .map(|p| {
+            Vec3::splat(if p.position.x < lo + 0.3 * (hi - lo) {
+                2000.0
+            } else {
+                0.0
+            })
+        })
+        .collect();
+    let sum: Vec<Vec3> = even.iter().zip(&end).map(|(a, b)| *a + *b).collect();
+    let solve = |fields: &[&[Vec3]]| {
+        coarse_solve_fields(&ctx, &mapper, &nodes, fields, &options, &Progress::new())
+    };
+    let shared = solve(&[&end, &even, &sum]);
+    let alone: Vec<Coarse> = [&end, &even]
+        .map(|f| solve(&[f.as_slice()]).remove(0))
+        .into();
+    for (name, c) in ["one end", "even", "sum"].iter().zip(&shared) {
+        println!("shared cut, {name}: {:?}", c.report);
+    }
+    for (name, c) in ["one end", "even"].iter().zip(&alone) {
+        println!("alone, {name}: {:?}", c.report);
+    }
+    // One cut for every field.
+    for c in &shared[1..] {
+        assert!(c.clusters.of_node == shared[0].clusters.of_node);
+    }
+    // Refined until every field's detail is within the tolerance (or the report says what
+    // stopped it), so at least as fine as the field that needs the most cells on its own.
+    let r = &shared[0].report;
+    assert_eq!(alone[0].report.rounds, 1, "{:?}", alone[0].report);
+    assert!(r.rounds > 1, "{r:?}");
+    for c in &shared {
+        assert!(
+            c.report.missed_detail <= 0.004 || !c.report.stop_reason.contains("within"),
+            "{:?}",
+            c.report
+        );
+    }
+    let most = alone.iter().map(|c| c.report.cells).max().unwrap();
+    assert!(r.cells >= most, "{} cells shared, {most} alone", r.cells);
+    // Light adds up: over the shared matrix, the sum's coarse light is the fields' sum
+    // (within the coarse solves' tolerance).
+    let (mut diff, mut norm) = (0.0f64, 0.0f64);
+    for ((a, b), c) in (shared[0].solution.indirect.iter())
+        .zip(&shared[1].solution.indirect)
+        .zip(&shared[2].solution.indirect)
+    {
+        diff += f64::from((*a + *b - *c).length_squared());
+        norm += f64::from(c.length_squared());
+    }
+    let relative = (diff / norm).sqrt();
+    println!("the sum's coarse light against the fields' sum: {relative:.2e}");
+    assert!(relative < 1e-3, "{relative}");
 }
 
 #[test]

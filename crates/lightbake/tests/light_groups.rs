@@ -63,10 +63,12 @@ fn sun_and_sky_alone(scene: &Scene) -> [Scene; 2] {
 #[test]
 fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
     let scene = sunlit_room().scene;
-    // Every node's gather takes the settings' rays: with the rays not shared out by the
-    // whole light's noise, a group's shared gathers trace exactly the rays of its own bake.
+    // Every node's gather takes the settings' rays, and the coarse level keeps its first cut:
+    // with the rays not shared out by the whole light's noise and the cells not split by it,
+    // a group's shared coarse level and gathers trace exactly the rays of its own bake.
     let mut plain = settings();
     plain.radiosity.adaptive_gather = false;
+    plain.radiosity.cluster_tolerance = 0.99;
     let mut s = plain.clone();
     s.groups = vec![group("day", &["sun"])];
     let grouped = bake(&scene, &s);
@@ -80,13 +82,20 @@ fn each_group_is_its_emitters_alone_and_the_pages_are_their_sum() {
     assert_eq!(grouped.groups[1].report.members, ["sky"]);
     assert_eq!(grouped.report.groups.len(), 2);
     assert!(grouped.report.groups.iter().all(|g| g.rays > 0));
-    // The transport was shared: one set of nodes and one final gather for both groups.
+    // The transport was shared: one set of nodes, one coarse level and one final gather for
+    // both groups.
     let shared: Vec<&str> = (grouped.report.stages.iter())
         .filter(|st| st.note.starts_with("[shared]"))
         .map(|st| st.run.stage.name())
         .collect();
     println!("shared stages: {shared:?}");
-    for stage in ["nodes", "final gather", "correction", "reflection"] {
+    for stage in [
+        "nodes",
+        "coarse solve",
+        "final gather",
+        "correction",
+        "reflection",
+    ] {
         assert_eq!(
             shared.iter().filter(|&&n| n == stage).count(),
             1,

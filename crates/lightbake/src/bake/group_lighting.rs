@@ -1,7 +1,8 @@
 //! The light groups' lighting passes with their transport shared
 //! ([`crate::radiosity::group_solve`]): every group's direct pass, then one radiosity pass for
-//! all of them — one set of nodes, and the hierarchical solve's gathers traced once and read
-//! in every group's light. Their stages are marked in the stage table: `[NAME]` for a
+//! all of them — one set of nodes, one coarse level (its cut, rows and oracle traced once,
+//! each group's own solve), and the hierarchical solve's gathers traced once and read in
+//! every group's light. Their stages are marked in the stage table: `[NAME]` for a
 //! group's own, `[shared]` for those of every group.
 
 use glam::Vec3;
@@ -84,12 +85,11 @@ pub(super) fn lighting_groups(
             let from = stages.list.len();
             let rounds = group_solve::solve_round_groups(&group_ctxs, &nodes, &directs, 1, stages)?;
             drop(directs);
-            // A group's own stages in the solve: its coarse level and its error estimate, in
-            // the order of the groups; the gathers are shared.
-            let (mut coarse, mut estimates) = (runs.iter(), runs.iter());
+            // A group's own stages in the solve: its error estimate, in the order of the
+            // groups; the coarse level and the gathers are shared.
+            let mut estimates = runs.iter();
             for s in &stages.list[from..] {
                 let own = match s.run.stage {
-                    Stage::CoarseSolve => coarse.next(),
                     Stage::ErrorEstimate => estimates.next(),
                     _ => None,
                 };

@@ -8,7 +8,9 @@
 //! out evenly over its nodes (at least one each), so every node's surface, normal and
 //! occluders are sampled. The same rays gather the reflected direct light at full node
 //! resolution where they land, so the coarse level's first bounce does not spread a sharp
-//! source (a sun patch) uniformly over its cells.
+//! source (a sun patch) uniformly over its cells. Both the rows and the oracle read any
+//! number of fields with one set of rays (light groups share them:
+//! [`super::hierarchical::coarse_solve_fields`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -35,7 +37,7 @@ fn per_node(rays: u32, members: usize, least: u32) -> u32 {
 }
 
 /// Row `c` of the coarse matrix appended to `out`, with `scratch` as its sort buffer.
-/// Returns the escaped fraction.
+/// Returns the escaped fraction and, per field of `directs`, the cell's first bounce.
 #[allow(clippy::too_many_arguments)]
 fn cell_row_into(
     ctx: &BakeContext<'_>,
@@ -44,28 +46,31 @@ fn cell_row_into(
     clusters: &Clusters,
     c: usize,
     rays: u32,
-    direct: &[Vec3],
+    directs: &[&[Vec3]],
     scratch: &mut Vec<u64>,
     out: &mut RowBlock,
-) -> (f32, Vec3) {
+) -> CellResult {
     let members = clusters.members_of(c);
     let area = clusters.area[c];
     let r = per_node(rays, members.len(), 1);
     scratch.clear();
     let mut escaped = 0.0f32;
-    let mut gathered = Vec3::ZERO;
+    let mut gathered = vec![Vec3::ZERO; directs.len()];
+    let mut sum = vec![Vec3::ZERO; directs.len()];
     let mut hits: Vec<(u32, f32)> = Vec::new();
     for &m in members {
         let m = m as usize;
         hits.clear();
         let mut total = 0.0f32;
-        let mut sum = Vec3::ZERO;
+        sum.fill(Vec3::ZERO);
         let e = for_each_sample(ctx, mapper, nodes, m, r, STREAM_COARSE, |weight, hit| {
             total += weight;
             for &(j, wj) in hit {
                 hits.push((clusters.of_node[j as usize], wj * weight));
                 let j = j as usize;
-                sum += nodes.albedo[j] * direct[nodes.patch[j] as usize] * (wj * weight);
+                for (s, direct) in sum.iter_mut().zip(directs) {
+                    *s += nodes.albedo[j] * direct[nodes.patch[j] as usize] * (wj * weight);
+                }
             }
         });
         if total <= 0.0 {
@@ -78,7 +83,9 @@ fn cell_row_into(
         };
         let scale = share / total;
         escaped += e * scale;
-        gathered += sum * scale;
+        for (g, s) in gathered.iter_mut().zip(&sum) {
+            *g += *s * scale;
+        }
         // Entries packed as (cell << 32 | weight bits): weights are non-negative, so one
         // integer sort orders them by cell.
         scratch.extend(
@@ -101,30 +108,33 @@ fn cell_row_into(
     (escaped, gathered)
 }
 
+/// A cell's escaped fraction and, per field, its first bounce.
+type CellResult = (f32, Vec<Vec3>);
+
 /// The coarse level's matrix and first bounce.
 pub struct CoarseRows {
     /// F between the cells.
     pub matrix: Transport,
-    /// Per cell: the irradiance its rays gather from the reflected direct light ρ∘H_d, read
-    /// at full node resolution at every hit (lux).
-    pub first_bounce: Vec<Vec3>,
+    /// Per field, per cell: the irradiance its rays gather from the field's reflected direct
+    /// light ρ∘H_d, read at full node resolution at every hit (lux).
+    pub first_bounce: Vec<Vec<Vec3>>,
 }
 
 /// Builds the coarse matrix of `clusters` with about `rays` rays per cell, and gathers with
-/// the same rays the reflected direct light ρ∘H_d (`direct` per patch): the cells' first
-/// bounce at full resolution on the emitting side.
+/// the same rays each field's reflected direct light ρ∘H_d (`directs[f]` per patch): the
+/// cells' first bounce at full resolution on the emitting side.
 pub fn build(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     clusters: &Clusters,
     rays: u32,
-    direct: &[Vec3],
+    directs: &[&[Vec3]],
     progress: &Progress,
 ) -> CoarseRows {
     let m = clusters.len();
     let traced = AtomicU64::new(0);
-    let runs: Vec<(RowBlock, Vec<(f32, Vec3)>)> = (0..m)
+    let runs: Vec<(RowBlock, Vec<CellResult>)> = (0..m)
         .into_par_iter()
         .with_min_len(16)
         .fold(
@@ -132,7 +142,7 @@ pub fn build(
             |(mut rows, mut escaped, mut scratch), c| {
                 if progress.is_cancelled() {
                     rows.lens.push(0);
-                    escaped.push((0.0, Vec3::ZERO));
+                    escaped.push((0.0, vec![Vec3::ZERO; directs.len()]));
                 } else {
                     escaped.push(cell_row_into(
                         ctx,
@@ -141,7 +151,7 @@ pub fn build(
                         clusters,
                         c,
                         rays,
-                        direct,
+                        directs,
                         &mut scratch,
                         &mut rows,
                     ));
@@ -161,10 +171,12 @@ pub fn build(
     let nnz: usize = runs.iter().map(|r| r.0.cols.len()).sum();
     t.cols.reserve_exact(nnz);
     t.vals.reserve_exact(nnz);
-    let mut first_bounce = Vec::with_capacity(m);
+    let mut first_bounce = vec![Vec::with_capacity(m); directs.len()];
     for (rows, results) in runs {
         let escaped = results.iter().map(|r| r.0).collect();
-        first_bounce.extend(results.iter().map(|r| r.1));
+        for (f, field) in first_bounce.iter_mut().enumerate() {
+            field.extend(results.iter().map(|r| r.1[f]));
+        }
         t.push_block(rows, escaped);
     }
     t.rays = traced.into_inner();
@@ -177,66 +189,83 @@ pub fn build(
 /// Texels of a cell the refinement oracle gathers at.
 const ORACLE_TEXELS: usize = 4;
 
-/// The refinement oracle: per cell, the power of the detail that its uniform value misses,
-/// A_c·ρ_c²·V_c (lux²·m², ρ_c the luminance of its albedo), with V_c the variance over the
-/// cell's texels of the irradiance gathered from exitance `b` (per node: the fine direct light
-/// plus the coarse indirect light, reflected): what the final gather will see and the cell's
-/// uniform value does not hold. It is estimated from [`ORACLE_TEXELS`] texels spread over the
-/// cell (evenly through its row-major texel order), each gathering with `rays / 4` rays (at
-/// least two) split into two interleaved halves; the halves' difference gives each gather's
-/// noise, which is taken out: V_c = max(0, s² − mean σ²), s² the texels' sample variance and
-/// σ² = (h_a − h_b)²/4 the variance of each one's mean. Cells of level 0, or of one texel,
-/// have nothing to refine (0). Returns the powers and the rays traced.
+/// The refinement oracle: per field of `bs`, per cell, the power of the detail that its
+/// uniform value misses, A_c·ρ_c²·V_c (lux²·m², ρ_c the luminance of its albedo), with V_c
+/// the variance over the cell's texels of the irradiance gathered from exitance `bs[f]` (per
+/// node: the fine direct light plus the coarse indirect light, reflected): what the final
+/// gather will see and the cell's uniform value does not hold. It is estimated from
+/// [`ORACLE_TEXELS`] texels spread over the cell (evenly through its row-major texel order),
+/// each gathering with `rays / 4` rays (at least two) split into two interleaved halves; the
+/// halves' difference gives each gather's noise, which is taken out: V_c = max(0, s² − mean
+/// σ²), s² the texels' sample variance and σ² = (h_a − h_b)²/4 the variance of each one's
+/// mean. Every field reads the same rays. Cells of level 0, or of one texel, have nothing to
+/// refine (0). Returns the powers (`[field][cell]`) and the rays traced.
 pub fn missed_detail(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
     clusters: &Clusters,
-    b: &[Vec3],
+    bs: &[&[Vec3]],
     rays: u32,
-) -> (Vec<f64>, u64) {
+) -> (Vec<Vec<f64>>, u64) {
     let r = (rays / ORACLE_TEXELS as u32).max(2);
-    let results: Vec<(f64, u64)> = (0..clusters.len())
+    let fields = bs.len();
+    let results: Vec<(Vec<f64>, u64)> = (0..clusters.len())
         .into_par_iter()
         .with_min_len(16)
         .map(|c| {
             let members = clusters.members_of(c);
             if clusters.cells[c].level == 0 || members.len() < 2 {
-                return (0.0, 0);
+                return (vec![0.0; fields], 0);
             }
             let k = members.len().min(ORACLE_TEXELS);
-            // (mean, variance of the mean) of each sampled texel's gather.
-            let gathers: Vec<(f64, f64)> = (0..k)
+            // Per sampled texel, per field: (mean, variance of the mean) of its gather.
+            let gathers: Vec<Vec<(f64, f64)>> = (0..k)
                 .map(|s| {
                     let i = members[(s * members.len() + members.len() / 2) / k] as usize;
-                    let mut half = [(0.0f64, 0.0f64); 2];
+                    let mut half = vec![[(0.0f64, 0.0f64); 2]; fields];
                     let mut sample = 0usize;
                     for_each_sample(ctx, mapper, nodes, i, r, STREAM_ORACLE, |w, hit| {
-                        let v: f32 = hit
-                            .iter()
-                            .map(|&(j, wj)| wj * luminance(b[j as usize]))
-                            .sum();
-                        let h = &mut half[sample & 1];
-                        h.0 += (w * v) as f64;
-                        h.1 += w as f64;
+                        for (h, b) in half.iter_mut().zip(bs) {
+                            let v: f32 = hit
+                                .iter()
+                                .map(|&(j, wj)| wj * luminance(b[j as usize]))
+                                .sum();
+                            let h = &mut h[sample & 1];
+                            h.0 += (w * v) as f64;
+                            h.1 += w as f64;
+                        }
                         sample += 1;
                     });
                     let mean_of = |(s, w): (f64, f64)| if w > 0.0 { s / w } else { 0.0 };
-                    let (ha, hb) = (mean_of(half[0]), mean_of(half[1]));
-                    (0.5 * (ha + hb), 0.25 * (ha - hb) * (ha - hb))
+                    (half.iter())
+                        .map(|h| {
+                            let (ha, hb) = (mean_of(h[0]), mean_of(h[1]));
+                            (0.5 * (ha + hb), 0.25 * (ha - hb) * (ha - hb))
+                        })
+                        .collect()
                 })
                 .collect();
             let traced = k as u64 * r as u64;
-            let mean = gathers.iter().map(|g| g.0).sum::<f64>() / k as f64;
-            let spread = gathers.iter().map(|g| (g.0 - mean).powi(2)).sum::<f64>() / (k - 1) as f64;
-            let noise = gathers.iter().map(|g| g.1).sum::<f64>() / k as f64;
             let rho = luminance(clusters.albedo[c]) as f64;
-            (
-                clusters.area[c] as f64 * rho * rho * (spread - noise).max(0.0),
-                traced,
-            )
+            let powers = (0..fields)
+                .map(|f| {
+                    let mean = gathers.iter().map(|g| g[f].0).sum::<f64>() / k as f64;
+                    let spread = gathers.iter().map(|g| (g[f].0 - mean).powi(2)).sum::<f64>()
+                        / (k - 1) as f64;
+                    let noise = gathers.iter().map(|g| g[f].1).sum::<f64>() / k as f64;
+                    clusters.area[c] as f64 * rho * rho * (spread - noise).max(0.0)
+                })
+                .collect();
+            (powers, traced)
         })
         .collect();
     let rays = results.iter().map(|r| r.1).sum();
-    (results.into_iter().map(|r| r.0).collect(), rays)
+    let mut powers = vec![Vec::with_capacity(clusters.len()); fields];
+    for (p, _) in results {
+        for (field, v) in powers.iter_mut().zip(p) {
+            field.push(v);
+        }
+    }
+    (powers, rays)
 }

@@ -2,9 +2,11 @@
 //! up, so every group's reflected light goes through the same operator, and the rays that
 //! estimate it are traced once for all of them.
 //!
-//! Per group, as [`super::hierarchical_solve`] does for one field: its coarse level (its own
-//! refinement and solve: the cells' form factors are cheap beside the gathers) and its
-//! fine exitance b_g = ρ(H_d,g + C_g). Then, shared:
+//! First, shared: the coarse level ([`super::hierarchical::coarse_solve_fields`]): one cut,
+//! refined until every group's missed detail is within the tolerance, its rows and the
+//! oracle's gathers traced once and read in every group's light; each group solves its own
+//! coarse system C_g over the shared matrix, and its fine exitance is b_g = ρ(H_d,g + C_g).
+//! Then, shared as well:
 //!
 //! 1. **gather pilot**: every node's pilot rays, each hit read in every group's b_g and in
 //!    their sum, each group scaled to the same RMS direct light; the sum's noise shares out
@@ -23,7 +25,8 @@ use glam::Vec3;
 use super::error_estimate::HierarchicalFields;
 use super::hierarchical::{self, Coarse, Gather, GatherRays, GatheredField};
 use super::hierarchical_solve::{
-    HierarchicalRound, coarse_stage, correction_rays, error_stage, finished_round, gather_note,
+    HierarchicalRound, coarse_stage_fields, correction_rays, error_stage, finished_round,
+    gather_note,
 };
 use super::{HitMapper, Nodes, ray_allocation};
 use crate::color::luminance;
@@ -63,10 +66,7 @@ pub fn solve_round_groups<'p>(
         return Ok(Vec::new());
     };
     let mapper = HitMapper::new(*ctx, nodes, ctx.settings.radiosity.basis);
-    let mut coarse: Vec<Coarse> = Vec::with_capacity(ctxs.len());
-    for (c, direct) in ctxs.iter().zip(directs) {
-        coarse.push(coarse_stage(c, &mapper, nodes, direct, round, stages)?);
-    }
+    let coarse = coarse_stage_fields(ctx, &mapper, nodes, directs, round, stages)?;
     let b: Vec<Vec<Vec3>> = (coarse.iter().zip(directs))
         .map(|(c, d)| hierarchical::fine_exitance(nodes, d, &c.clusters, &c.solution.indirect))
         .collect();

@@ -133,15 +133,32 @@ pub fn planned_bytes(nodes: usize, page_texels: u64, triangles: usize) -> u64 {
 /// Most refinement rounds (each takes a cell at most one level down).
 const MAX_ROUNDS: u32 = 4;
 
-/// Builds, solves and refines the coarse level for direct irradiance `direct` per patch.
-pub fn coarse_solve(
+/// One field's coarse solve over the current cut.
+struct FieldSolve {
+    solution: Solution,
+    ambient: Vec3,
+    /// The fine exitance the oracle reads.
+    b: Vec<Vec3>,
+    /// RMS luminance of H_d + C, lux.
+    value_rms: f64,
+}
+
+/// Builds, solves and refines the coarse level for one or several fields at once: `directs[f]`
+/// is field f's direct irradiance per patch (light groups: each group's own). The cells' rows and
+/// the oracle's gathers are traced once and read in every field; each field solves its own
+/// coarse system over the shared matrix. A cell is split by its missed detail summed over the
+/// fields, each over its own target (so a dim field's detail counts as much as a bright
+/// one's), and refinement goes on until every field's missed detail is within the tolerance.
+/// With one field, its own refinement (see the module docs). Gives each field's level, its
+/// cut the same; each report's rays are the shared rays.
+pub fn coarse_solve_fields(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
     nodes: &Nodes,
-    direct: &[Vec3],
+    directs: &[&[Vec3]],
     options: &HierarchyOptions,
     progress: &Progress,
-) -> Coarse {
+) -> Vec<Coarse> {
     let total_area: f64 = nodes.area.iter().map(|&a| a as f64).sum();
     let links = Links::new(ctx, nodes);
     let mut clusters = Clusters::at_level(nodes, ctx.patches, &links, options.top_level);
@@ -158,59 +175,44 @@ pub fn coarse_solve(
             nodes,
             &clusters,
             options.cell_rays,
-            direct,
+            directs,
             progress,
         );
         rays += matrix.rays;
-        // C = E₁ + F·(ρ∘C): with B' = ρ∘C the system B' = ρ∘E₁ + ρ∘(F·B').
-        let source: Vec<Vec3> = first_bounce
-            .iter()
-            .zip(&clusters.albedo)
-            .map(|(e, r)| *e * *r)
+        let solved: Vec<FieldSolve> = (directs.iter().zip(&first_bounce))
+            .map(|(direct, first)| field_solve(nodes, direct, &clusters, &matrix, first, options))
             .collect();
-        let system = System {
-            transport: &matrix,
-            albedo: &clusters.albedo,
-            source: &source,
-            area: &clusters.area,
-            progress: None,
-        };
-        let max_albedo = system.max_albedo();
-        let (choice, _) = solve::choose(clusters.len(), max_albedo, |_| true);
-        let solve_options = SolveOptions {
-            tolerance: residual_tolerance(options.solver_tolerance, max_albedo),
-            max_iterations: options.max_iterations,
-        };
-        let mut solution = solve::solve_matrix(choice, &system, &solve_options);
-        let ambient = system.ambient_term(&solve::to_f64(&solution.b));
-        for (c, e) in solution.indirect.iter_mut().zip(&first_bounce) {
-            *c += *e;
-        }
-        let b = fine_exitance(nodes, direct, &clusters, &solution.indirect);
         // A cancelled bake measures nothing more (the caller returns the cancel).
         let (detail, oracle_rays) = if progress.is_cancelled() {
-            (vec![0.0; clusters.len()], 0)
+            (vec![vec![0.0; clusters.len()]; directs.len()], 0)
         } else {
-            coarse::missed_detail(ctx, mapper, nodes, &clusters, &b, options.cell_rays)
+            let bs: Vec<&[Vec3]> = solved.iter().map(|f| f.b.as_slice()).collect();
+            coarse::missed_detail(ctx, mapper, nodes, &clusters, &bs, options.cell_rays)
         };
         rays += oracle_rays;
-        let value_rms = irradiance_rms(nodes, direct, &clusters, &solution.indirect);
-        let remaining: f64 = detail.iter().sum();
-        let relative = |power: f64| {
+        let relative = |power: f64, value_rms: f64| {
             if value_rms > 0.0 && total_area > 0.0 {
                 (power / total_area).sqrt() / value_rms
             } else {
                 0.0
             }
         };
-        let target = (options.tolerance * value_rms).powi(2) * total_area;
+        let remaining: Vec<f64> = detail.iter().map(|d| d.iter().sum()).collect();
+        let targets: Vec<f64> = (solved.iter())
+            .map(|f| (options.tolerance * f.value_rms).powi(2) * total_area)
+            .collect();
+        // The field furthest over its target names the missed detail.
+        let worst = (0..directs.len())
+            .map(|f| relative(remaining[f], solved[f].value_rms))
+            .fold(0.0f64, f64::max);
         let bytes_per_cell = matrix.bytes() as f64 / clusters.len().max(1) as f64;
         let max_cells =
             ((options.max_matrix_bytes as f64 / bytes_per_cell.max(1.0)) as usize).min(nodes.len());
-        let stop = if remaining <= target {
+        let within = remaining.iter().zip(&targets).all(|(r, t)| r <= t);
+        let stop = if within {
             Some(format!(
                 "missed detail {:.2}% within the tolerance {:.2}%",
-                100.0 * relative(remaining),
+                100.0 * worst,
                 100.0 * options.tolerance
             ))
         } else if round >= MAX_ROUNDS {
@@ -219,7 +221,7 @@ pub fn coarse_solve(
             None
         };
         let picked = if stop.is_none() {
-            pick(&clusters, &detail, target, max_cells)
+            pick(&clusters, &detail, &targets, max_cells)
         } else {
             Vec::new()
         };
@@ -236,23 +238,34 @@ pub fn coarse_solve(
             })
         });
         if let Some(stop_reason) = stop {
-            let report = CoarseReport {
-                cells: clusters.len(),
-                cells_per_level: clusters.levels(),
-                rounds: round,
-                matrix_entries: matrix.nnz(),
-                matrix_bytes: matrix.bytes(),
-                missed_detail: relative(remaining),
-                stop_reason,
-                solver: solution.solver,
-                rays,
-            };
-            return Coarse {
-                clusters,
-                solution,
-                report,
-                ambient,
-            };
+            let last = solved.len().saturating_sub(1);
+            return (solved.into_iter().zip(remaining).enumerate())
+                .map(|(f, (field, remaining))| {
+                    let report = CoarseReport {
+                        cells: clusters.len(),
+                        cells_per_level: clusters.levels(),
+                        rounds: round,
+                        matrix_entries: matrix.nnz(),
+                        matrix_bytes: matrix.bytes(),
+                        missed_detail: relative(remaining, field.value_rms),
+                        stop_reason: stop_reason.clone(),
+                        solver: field.solution.solver,
+                        rays,
+                    };
+                    // The last field takes the cut; the others a copy of it.
+                    let clusters = if f == last {
+                        std::mem::take(&mut clusters)
+                    } else {
+                        clusters.clone()
+                    };
+                    Coarse {
+                        clusters,
+                        solution: field.solution,
+                        report,
+                        ambient: field.ambient,
+                    }
+                })
+                .collect();
         }
         let mut split = vec![false; clusters.len()];
         for c in picked {
@@ -262,24 +275,81 @@ pub fn coarse_solve(
     }
 }
 
-/// The cells to split: those carrying the most missed detail, largest first, until the
-/// rest is within `target` or the cut would exceed `max_cells` (a split adds up to three).
+/// The coarse system of one field over `matrix` (its first bounce `first_bounce` per cell),
+/// solved: C = E₁ + F·(ρ∘C), and what the oracle reads of it.
+fn field_solve(
+    nodes: &Nodes,
+    direct: &[Vec3],
+    clusters: &Clusters,
+    matrix: &solve::transport::Transport,
+    first_bounce: &[Vec3],
+    options: &HierarchyOptions,
+) -> FieldSolve {
+    // C = E₁ + F·(ρ∘C): with B' = ρ∘C the system B' = ρ∘E₁ + ρ∘(F·B').
+    let source: Vec<Vec3> = first_bounce
+        .iter()
+        .zip(&clusters.albedo)
+        .map(|(e, r)| *e * *r)
+        .collect();
+    let system = System {
+        transport: matrix,
+        albedo: &clusters.albedo,
+        source: &source,
+        area: &clusters.area,
+        progress: None,
+    };
+    let max_albedo = system.max_albedo();
+    let (choice, _) = solve::choose(clusters.len(), max_albedo, |_| true);
+    let solve_options = SolveOptions {
+        tolerance: residual_tolerance(options.solver_tolerance, max_albedo),
+        max_iterations: options.max_iterations,
+    };
+    let mut solution = solve::solve_matrix(choice, &system, &solve_options);
+    let ambient = system.ambient_term(&solve::to_f64(&solution.b));
+    for (c, e) in solution.indirect.iter_mut().zip(first_bounce) {
+        *c += *e;
+    }
+    let b = fine_exitance(nodes, direct, clusters, &solution.indirect);
+    let value_rms = irradiance_rms(nodes, direct, clusters, &solution.indirect);
+    FieldSolve {
+        solution,
+        ambient,
+        b,
+        value_rms,
+    }
+}
+
+/// The cells to split: those carrying the most missed detail (`detail[field][cell]`, each
+/// field's over its target), largest first, until every field's rest is within its target
+/// (`targets[field]`) or the cut would exceed `max_cells` (a split adds up to three).
 /// A split is counted as removing three quarters of a cell's detail: the variance of a
 /// smooth field over a cell falls with the square of its size, so its four children keep
 /// about a quarter of it between them.
-fn pick(clusters: &Clusters, detail: &[f64], target: f64, max_cells: usize) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..clusters.len())
-        .filter(|&c| detail[c] > 0.0 && clusters.cells[c].level > 0)
+fn pick(clusters: &Clusters, detail: &[Vec<f64>], targets: &[f64], max_cells: usize) -> Vec<usize> {
+    // Each field's detail over its target, relative to the first field with a target: with
+    // one field, its own detail.
+    let reference = targets.iter().copied().find(|&t| t > 0.0).unwrap_or(1.0);
+    let weight: Vec<f64> = (targets.iter())
+        .map(|&t| if t > 0.0 { reference / t } else { 0.0 })
         .collect();
-    order.sort_by(|&a, &b| detail[b].total_cmp(&detail[a]).then(a.cmp(&b)));
-    let mut remaining: f64 = detail.iter().sum();
+    let key: Vec<f64> = (0..clusters.len())
+        .map(|c| (detail.iter().zip(&weight)).map(|(d, w)| d[c] * w).sum())
+        .collect();
+    let mut order: Vec<usize> = (0..clusters.len())
+        .filter(|&c| key[c] > 0.0 && clusters.cells[c].level > 0)
+        .collect();
+    order.sort_by(|&a, &b| key[b].total_cmp(&key[a]).then(a.cmp(&b)));
+    let mut remaining: Vec<f64> = detail.iter().map(|d| d.iter().sum()).collect();
     let mut cells = clusters.len();
     let mut picked = Vec::new();
     for c in order {
-        if remaining <= target || cells + 3 > max_cells {
+        let within = remaining.iter().zip(targets).all(|(r, t)| r <= t);
+        if within || cells + 3 > max_cells {
             break;
         }
-        remaining -= 0.75 * detail[c];
+        for (r, d) in remaining.iter_mut().zip(detail) {
+            *r -= 0.75 * d[c];
+        }
         cells += 3;
         picked.push(c);
     }

@@ -2,7 +2,7 @@
 //! per-texel final gather), composed here and run through the driver's [`StageRunner`]:
 //!
 //! 1. **coarse solve**: the clusters' radiosity system, refined until its oracle is met
-//!    ([`hierarchical::coarse_solve`]);
+//!    ([`hierarchical::coarse_solve_fields`]);
 //! 2. **gather pilot** and **final gather**: H₁ at every node from the fine exitance, a pilot
 //!    first and then each node's rays by its noise ([`ray_allocation`]), or one pass of the
 //!    settings' rays, or (`cache_spacing`) at the irradiance cache's records only, interpolated
@@ -134,6 +134,22 @@ pub(super) fn coarse_stage<'p>(
     round: u32,
     stages: &mut impl StageRunner<'p>,
 ) -> Result<Coarse> {
+    let coarse = coarse_stage_fields(ctx, mapper, nodes, &[direct], round, stages)?;
+    Ok(coarse.into_iter().next().expect("one field's coarse level"))
+}
+
+/// The coarse level of one or several fields (light groups: `directs[g]` is group g's direct
+/// irradiance per patch) as one stage: one cut, its rows and oracle traced once
+/// ([`hierarchical::coarse_solve_fields`]), each field's own solve; its preview shows their
+/// sum (each node the reflected light of its cell).
+pub(super) fn coarse_stage_fields<'p>(
+    ctx: &BakeContext<'_>,
+    mapper: &HitMapper<'_>,
+    nodes: &Nodes,
+    directs: &[&[Vec3]],
+    round: u32,
+    stages: &mut impl StageRunner<'p>,
+) -> Result<Vec<Coarse>> {
     let progress = stages.progress();
     // The plan admitted the coarse matrix at its per-node cap.
     let options = hierarchy_options(ctx, nodes, u64::MAX);
@@ -144,26 +160,48 @@ pub(super) fn coarse_stage<'p>(
         },
         0,
         || {
-            let c = hierarchical::coarse_solve(ctx, mapper, nodes, direct, &options, progress);
-            let r = &c.report;
+            let c =
+                hierarchical::coarse_solve_fields(ctx, mapper, nodes, directs, &options, progress);
+            let Some(r) = c.first().map(|c| &c.report) else {
+                return Ok((c, 0, String::new()));
+            };
+            let missed: Vec<String> = (c.iter())
+                .map(|c| format!("{:.2}%", 100.0 * c.report.missed_detail))
+                .collect();
+            let solves: Vec<&str> = (c.iter())
+                .map(|c| c.solution.stop_reason.as_str())
+                .collect();
+            let fields = if c.len() > 1 {
+                format!("{} fields: ", c.len())
+            } else {
+                String::new()
+            };
             let note = format!(
-                "{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {:.2}% ({}); {}",
+                "{fields}{} cells, {} round(s), {} entries, {:.1} MiB, missed detail {} ({}); {}",
                 r.cells,
                 r.rounds,
                 r.matrix_entries,
                 r.matrix_bytes as f64 / 1048576.0,
-                100.0 * r.missed_detail,
+                missed.join(" / "),
                 r.stop_reason,
-                c.solution.stop_reason
+                solves.join(" / ")
             );
             let rays = r.rays;
             Ok((c, rays, note))
         },
     )?;
     if stages.previewing() {
-        let per_node = coarse.clusters.prolong(&coarse.solution.indirect);
-        let per_patch = per_patch(nodes, &per_node, ctx.patches.patches.len());
-        stages.preview_indirect(ctx, &per_patch, coarse.ambient);
+        let patches = ctx.patches.patches.len();
+        let mut sum = vec![Vec3::ZERO; patches];
+        let mut ambient = Vec3::ZERO;
+        for c in &coarse {
+            let per_node = c.clusters.prolong(&c.solution.indirect);
+            for (s, v) in sum.iter_mut().zip(per_patch(nodes, &per_node, patches)) {
+                *s += v;
+            }
+            ambient += c.ambient;
+        }
+        stages.preview_indirect(ctx, &sum, ambient);
     }
     Ok(coarse)
 }
