@@ -129,7 +129,7 @@ fn points_beside_closed_probes(v: &IrradianceVolume, solution: &Solution<'_>) ->
                 continue;
             }
             let p = v.grid.position(j).lerp(v.grid.position(i), 1.0 / 3.0);
-            if solution.gather(p, 64, 9).back_hits <= 2 {
+            if solution.gather(p, 64, 9, u32::MAX).back_hits <= 2 {
                 points.push(p);
             }
         }
@@ -155,6 +155,24 @@ fn probes_inside_the_blocks_do_not_darken_the_light_beside_them() {
         rays: &rays,
         emitters: &emitters,
     };
+    // A gather stops once its back hits say "inside": where it does not stop it is the full
+    // gather's bits, and where the full gather finds the point inside it stops with fewer
+    // rays at the same verdict.
+    let mut stopped = 0;
+    for i in 0..v.grid.len() {
+        let p = v.grid.position(i);
+        let full = solution.gather(p, 256, 7, u32::MAX);
+        let until = solution.gather(p, 256, 7, 64);
+        if full.back_hits > 64 {
+            assert!(until.stopped && until.back_hits == 65, "{until:?}");
+            assert!(until.rays < full.rays, "{} of {}", until.rays, full.rays);
+            stopped += 1;
+        } else {
+            assert_eq!(until, full);
+        }
+    }
+    println!("{stopped} of {} probe centres stop early", v.grid.len());
+    assert!(stopped > 0);
     let points = points_beside_closed_probes(v, &solution);
     assert!(points.len() >= 10, "{} points", points.len());
     // The path tracer's E/π there, facing up and sideways.

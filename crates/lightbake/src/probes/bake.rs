@@ -96,14 +96,18 @@ pub fn bake_volume(
     )
 }
 
-/// Probe `i`: gathered at its cell's centre, or moved out of the geometry it sits in.
+/// Probe `i`: gathered at its cell's centre, or moved out of the geometry it sits in. A
+/// gather stops once its back hits make the point inside (over [`INSIDE_FRACTION`] of the
+/// rays): a probe deep in a wall traces about a quarter of its rays at each place it tries.
 fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: u32) -> Probe {
     let key = hash_words(&[seed, 0x9b0e, i as u32]);
     let centre = grid.position(i);
-    let g = solution.gather(centre, rays, key);
+    // The most back hits of an open point: more and it is inside.
+    let most_backs = (INSIDE_FRACTION * rays as f32).floor() as u32;
+    let inside = |g: &super::gather::Gathered| g.stopped || g.back_hits > most_backs;
+    let g = solution.gather(centre, rays, key, most_backs);
     let mut spent = g.rays;
-    let inside = |backs: u32| backs as f32 > INSIDE_FRACTION * rays as f32;
-    if !inside(g.back_hits) {
+    if !inside(&g) {
         return Probe {
             sides: g.sides,
             error: g.standard_error,
@@ -120,9 +124,9 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
             break;
         }
         let at = centre + to;
-        let moved = solution.gather(at, rays, hash_words(&[key, k as u32 + 1]));
+        let moved = solution.gather(at, rays, hash_words(&[key, k as u32 + 1]), most_backs);
         spent += moved.rays;
-        if !inside(moved.back_hits) {
+        if !inside(&moved) {
             return Probe {
                 sides: moved.sides,
                 error: moved.standard_error,

@@ -68,12 +68,19 @@ pub struct Gathered {
     pub backs_kept: usize,
     /// Rays traced (gather and shadow rays).
     pub rays: u64,
+    /// Whether the gather stopped early, its back hits over the caller's limit
+    /// ([`Solution::gather`]): then `sides` and `standard_error` are not set.
+    pub stopped: bool,
 }
 
 impl Solution<'_> {
     /// Gathers `n` rays at `origin` (and `n`/4 emitter samples, at least one, when the scene
-    /// has emissive surfaces), numbers keyed by `key`.
-    pub fn gather(&self, origin: Vec3, n: u32, key: u32) -> Gathered {
+    /// has emissive surfaces), numbers keyed by `key`; stopped as soon as more than
+    /// `most_backs` rays have met the back of a single-sided surface (`u32::MAX`: never).
+    /// Such a point is inside a solid whatever the rest would meet, and its light is not
+    /// needed (`stopped`; the nearest back faces are those of the rays traced); a gather that
+    /// does not stop is the same bits whatever `most_backs`.
+    pub fn gather(&self, origin: Vec3, n: u32, key: u32, most_backs: u32) -> Gathered {
         let mut g = Gathered::default();
         let mut rays = Sides::default();
         for k in 0..n {
@@ -82,6 +89,10 @@ impl Solution<'_> {
             if let Some(t) = back {
                 g.back_hits += 1;
                 keep_nearest(&mut g, t, dir);
+                if g.back_hits > most_backs {
+                    g.stopped = true;
+                    return g;
+                }
             }
             // Uniform over the sphere: pdf 1/(4π), so each ray's term is 4π·L·max(0, ω·d),
             // and π of it leaves with the division to E/π.

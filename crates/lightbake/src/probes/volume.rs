@@ -4,10 +4,11 @@
 //! **Inside geometry** (what the volume stage does). A probe whose rays meet the back of single-sided surfaces more than
 //! [`INSIDE_FRACTION`] of the time is inside a solid (a pillar, a thick wall) or under a
 //! floor: its light is not the light a dynamic object there would get, and with trilinear
-//! filtering a black voxel darkens every point within a cell of it. Such a probe is moved
-//! past the nearest back faces it saw (the way out of the solid), at most one cell away, and
-//! gathered there; a probe with no such way out is *filled*: the mean of its open
-//! neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
+//! filtering a black voxel darkens every point within a cell of it. Its gather stops as soon
+//! as its back hits pass that fraction of its rays (the verdict is then certain). Such a
+//! probe is moved past the nearest back faces it saw (the way out of the solid), at most one
+//! cell away, and gathered there; a probe with no such way out is *filled*: the mean of its
+//! open neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
 //!
 //! **Texture layout**, as Bevy 0.20's shader reads it (`irradiance_volume.wesl`): a volume of
 //! resolution (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel
