@@ -129,7 +129,7 @@ fn points_beside_closed_probes(v: &IrradianceVolume, solution: &Solution<'_>) ->
                 continue;
             }
             let p = v.grid.position(j).lerp(v.grid.position(i), 1.0 / 3.0);
-            if solution.gather(p, 64, 9, u32::MAX).back_hits <= 2 {
+            if solution.gather(p, 64, 9, u32::MAX, 0.0).back_hits <= 2 {
                 points.push(p);
             }
         }
@@ -161,8 +161,8 @@ fn probes_inside_the_blocks_do_not_darken_the_light_beside_them() {
     let mut stopped = 0;
     for i in 0..v.grid.len() {
         let p = v.grid.position(i);
-        let full = solution.gather(p, 256, 7, u32::MAX);
-        let until = solution.gather(p, 256, 7, 64);
+        let full = solution.gather(p, 256, 7, u32::MAX, 0.0);
+        let until = solution.gather(p, 256, 7, 64, 0.0);
         if full.back_hits > 64 {
             assert!(until.stopped && until.back_hits == 65, "{until:?}");
             assert!(until.rays < full.rays, "{} of {}", until.rays, full.rays);

@@ -1,13 +1,16 @@
 //! The volume stage: every probe of the grid gathered from the bake's solution
 //! (`super::gather`), probes that sit inside geometry moved to the nearest open point or,
-//! failing that, filled from their neighbours (see [`super::volume`]).
+//! failing that (or enclosed in a sliver between surfaces), filled from their neighbours
+//! (see [`super::volume`]).
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::gather::Solution;
+use super::gather::{Gathered, Solution};
 use super::grid::VolumeGrid;
-use super::volume::{INSIDE_FRACTION, IrradianceVolume, ProbeState, VolumeStats};
+use super::volume::{
+    ENCLOSED_FRACTION, ENCLOSED_REACH, INSIDE_FRACTION, IrradianceVolume, ProbeState, VolumeStats,
+};
 use crate::color::luminance;
 use crate::progress::Progress;
 use crate::sampling::hash_words;
@@ -96,18 +99,47 @@ pub fn bake_volume(
     )
 }
 
+/// What makes a probe's place closed.
+#[derive(Clone, Copy)]
+struct Test {
+    /// The most back hits of an open place.
+    most_backs: u32,
+    /// The reach of the enclosure test, m.
+    near: f32,
+    /// The most hits within `near` of an open place.
+    most_near: u32,
+}
+
+impl Test {
+    /// The test for `rays` rays per probe at `spacing` (m): inside geometry over
+    /// [`INSIDE_FRACTION`] of the rays, enclosed over [`ENCLOSED_FRACTION`].
+    fn new(rays: u32, spacing: f32) -> Self {
+        Test {
+            most_backs: (INSIDE_FRACTION * rays as f32).floor() as u32,
+            near: ENCLOSED_REACH * spacing,
+            most_near: (ENCLOSED_FRACTION * rays as f32).floor() as u32,
+        }
+    }
+
+    /// Whether gather `g` found its place inside geometry (over `most_backs` back hits) or
+    /// enclosed (over `most_near` hits within `near`).
+    fn closed(&self, g: &Gathered) -> bool {
+        g.stopped || g.back_hits > self.most_backs || g.near_hits > self.most_near
+    }
+}
+
 /// Probe `i`: gathered at its cell's centre, or moved out of the geometry it sits in. A
 /// gather stops once its back hits make the point inside (over [`INSIDE_FRACTION`] of the
 /// rays): a probe deep in a wall traces about a quarter of its rays at each place it tries.
+/// A probe enclosed in a sliver between surfaces ([`ENCLOSED_FRACTION`]) saw no back face to
+/// move past: it is left closed, and filled.
 fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: u32) -> Probe {
     let key = hash_words(&[seed, 0x9b0e, i as u32]);
     let centre = grid.position(i);
-    // The most back hits of an open point: more and it is inside.
-    let most_backs = (INSIDE_FRACTION * rays as f32).floor() as u32;
-    let inside = |g: &super::gather::Gathered| g.stopped || g.back_hits > most_backs;
-    let g = solution.gather(centre, rays, key, most_backs);
+    let test = Test::new(rays, grid.spacing);
+    let g = solution.gather(centre, rays, key, test.most_backs, test.near);
     let mut spent = g.rays;
-    if !inside(&g) {
+    if !test.closed(&g) {
         return Probe {
             sides: g.sides,
             error: g.standard_error,
@@ -124,9 +156,10 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
             break;
         }
         let at = centre + to;
-        let moved = solution.gather(at, rays, hash_words(&[key, k as u32 + 1]), most_backs);
+        let key = hash_words(&[key, k as u32 + 1]);
+        let moved = solution.gather(at, rays, key, test.most_backs, test.near);
         spent += moved.rays;
-        if !inside(&moved) {
+        if !test.closed(&moved) {
             return Probe {
                 sides: moved.sides,
                 error: moved.standard_error,

@@ -66,6 +66,9 @@ pub struct Gathered {
     pub nearest_backs: [(f32, Vec3); 8],
     /// How many of `nearest_backs` are set.
     pub backs_kept: usize,
+    /// Rays whose first hit (either side of a surface) was within the caller's `near`
+    /// distance ([`Solution::gather`]).
+    pub near_hits: u32,
     /// Rays traced (gather and shadow rays).
     pub rays: u64,
     /// Whether the gather stopped early, its back hits over the caller's limit
@@ -79,14 +82,18 @@ impl Solution<'_> {
     /// `most_backs` rays have met the back of a single-sided surface (`u32::MAX`: never).
     /// Such a point is inside a solid whatever the rest would meet, and its light is not
     /// needed (`stopped`; the nearest back faces are those of the rays traced); a gather that
-    /// does not stop is the same bits whatever `most_backs`.
-    pub fn gather(&self, origin: Vec3, n: u32, key: u32, most_backs: u32) -> Gathered {
+    /// does not stop is the same bits whatever `most_backs`. Rays that hit anything within
+    /// `near` (m) are counted (`near_hits`).
+    pub fn gather(&self, origin: Vec3, n: u32, key: u32, most_backs: u32, near: f32) -> Gathered {
         let mut g = Gathered::default();
         let mut rays = Sides::default();
         for k in 0..n {
             let dir = uniform_cone(Vec3::Z, -1.0, sobol_02(k, key));
-            let (l, back) = self.radiance(origin, dir, hash_words(&[key, k]), &mut g.rays);
-            if let Some(t) = back {
+            let (l, hit) = self.radiance(origin, dir, hash_words(&[key, k]), &mut g.rays);
+            if hit.is_some_and(|(t, _)| t <= near) {
+                g.near_hits += 1;
+            }
+            if let Some((t, true)) = hit {
                 g.back_hits += 1;
                 keep_nearest(&mut g, t, dir);
                 if g.back_hits > most_backs {
@@ -137,16 +144,23 @@ impl Solution<'_> {
     }
 
     /// The radiance arriving at `origin` from `dir` (see the module docs), and the distance
-    /// to a back face when the ray met one.
-    fn radiance(&self, origin: Vec3, dir: Vec3, key: u32, rays: &mut u64) -> (Vec3, Option<f32>) {
+    /// to what the ray hit, with whether that was the back of a single-sided surface.
+    fn radiance(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        key: u32,
+        rays: &mut u64,
+    ) -> (Vec3, Option<(f32, bool)>) {
         *rays += 1;
         let Some(hit) = self.rays.closest_hit(origin, dir, 0.0, f32::INFINITY) else {
             return (self.scene.sky, None);
         };
         let info = self.rays.triangles[hit.triangle as usize];
         if !hit.front_face && !info.double_sided {
-            return (Vec3::ZERO, Some(hit.t));
+            return (Vec3::ZERO, Some((hit.t, true)));
         }
+        let seen = Some((hit.t, false));
         let normal = if hit.front_face {
             info.normal
         } else {
@@ -163,7 +177,7 @@ impl Solution<'_> {
         // An emitter's own light arrives by next-event estimation ([`Self::gather`]).
         let albedo = albedo_at(self.scene, self.rays, &hit);
         if albedo.max_element() <= 0.0 {
-            return (Vec3::ZERO, None);
+            return (Vec3::ZERO, seen);
         }
         let lightmap = self.lightmap_at(info.instance as usize, info.local as usize, sp.bary);
         // Lights whose direct light the lightmap lacks: all of them without a lightmap, the
@@ -186,7 +200,7 @@ impl Solution<'_> {
             }
         }
         let e_over_pi = lightmap.unwrap_or(Vec3::ZERO) + direct * std::f32::consts::FRAC_1_PI;
-        (albedo * e_over_pi, None)
+        (albedo * e_over_pi, seen)
     }
 
     /// The lightmap's E/π on `triangle` of `instance` at barycentrics `bary`, bilinear as the

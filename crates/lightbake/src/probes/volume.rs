@@ -7,8 +7,9 @@
 //! filtering a black voxel darkens every point within a cell of it. Its gather stops as soon
 //! as its back hits pass that fraction of its rays (the verdict is then certain). Such a
 //! probe is moved past the nearest back faces it saw (the way out of the solid), at most one
-//! cell away, and gathered there; a probe with no such way out is *filled*: the mean of its
-//! open neighbours, repeated outwards, as the lightmap's dilation fills hidden texels.
+//! cell away, and gathered there; a probe with no such way out, or one enclosed in a sliver
+//! between surfaces ([`ENCLOSED_FRACTION`]), is *filled*: the mean of its open neighbours,
+//! repeated outwards, as the lightmap's dilation fills hidden texels.
 //!
 //! **Texture layout**, as Bevy 0.20's shader reads it (`irradiance_volume.wesl`): a volume of
 //! resolution (Rx, Ry, Rz) is a 3D texture of (Rx, 2Ry, 3Rz) texels; side S of voxel
@@ -24,6 +25,17 @@ use super::grid::VolumeGrid;
 
 /// A probe whose rays meet back faces more often than this is inside geometry.
 pub const INSIDE_FRACTION: f32 = 0.25;
+
+/// A probe more than this share of whose rays hit a surface (either side) within
+/// [`ENCLOSED_REACH`] is *enclosed*: in a sliver between surfaces (a floor slab laid a
+/// millimetre over the ground), open by the back-face test but no place a moving object can
+/// be, and as dark as the sliver. It is filled from its neighbours like a probe inside a solid.
+/// A probe on a floor has half its rays within reach, one in a floor's corner with a wall
+/// three quarters.
+pub const ENCLOSED_FRACTION: f32 = 0.75;
+
+/// The reach of [`ENCLOSED_FRACTION`], as a share of the probes' spacing.
+pub const ENCLOSED_REACH: f32 = 0.1;
 
 /// Bytes the volume stage holds per probe at its peak: the gathered probe (its sides, their
 /// errors, where it moved, 128), the voxels and states kept (72 + 16) and the texture laid
