@@ -340,7 +340,8 @@ pub struct GroupReport {
     pub members: Vec<String>,
     /// Wall time of its own lighting and finishing stages, seconds. Not counted: the stages
     /// before them, from the plan to the texel patches, and those its radiosity shares with
-    /// the other groups (its nodes and gathers, marked `[shared]` in the stage table).
+    /// the other groups (its nodes, coarse level and gathers, marked `[shared]` in the stage
+    /// table).
     pub seconds: f64,
     /// Rays its own stages traced (the shared ones not counted).
     pub rays: u64,

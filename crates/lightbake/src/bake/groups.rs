@@ -1,8 +1,8 @@
 //! Light groups in the driver: the lighting and finishing passes once per group
 //! ([`crate::settings::groups`]), over the texel patches, the unwrap and the BVH every group
-//! shares, each group seeing only its own emitters. Their radiosity shares its nodes and the
-//! hierarchical solve's gathers ([`super::group_lighting`]) where the bake runs in one round
-//! and one process. Light adds up, so the bake's own pages and volume are the groups' sum,
+//! shares, each group seeing only its own emitters. Their radiosity shares its nodes, the
+//! hierarchical solve's coarse level and its gathers ([`super::group_lighting`]) where the
+//! bake runs in one round and one process. Light adds up, so the bake's own pages and volume are the groups' sum,
 //! and a game shows any weighted sum of the groups' pages.
 
 use std::time::Instant;
@@ -43,8 +43,8 @@ pub struct GroupPages {
 /// pages, their sum as the bake's pages (and volume) and the estimate of the sum; the floor
 /// calibration, the filled-texel counts and the reports of the radiosity, instant-radiosity
 /// and finishing passes are the first lit group's. Where they can
-/// ([`group_lighting::shares_transport`]) the groups' radiosity shares its nodes and its
-/// gathers' rays.
+/// ([`group_lighting::shares_transport`]) the groups' radiosity shares its nodes, its coarse
+/// level and its gathers' rays.
 pub(super) fn light_groups(
     ctx: &BakeContext<'_>,
     groups: &[GroupMembers],
