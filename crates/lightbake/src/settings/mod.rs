@@ -152,8 +152,8 @@ pub enum ImageFormat {
     /// KTX2, `R16G16B16A16_SFLOAT` (Bevy loads it as `Rgba16Float`).
     Ktx2,
     /// KTX2, BC6H unsigned half float blocks (`lightmap_N.bc6h.ktx2`, 1 byte per texel; Bevy
-    /// loads it as `Bc6hRgbUfloat` on a GPU with BC compression). Instances and charts then
-    /// start on 4×4 blocks.
+    /// loads it as `Bc6hRgbUfloat` on a GPU with BC compression). Every chart then gets 4×4
+    /// blocks of its own and every instance starts on a block.
     Ktx2Bc6h,
 }
 

@@ -3,7 +3,9 @@
 
 use glam::Vec2;
 
-use super::{Density, MeshUnwrap, UvOrigin, xatlas};
+use super::block_pack::pack_items;
+use super::items::{assemble, shrink_to_page};
+use super::{Density, MeshUnwrap, UvOrigin, block_pack, xatlas};
 use crate::error::{BakeError, Result};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
@@ -109,10 +111,9 @@ pub(super) fn xatlas_unwrap(
         max_chart_size: max_page
             .saturating_sub(2 * settings.layout.padding + 2)
             .max(1),
-        // BC6H pages: each chart on its own 4×4 blocks.
-        block_align: settings.formats.ktx2_bc6h,
         ..xatlas::PackOptions::default()
     };
+    let bc6h = settings.formats.ktx2_bc6h;
     let mut scaled = false;
     if fit < 1.0 {
         pack.texels_per_unit *= 0.97 * fit;
@@ -139,20 +140,13 @@ pub(super) fn xatlas_unwrap(
             continue;
         }
         let achieved = pack.texels_per_unit * unit;
-        if scaled {
-            warnings.push(format!(
-                "mesh '{}' needs more than one {max_page}² page at the requested density; baked at {:.0}% of it",
-                mesh.name,
-                100.0 * achieved / tpu
-            ));
-        }
         let (w, h) = (out.width as f32, out.height as f32);
         let uv1 = out
             .vertices
             .iter()
             .map(|v| Vec2::new((v.uv[0] / w).clamp(0.0, 1.0), (v.uv[1] / h).clamp(0.0, 1.0)))
             .collect();
-        return Ok(MeshUnwrap {
+        let mut unwrap = MeshUnwrap {
             width: out.width,
             height: out.height,
             uv1,
@@ -163,9 +157,33 @@ pub(super) fn xatlas_unwrap(
             origin: UvOrigin::Xatlas,
             texels_per_metre: request.texels_per_metre * achieved / request.texels_per_unit,
             scaled_to_fit: scaled,
-        });
+        };
+        if bc6h {
+            // BC6H pages: each chart on blocks of its own, lower when they fit no page.
+            let items = block_pack::chart_items(&unwrap);
+            let (corners, width, height) = pack_items(&items, settings);
+            if width.max(height) > max_page {
+                scaled = true;
+                pack.texels_per_unit *= shrink_to_page(width, height, max_page) as f32;
+                continue;
+            }
+            let same = Density {
+                texels_per_unit: 1.0,
+                texels_per_metre: unwrap.texels_per_metre,
+            };
+            unwrap = assemble(mesh, &items, &corners, width, height, same, 1.0);
+            unwrap.scaled_to_fit = scaled;
+        }
+        if scaled {
+            warnings.push(format!(
+                "mesh '{}' needs more than one {max_page}² page at the requested density; baked at {:.0}% of it",
+                mesh.name,
+                100.0 * achieved / tpu
+            ));
+        }
+        return Ok(unwrap);
     }
-    if pack.block_align {
+    if bc6h {
         // Charts on their own 4×4 blocks fit no page: pack them as for the other formats, and
         // say so.
         let mut plain = settings.clone();

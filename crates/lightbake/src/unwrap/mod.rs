@@ -2,7 +2,8 @@
 //!
 //! Each mesh gets its own lightmap rectangle of `width × height` texels, with `TEXCOORD_1` in
 //! [0, 1]² spanning it: xatlas segments, parameterises and packs its charts (with `padding`
-//! texels between them), or the mesh's own `TEXCOORD_1` is kept after validation. Every baked
+//! texels between them; for BC6H pages they are packed again on 4×4 blocks of their own,
+//! [`block_pack`]), or the mesh's own `TEXCOORD_1` is kept after validation. Every baked
 //! *instance* of the mesh then gets a copy of that rectangle on an atlas page; Bevy's
 //! `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves every
 //! instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
@@ -12,7 +13,9 @@
 //! units; its centre is at uv ((x + ½)/W, (y + ½)/H); v grows downwards in the image.
 
 mod atlas;
+mod block_pack;
 mod existing;
+mod items;
 mod pack;
 mod pieces;
 mod rescale;

@@ -12,7 +12,8 @@
 //! 2. **Pieces**: the other triangles are split by a k-d partition of their centroids into
 //!    pieces of at most [`PIECE_TRIANGLES`], and xatlas unwraps each piece on its own.
 //! 3. The charts and the pieces' atlases are shelf-packed into the mesh's rectangle, with the
-//!    padding between them; the density is lowered until the rectangle fits a page.
+//!    padding between them (for BC6H pages every chart is packed on blocks of its own,
+//!    [`super::block_pack`]); the density is lowered until the rectangle fits a page.
 //!
 //! Chart borders between tiles and pieces are seams like xatlas' own, which the stitch stage
 //! makes agree.
@@ -21,7 +22,9 @@ use std::collections::HashMap;
 
 use glam::{DVec3, Vec2};
 
-use super::{Density, MeshUnwrap, UvOrigin, xatlas};
+use super::block_pack::{self, pack_items};
+use super::items::{Item, assemble, shrink_to_page};
+use super::{Density, MeshUnwrap, xatlas};
 use crate::error::{BakeError, Result};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
@@ -39,17 +42,6 @@ pub(super) const MIN_PLANAR: usize = 64;
 
 /// cos 0.5°: normals of one planar region agree this closely.
 const PLANAR_COS: f64 = 0.999_961_923;
-
-/// One rectangle to pack: its local vertices (source vertex, position in texels from the
-/// rectangle's corner) and triangles (source triangle, local vertices, local chart).
-#[derive(Default)]
-pub(super) struct Item {
-    pub(super) width: u32,
-    pub(super) height: u32,
-    pub(super) vertices: Vec<(u32, Vec2)>,
-    pub(super) triangles: Vec<(u32, [u32; 3], u32)>,
-    pub(super) charts: u32,
-}
 
 /// Unit face normals (zero for degenerate triangles) and each vertex's position class
 /// (vertices at the same position share one), in f64.
@@ -316,8 +308,6 @@ fn xatlas_item(
         texels_per_unit: (tpu / unit as f64) as f32,
         padding: settings.layout.padding,
         max_chart_size: max_chart,
-        // BC6H pages: each chart on its own 4×4 blocks.
-        block_align: settings.formats.ktx2_bc6h,
         ..xatlas::PackOptions::default()
     };
     let out = xatlas::generate(&input, &xatlas::ChartOptions::default(), &pack).map_err(|e| {
@@ -358,52 +348,6 @@ fn xatlas_item(
     Ok(item)
 }
 
-/// Shelf-packs items (tallest first) with `gap` texels between them, each starting on a
-/// multiple of `block` texels (4 for BC6H pages, else 1); returns each item's corner and the
-/// rectangle's size.
-pub(super) fn pack(
-    items: &[Item],
-    gap: u32,
-    block: u32,
-    max_page: u32,
-) -> (Vec<(u32, u32)>, u32, u32) {
-    let up = |v: u32| v.next_multiple_of(block);
-    let mut order: Vec<usize> = (0..items.len()).collect();
-    order.sort_by(|&a, &b| items[b].height.cmp(&items[a].height).then(a.cmp(&b)));
-    let area: f64 = items
-        .iter()
-        .map(|i| (i.width + gap) as f64 * (i.height + gap) as f64)
-        .sum();
-    let widest = items.iter().map(|i| i.width).max().unwrap_or(1);
-    let shelf_width = (area.sqrt().ceil() as u32)
-        .max(widest)
-        .min(max_page.max(widest));
-    let mut corners = vec![(0, 0); items.len()];
-    let (mut x, mut y, mut shelf_h, mut width) = (0u32, 0u32, 0u32, 0u32);
-    for i in order {
-        let it = &items[i];
-        if x > 0 && x + it.width > shelf_width {
-            y += up(shelf_h + gap);
-            x = 0;
-            shelf_h = 0;
-        }
-        corners[i] = (x, y);
-        width = width.max(x + it.width);
-        x += up(it.width + gap);
-        shelf_h = shelf_h.max(it.height);
-    }
-    (corners, width.max(1), (y + shelf_h).max(1))
-}
-
-/// The factor on the density that should bring a `width × height` shelf packing into a
-/// `max_page`² page. Shelves wrap at the page's width, so the area tells the scale better than
-/// the longer side (which only bounds it); 3% is taken off so the next attempt fits.
-pub(super) fn shrink_to_page(width: u32, height: u32, max_page: u32) -> f64 {
-    let (w, h, page) = (width as f64, height as f64, max_page as f64);
-    let by_area = (page * page / (w * h)).sqrt().min(1.0);
-    0.97 * by_area.max(page / w.max(h))
-}
-
 /// Charts a mesh in pieces (see the module docs) at the density `request` asks for, lowered
 /// until the mesh fits a page; planar regions of at least `min_planar` triangles (or whole
 /// loose parts) are charted directly.
@@ -438,7 +382,7 @@ pub(super) fn unwrap_in_pieces(
         .saturating_sub(2 * settings.layout.padding + 2)
         .max(1);
     let gap = settings.layout.padding + 1;
-    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
+    let bc6h = settings.formats.ktx2_bc6h;
     let requested = request.texels_per_unit as f64;
     let mut tpu = requested;
     for _attempt in 0..8 {
@@ -469,7 +413,11 @@ pub(super) fn unwrap_in_pieces(
                 ),
             });
         }
-        let (corners, width, height) = pack(&items, gap, block, max_page);
+        // BC6H pages: each chart on blocks of its own.
+        if bc6h {
+            items = items.iter().flat_map(block_pack::split_charts).collect();
+        }
+        let (corners, width, height) = pack_items(&items, settings);
         if width.max(height) > max_page {
             tpu *= shrink_to_page(width, height, max_page);
             continue;
@@ -485,7 +433,7 @@ pub(super) fn unwrap_in_pieces(
             mesh, &items, &corners, width, height, request, tpu,
         ));
     }
-    if block > 1 {
+    if bc6h {
         // Charts on their own 4×4 blocks fit no page: pack them as for the other formats, and
         // say so.
         let mut plain = settings.clone();
@@ -501,58 +449,6 @@ pub(super) fn unwrap_in_pieces(
         mesh: mesh.name.clone(),
         message: format!("could not fit the mesh on a {max_page}² page"),
     })
-}
-
-/// The mesh's unwrap from its packed items: output vertices item by item, source triangle
-/// order kept, charts numbered across items.
-pub(super) fn assemble(
-    mesh: &Mesh,
-    items: &[Item],
-    corners: &[(u32, u32)],
-    width: u32,
-    height: u32,
-    request: Density,
-    tpu: f64,
-) -> MeshUnwrap {
-    let size = Vec2::new(width as f32, height as f32);
-    let mut uv1 = Vec::new();
-    let mut xref = Vec::new();
-    let mut indices = vec![0u32; 3 * mesh.triangle_count()];
-    let mut triangle_charts = vec![u32::MAX; mesh.triangle_count()];
-    let mut chart_base = 0u32;
-    for (item, &(x, y)) in items.iter().zip(corners) {
-        let base = uv1.len() as u32;
-        let offset = Vec2::new(x as f32, y as f32);
-        for &(src, p) in &item.vertices {
-            uv1.push(((p + offset) / size).clamp(Vec2::ZERO, Vec2::ONE));
-            xref.push(src);
-        }
-        for &(t, corners, chart) in &item.triangles {
-            let t = t as usize;
-            for k in 0..3 {
-                indices[3 * t + k] = base + corners[k];
-            }
-            triangle_charts[t] = if chart == u32::MAX {
-                u32::MAX
-            } else {
-                chart_base + chart
-            };
-        }
-        chart_base += item.charts;
-    }
-    let scale = tpu / request.texels_per_unit as f64;
-    MeshUnwrap {
-        width,
-        height,
-        uv1,
-        xref: Some(xref),
-        indices,
-        triangle_charts,
-        chart_count: chart_base,
-        origin: UvOrigin::Xatlas,
-        texels_per_metre: (request.texels_per_metre as f64 * scale) as f32,
-        scaled_to_fit: scale < 1.0,
-    }
 }
 
 #[cfg(test)]

@@ -3,15 +3,17 @@
 //!
 //! Each chart of an xatlas unwrap keeps its shape: its texel-space vertices are scaled about
 //! their lower corner by the chart's factor, moved to start half a texel in (so its texels are
-//! whole, as for [`super::pieces`]' charts) and the charts are shelf-packed into a new
-//! rectangle with the padding between them. When the rectangle would not fit a page, every
-//! chart is scaled down together until it does.
+//! whole, as for [`super::pieces`]' charts) and the charts are packed into a new rectangle
+//! with the padding between them (shelves, or blocks of their own for BC6H pages:
+//! [`super::block_pack`]). When the rectangle would not fit a page, every chart is scaled
+//! down together until it does.
 
 use std::collections::HashMap;
 
 use glam::Vec2;
 
-use super::pieces::{Item, assemble, pack, shrink_to_page};
+use super::block_pack::pack_items;
+use super::items::{Item, assemble, shrink_to_page};
 use super::{Density, MeshUnwrap, UvOrigin};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
@@ -39,8 +41,6 @@ pub(crate) fn rescale_charts(
         let c = unwrap.triangle_charts[t] as usize;
         members[c.min(charts)].push((t as u32, corners));
     }
-    let gap = settings.layout.padding + 1;
-    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
     let max_page = settings.layout.max_page_size;
     let mut fit = 1.0f32;
     for _attempt in 0..8 {
@@ -59,7 +59,7 @@ pub(crate) fn rescale_charts(
                 )
             })
             .collect();
-        let (corners, width, height) = pack(&items, gap, block, max_page);
+        let (corners, width, height) = pack_items(&items, settings);
         if width.max(height) > max_page {
             fit *= shrink_to_page(width, height, max_page) as f32;
             continue;
