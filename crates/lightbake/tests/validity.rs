@@ -30,7 +30,8 @@ fn house() -> Scene {
 /// Points of `p`'s footprint seen from a room, by this test's own check (not the baker's):
 /// of 16 random points of the texel square that lie on the surface, those from which at most an
 /// eighth of 32 cosine-distributed rays meet the back of a single-sided surface (a point
-/// inside a solid meets backs in every direction, a point in a room none).
+/// inside a solid meets backs in every direction, a point in a room none) and nothing lies
+/// within a texel straight above (a point pressed under a rug or a slab is not seen).
 fn visible_points(prep: &Prepared, surface: &Surface<'_>, p: &Patch) -> Vec<SurfacePoint> {
     let Some(rect) = prep.layout.instances[p.instance as usize] else {
         return Vec::new();
@@ -50,6 +51,12 @@ fn visible_points(prep: &Prepared, surface: &Surface<'_>, p: &Patch) -> Vec<Surf
         })
         .filter(|sp| {
             let origin = prep.rays.offset(sp.position, sp.geometric_normal);
+            let above = prep
+                .rays
+                .closest_hit(origin, sp.geometric_normal, 0.0, p.texel_size);
+            if above.is_some() {
+                return false;
+            }
             let backs = (0..32u32)
                 .filter(|&k| {
                     let dir = cosine_hemisphere(sp.geometric_normal, sobol_02(k, key));

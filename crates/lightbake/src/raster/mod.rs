@@ -12,6 +12,7 @@
 //! [`persist`] writes the patches to bytes and reads them back (for bakes split across
 //! processes).
 
+mod covered;
 pub mod footprint;
 mod open_plane;
 pub mod persist;
@@ -136,8 +137,9 @@ pub struct Patches {
     pub page_index: Vec<Vec<u32>>,
     /// Patches whose point was moved out of geometry.
     pub moved: usize,
-    /// Patches whose centre is hidden (inside or behind geometry) but whose footprint is
-    /// partly open surface: their point moved to the open part (counted in `moved` too).
+    /// Patches whose centre is hidden (inside or behind geometry, or in a gap thinner than a
+    /// texel) but whose footprint is partly open surface: their point moved to the open part
+    /// (counted in `moved` too).
     pub rescued: usize,
     /// Patches marked invalid: no point of their footprint is open surface (*hidden*).
     pub invalid: usize,

@@ -11,7 +11,9 @@
 //! (*visible but unlit*: zero when the first search is dense enough). Patches with geometry
 //! that close are flagged [`Patch::NEAR_GEOMETRY`], and footprint samples of such patches are
 //! only used when they see the representative point (so a texel straddling a thin wall does
-//! not mix in light from the far side).
+//! not mix in light from the far side). A texel whose point has a surface over it within a
+//! texel (under a rug) is then lit from the open part of its footprint where it has one
+//! ([`super::covered`]).
 //!
 //! Most texels of a level lie in the open middle of a floor or a wall, where the short probes
 //! (along the surface and along the normal, within 1.5 texels) cannot hit anything: a query of
@@ -36,7 +38,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::footprint::{Gap, gap_probe};
+use super::footprint::gap_probe;
 use super::open_plane::{footprint_beside, short_probes_meet_nothing};
 use super::{Patch, Patches, Surface, SurfacePoint};
 use crate::bvh::RayScene;
@@ -204,6 +206,12 @@ const OPEN_BACK: u32 = HEMISPHERE_RAYS / 4;
 /// hidden texels: an eighth of it. The margin to [`OPEN_BACK`] keeps points that are open to
 /// one fan and closed to the next out of the count.
 const CLEARLY_OPEN_BACK: u32 = HEMISPHERE_RAYS / 8;
+
+/// Whether a point at `at` with geometric normal `g` is open surface by the test a texel's
+/// centre takes ([`is_open`] with at most [`OPEN_BACK`] back faces).
+pub(super) fn open_surface(at: (Vec3, Vec3), key: u32, rays: &RayScene, used: &mut u64) -> bool {
+    matches!(is_open(at, key, rays, OPEN_BACK, used), Openness::Open)
+}
 
 /// Whether a point at `at` with geometric normal `g` is open surface: at most `max_back` rays
 /// of a cosine fan of [`HEMISPHERE_RAYS`] (scrambled by `key`: each point of a footprint its
@@ -403,24 +411,9 @@ impl Patches {
         for i in mark {
             self.patches[i].flags |= Patch::NEAR_GEOMETRY;
         }
-        // Representative points in a gap thinner than a texel (under a rug).
-        let covered: Vec<(bool, u64)> = self
-            .patches
-            .par_iter()
-            .map(|p| {
-                if !p.is_valid() || p.flags & Patch::NEAR_GEOMETRY == 0 {
-                    return (false, 0);
-                }
-                let gap = gap_probe(rays, &p.representative(), p.texel_size);
-                (gap == Gap::Covered, 1)
-            })
-            .collect();
-        for (p, (c, used)) in self.patches.iter_mut().zip(covered) {
-            if c {
-                p.flags |= Patch::COVERED;
-            }
-            self.ray_steps.near += used;
-        }
+        // Representative points in a gap thinner than a texel (under a rug), moved to open
+        // surface in their footprint where it has some (`covered.rs`).
+        self.ray_steps.near += self.settle_covered(layout, &surface, rays);
         // 3. The area of a patch near geometry: the visible share of its footprint.
         let shares: Vec<(f32, u64)> = self
             .patches
@@ -613,7 +606,7 @@ impl Patches {
 
     /// Points of `p`'s footprint on the surface, with their index: stratified points `range`
     /// of the sequence scrambled by `key`, from the texel's centre outwards.
-    fn footprint_points(
+    pub(super) fn footprint_points(
         &self,
         p: &Patch,
         (layout, surface): (&Layout, &Surface<'_>),
