@@ -176,15 +176,18 @@ fn every_way_of_charting_keeps_each_block_to_one_chart() {
         (common::corpus_scene("assimp/teapots.gltf"), 24.0),
         (pieces, 40.0),
     ] {
-        let s = settings(2, None);
-        let layout = unwrap_scene(&scene, &s, density).unwrap();
-        layout.validate().unwrap();
-        assert_blocks_hold_one_chart(&scene, &layout);
-        // And the charts still keep the padding between them.
-        let baked = layout.apply(&scene);
-        let rays = lightbake::bvh::RayScene::build(&baked);
-        Patches::build(&baked, &layout, &rays)
-            .validate(&layout, s.layout.padding)
-            .unwrap();
+        // At the default padding and others: the charts keep the padding between them.
+        for padding in [2, 1, 3, 4] {
+            let mut s = settings(2, None);
+            s.layout.padding = padding;
+            let layout = unwrap_scene(&scene, &s, density).unwrap();
+            layout.validate().unwrap();
+            assert_blocks_hold_one_chart(&scene, &layout);
+            let baked = layout.apply(&scene);
+            let rays = lightbake::bvh::RayScene::build(&baked);
+            Patches::build(&baked, &layout, &rays)
+                .validate(&layout, padding)
+                .unwrap_or_else(|e| panic!("{} at padding {padding}: {e}", scene.name));
+        }
     }
 }

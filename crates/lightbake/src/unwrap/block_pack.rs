@@ -8,8 +8,8 @@
 //! 1. **What a chart reads.** Bilinear filtering at a point `p` of the chart reads the texels
 //!    whose centres lie within one texel of `p` on each axis. A texel is the chart's when a
 //!    triangle of the chart meets the open square of half-width [`reach`] around its centre
-//!    (a separating-axis test): at least 1, the bilinear footprint, and wider with the padding
-//!    so that the charts' covered texels keep it between them.
+//!    (a separating-axis test): wider than the bilinear footprint (1), so that the charts'
+//!    covered texels keep the padding between them.
 //! 2. **Its blocks.** Those texels, moved by a whole number of texels (so the chart's
 //!    sampling is unchanged), fall on a set of 4×4 blocks. A small chart tries the 16 offsets
 //!    within a block and keeps the one that needs the fewest blocks; a large one starts its
@@ -27,10 +27,12 @@ use super::items::{Item, shelf_pack};
 use crate::settings::BakeSettings;
 
 /// Half-width of the square around a texel's centre that a chart must meet to own the texel,
-/// texels: `(padding + 1) / 2`, at least 1 (the bilinear footprint). Two charts that own no
-/// texel in common then have `padding` texels between the texels they cover.
+/// texels: `⌈padding / 2⌉ + 1` (2 at the default padding of 2; bilinear filtering reads within
+/// 1). Two charts that own no texel in common then keep `padding` empty texels between the
+/// texels they touch, however their edges fall between texel centres (a chart ending exactly
+/// on a texel's edge touches that texel).
 pub(super) fn reach(padding: u32) -> f32 {
-    ((padding as f32 + 1.0) / 2.0).max(1.0)
+    (padding.div_ceil(2) + 1) as f32
 }
 
 /// Charts of at most this many texels in their read box try all 16 offsets in a block.
