@@ -168,7 +168,7 @@ fn volumes(c: &mut Criterion) {
         let out = lightbake::bake(&scene, &settings, &Progress::new()).expect("bake");
         let density = out.report.plan.texel_density;
         let auto = AutoSpacing::of_texels(density);
-        let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, &auto)
+        let grid = VolumeGrid::plan(&out.baked_scene, &out.layout, &settings, &auto, None)
             .expect("grid")
             .expect("baked instances");
         // One volume over the scene (each of these is one room).

@@ -146,34 +146,27 @@ fn probes_inside_the_blocks_do_not_darken_the_light_beside_them() {
     println!("{stats:?}");
     assert!(stats.moved + stats.filled > 0, "{stats:?}");
     assert_eq!(stats.unfilled, 0);
-    let rays = RayScene::build(&out.baked_scene);
-    let emitters = lightbake::lights::Emitters::collect(&out.baked_scene, &rays);
-    let solution = Solution {
-        scene: &out.baked_scene,
-        layout: &out.layout,
-        pages: &out.pages,
-        rays: &rays,
-        emitters: &emitters,
-    };
     // A gather stops once its back hits say "inside": where it does not stop it is the full
     // gather's bits, and where the full gather finds the point inside it stops with fewer
     // rays at the same verdict.
     let mut stopped = 0;
-    for i in 0..v.grid.len() {
-        let p = v.grid.position(i);
-        let full = solution.gather(p, 256, 7, u32::MAX, 0.0);
-        let until = solution.gather(p, 256, 7, 64, 0.0);
-        if full.back_hits > 64 {
-            assert!(until.stopped && until.back_hits == 65, "{until:?}");
-            assert!(until.rays < full.rays, "{} of {}", until.rays, full.rays);
-            stopped += 1;
-        } else {
-            assert_eq!(until, full);
+    let points = common::with_solution(&out, |solution| {
+        for i in 0..v.grid.len() {
+            let p = v.grid.position(i);
+            let full = solution.gather(p, 256, 7, u32::MAX, 0.0);
+            let until = solution.gather(p, 256, 7, 64, 0.0);
+            if full.back_hits > 64 {
+                assert!(until.stopped && until.back_hits == 65, "{until:?}");
+                assert!(until.rays < full.rays, "{} of {}", until.rays, full.rays);
+                stopped += 1;
+            } else {
+                assert_eq!(until, full);
+            }
         }
-    }
+        points_beside_closed_probes(v, solution)
+    });
     println!("{stopped} of {} probe centres stop early", v.grid.len());
     assert!(stopped > 0);
-    let points = points_beside_closed_probes(v, &solution);
     assert!(points.len() >= 10, "{} points", points.len());
     // The path tracer's E/π there, facing up and sideways.
     let normals = [Vec3::Y, Vec3::X, Vec3::NEG_X, Vec3::Z, Vec3::NEG_Z];

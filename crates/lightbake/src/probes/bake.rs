@@ -148,14 +148,41 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
             rays: spent,
         };
     }
-    // Out past the nearest back faces it saw, nearest first, within one cell.
+    // Out past the nearest back faces it saw, within one cell: those into the volume's room
+    // first, each kind nearest first.
     let margin = (0.05 * grid.spacing).max(16.0 * solution.rays.epsilon(centre));
-    for (k, &(t, dir)) in g.nearest_backs[..g.backs_kept].iter().enumerate() {
-        let to = dir * (t + margin);
-        if to.length() > grid.spacing {
-            break;
+    let mut places: Vec<(usize, Vec3)> = (g.nearest_backs[..g.backs_kept].iter())
+        .map(|&(t, dir)| dir * (t + margin))
+        .take_while(|to| to.length() <= grid.spacing)
+        .map(|to| centre + to)
+        .enumerate()
+        .collect();
+    // Then out past each back face towards the room's centre (solids overlapping at a corner
+    // have several), within one cell: a probe in a façade cut at its outer face sees the
+    // near, outer face first, and the sky is behind it.
+    {
+        let home = grid.rotation * (0.5 * (grid.room[0] + grid.room[1]));
+        let dir = (home - centre).normalize_or_zero();
+        let mut from = 0.0;
+        for k in 0..g.nearest_backs.len() {
+            let Some(hit) = (dir != Vec3::ZERO)
+                .then(|| solution.rays.closest_hit(centre, dir, from, grid.spacing))
+                .flatten()
+            else {
+                break;
+            };
+            from = hit.t + margin;
+            let info = solution.rays.triangles[hit.triangle as usize];
+            if from > grid.spacing {
+                break;
+            }
+            if !hit.front_face && !info.double_sided {
+                places.push((g.nearest_backs.len() + k, centre + dir * from));
+            }
         }
-        let at = centre + to;
+    }
+    places.sort_by_key(|&(k, at)| (!grid.in_room(at, 0.0), k));
+    for (k, at) in places {
         let key = hash_words(&[key, k as u32 + 1]);
         let moved = solution.gather(at, rays, key, test.most_backs, test.near);
         spent += moved.rays;

@@ -1,12 +1,13 @@
 //! Where an irradiance volume's probes go: a box over the baked instances, cut into cubic
 //! cells of one spacing, a probe at each cell's centre (where Bevy's `IrradianceVolume`
 //! samples its voxels: the texture is stretched over the unit cube, texel centres at
-//! (i + ½)/R).
+//! (i + ½)/R). Where the level has floors, one layer of probes is set [`FLOOR_LIFT`] of a
+//! spacing over the main one ([`VolumeGrid::on_floors`]).
 
 use glam::{Quat, UVec3, Vec3};
 use serde::Serialize;
 
-use super::headroom::{ROOFED_SHARE, headroom};
+use super::headroom::{Floors, ROOFED_SHARE, headroom};
 use crate::error::{BakeError, Result};
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -32,6 +33,11 @@ pub const MAX_PROBES: u64 = 1 << 20;
 /// `max_texture_dimension_3d`): the texture is (Rx, 2·Ry, 3·Rz) texels.
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
 
+/// Height of a volume's layer of probes over the floor it is set on, in spacings: a moving
+/// object's feet take the light of that floor, not of probes half a spacing up or, below
+/// them, in the slab (`tests/volume_regions.rs`).
+pub const FLOOR_LIFT: f32 = 0.25;
+
 /// The probe grid of one volume.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct VolumeGrid {
@@ -53,6 +59,12 @@ pub struct VolumeGrid {
     /// which the volume's weight ramps from 0 at the box's faces to 1 inside, so that
     /// overlapping neighbours blend. Zero: no ramp (a volume alone).
     pub falloff: Vec3,
+    /// The part of the box the volume is for, in the box's frame (lower and upper corner,
+    /// m): its room, before the box grew past the cuts to overlap its neighbours; the bounds
+    /// it was planned over for a volume alone. A probe inside a wall is moved out on this
+    /// side of it where it can be (`super::bake`): out past a façade it would carry the sky
+    /// into the room.
+    pub room: [Vec3; 2],
 }
 
 /// The spacing a volume's probes want when `volume.probe_spacing` is not set: the finer of
@@ -114,6 +126,7 @@ impl VolumeGrid {
         layout: &Layout,
         settings: &BakeSettings,
         auto: &AutoSpacing,
+        floors: Option<Floors>,
     ) -> Result<Option<Self>> {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -127,11 +140,12 @@ impl VolumeGrid {
         if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
             return Ok(None);
         }
-        Self::for_bounds(lo, hi, settings.volume.probe_spacing, auto).map(Some)
+        Self::for_bounds(lo, hi, settings.volume.probe_spacing, auto, floors).map(Some)
     }
 
     /// The grid over `[lo, hi]` at `spacing`, or (`None`) at `auto`'s, widened to
-    /// [`MAX_AUTO_PROBES`].
+    /// [`MAX_AUTO_PROBES`]; with `floors`, a layer of probes [`FLOOR_LIFT`] spacings over the
+    /// main floor and the box reaching down to the lowest (see [`Self::on_floors`]).
     ///
     /// # Errors
     /// As [`Self::plan`].
@@ -140,10 +154,12 @@ impl VolumeGrid {
         hi: Vec3,
         spacing: Option<f32>,
         auto: &AutoSpacing,
+        floors: Option<Floors>,
     ) -> Result<Self> {
-        match spacing {
+        let over = |s: f32, reason: String| Self::on_floors(lo, hi, s, floors, reason);
+        let mut grid = match spacing {
             Some(s) => {
-                let grid = Self::over(lo, hi, s, format!("{s} m (volume.probe_spacing)"));
+                let grid = over(s, format!("{s} m (volume.probe_spacing)"));
                 if let Some(why) = grid.too_large(MAX_PROBES) {
                     return Err(BakeError::BadSetting {
                         name: "volume.probe_spacing",
@@ -156,15 +172,15 @@ impl VolumeGrid {
                         ),
                     });
                 }
-                Ok(grid)
+                grid
             }
             None => {
                 let wanted = auto.spacing;
                 let mut s = wanted;
-                let mut grid = Self::over(lo, hi, s, String::new());
+                let mut grid = over(s, String::new());
                 while grid.too_large(MAX_AUTO_PROBES).is_some() {
                     s *= 1.05;
-                    grid = Self::over(lo, hi, s, String::new());
+                    grid = over(s, String::new());
                 }
                 grid.reason = if s == wanted {
                     auto.reason.clone()
@@ -174,9 +190,18 @@ impl VolumeGrid {
                         auto.reason
                     )
                 };
-                Ok(grid)
+                grid
             }
+        };
+        if let Some(f) = floors.filter(|f| (lo.y..=hi.y).contains(&f.main)) {
+            grid.reason = format!(
+                "{}; a layer {:.3e} m over the floor at y = {:.3e} m",
+                grid.reason,
+                FLOOR_LIFT * grid.spacing,
+                f.main
+            );
         }
+        Ok(grid)
     }
 
     /// The grid of cubic cells of edge `spacing` over `[lo, hi]`: at least two probes per
@@ -196,7 +221,34 @@ impl VolumeGrid {
             reason,
             rotation: Quat::IDENTITY,
             falloff: Vec3::ZERO,
+            room: [lo, hi],
         }
+    }
+
+    /// [`Self::over`] with its layers set on `floors` (when the main floor lies in
+    /// `[lo, hi]`): one layer [`FLOOR_LIFT`] spacings over the main floor, the box reaching
+    /// down to the lowest floor (or `lo`, if that is higher) and up to `hi`. Without it the
+    /// layers fall wherever the box's rounding puts them: at 0.75 m in an office, on the
+    /// floor itself and at desk height.
+    pub fn on_floors(
+        lo: Vec3,
+        hi: Vec3,
+        spacing: f32,
+        floors: Option<Floors>,
+        reason: String,
+    ) -> Self {
+        let mut grid = Self::over(lo, hi, spacing, reason);
+        let Some(f) = floors.filter(|f| (lo.y..=hi.y).contains(&f.main)) else {
+            return grid;
+        };
+        let face = f.main + (FLOOR_LIFT - 0.5) * spacing;
+        let bottom = f.lowest.clamp(lo.y, f.main);
+        let min = face - ((face - bottom) / spacing).ceil().max(0.0) * spacing;
+        let cells = (((hi.y - min) / spacing).ceil() as u32).max(2);
+        grid.min.y = min;
+        grid.max.y = min + cells as f32 * spacing;
+        grid.resolution.y = cells;
+        grid
     }
 
     /// Why the grid cannot be a texture of at most `max_probes` probes, if it cannot.
@@ -264,6 +316,12 @@ impl VolumeGrid {
         self.rotation.inverse() * (world - centre) / size
     }
 
+    /// Whether `world` lies in the volume's [`Self::room`] (within `margin` m of it).
+    pub fn in_room(&self, world: Vec3, margin: f32) -> bool {
+        let p = self.rotation.inverse() * world;
+        (p.cmpge(self.room[0] - margin) & p.cmple(self.room[1] + margin)).all()
+    }
+
     /// The weight Bevy gives this volume at `world` (`light_probe.wesl`): per axis, a ramp
     /// from 0 at the box's face to 1 at [`Self::falloff`] of its size inside; the least of
     /// the three. 0 outside the box.
@@ -278,6 +336,46 @@ impl VolumeGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_layer_is_set_on_the_floor() {
+        // A room 3.3 m high over a 0.3 m slab, probes 0.75 m apart: a layer 0.1875 m over its
+        // floor (centred on its bounds, the layers fall at 0.0 and 0.75: on the floor and at
+        // desk height).
+        let (lo, hi) = (Vec3::new(0.0, -0.3, 0.0), Vec3::new(6.0, 3.3, 5.0));
+        let floors = Floors {
+            main: 0.0,
+            lowest: 0.0,
+        };
+        let centred = VolumeGrid::over(lo, hi, 0.75, String::new());
+        assert!((centred.position(0).y - 0.0).abs() < 1e-5);
+        let g = VolumeGrid::on_floors(lo, hi, 0.75, Some(floors), String::new());
+        assert!((g.position(0).y - 0.1875).abs() < 1e-5, "{g:?}");
+        // The box reaches from a quarter spacing under the floor to over the top.
+        assert!((g.min.y + 0.1875).abs() < 1e-5 && g.max.y >= hi.y, "{g:?}");
+        assert_eq!((g.min.x, g.max.x), (centred.min.x, centred.max.x));
+        // A lower floor (a sunken part of the room) pulls the box down with it, on the same
+        // layers.
+        let sunken = Floors {
+            main: 0.0,
+            lowest: -0.3,
+        };
+        let g = VolumeGrid::on_floors(lo, hi, 0.75, Some(sunken), String::new());
+        assert!(g.min.y <= -0.3 && g.min.y > -0.3 - 0.75, "{g:?}");
+        assert!(
+            (g.position(g.index(0, 1, 0)).y - 0.1875).abs() < 1e-5,
+            "{g:?}"
+        );
+        // A floor outside the bounds sets nothing.
+        let above = Floors {
+            main: 5.0,
+            lowest: 5.0,
+        };
+        assert_eq!(
+            VolumeGrid::on_floors(lo, hi, 0.75, Some(above), String::new()),
+            centred
+        );
+    }
 
     #[test]
     fn probes_sit_at_cell_centres_inside_the_box() {
@@ -331,19 +429,19 @@ mod tests {
     fn the_spacing_follows_the_density_and_widens_to_the_budget() {
         let (lo, hi) = (Vec3::ZERO, Vec3::new(8.0, 3.0, 6.0));
         // 32 texels/m: 16 texels = 0.5 m, 16 × 6 × 12 probes.
-        let g = VolumeGrid::for_bounds(lo, hi, None, &AutoSpacing::of_texels(32.0)).unwrap();
+        let g = VolumeGrid::for_bounds(lo, hi, None, &AutoSpacing::of_texels(32.0), None).unwrap();
         assert_eq!(g.spacing, 0.5);
         assert_eq!(g.resolution, UVec3::new(16, 6, 12));
         assert!(g.reason.starts_with("16 texels"), "{}", g.reason);
         // 400 texels/m would be 200 × 75 × 150 probes: widened to the budget.
         let fine = AutoSpacing::of_texels(400.0);
-        let g = VolumeGrid::for_bounds(lo, hi, None, &fine).unwrap();
+        let g = VolumeGrid::for_bounds(lo, hi, None, &fine, None).unwrap();
         assert!(g.len() as u64 <= MAX_AUTO_PROBES && g.len() as u64 > MAX_AUTO_PROBES / 2);
         assert!(g.reason.contains("widened"), "{}", g.reason);
         // An explicit spacing is kept, or refused by name.
-        let g = VolumeGrid::for_bounds(lo, hi, Some(0.25), &fine).unwrap();
+        let g = VolumeGrid::for_bounds(lo, hi, Some(0.25), &fine, None).unwrap();
         assert_eq!(g.resolution, UVec3::new(32, 12, 24));
-        let e = VolumeGrid::for_bounds(lo, hi, Some(0.01), &fine).unwrap_err();
+        let e = VolumeGrid::for_bounds(lo, hi, Some(0.01), &fine, None).unwrap_err();
         assert!(e.to_string().contains("probe_spacing"), "{e}");
     }
 }

@@ -15,6 +15,9 @@
 //! headroom, and their share of the samples the share of the floor area that is roofed. A
 //! level whose floors are almost all open (less than [`ROOFED_SHARE`] of their area under a
 //! surface: floating platforms, open ground with a bus shelter) is not spaced by its headroom.
+//!
+//! The same floor samples over one region give its [`Floors`]: the main floor, on which its
+//! volume's layers of probes are set, and the lowest, below which its box need not reach.
 
 use glam::{Vec2, Vec3, Vec3Swizzles};
 
@@ -55,6 +58,95 @@ pub fn headroom(tris: &[[Vec3; 3]], least_gap: f32) -> Option<Headroom> {
             hi = hi.max(p.xz());
         }
     }
+    let mut rooms: Vec<f32> = Vec::new();
+    let mut open = 0usize;
+    for floor in floor_samples(tris, (lo, hi), least_gap)? {
+        match floor.headroom {
+            None => open += 1,
+            Some(h) => rooms.push(h),
+        }
+    }
+    if rooms.is_empty() {
+        return None;
+    }
+    rooms.sort_unstable_by(f32::total_cmp);
+    Some(Headroom {
+        median: rooms[rooms.len() / 2],
+        roofed: rooms.len() as f32 / (rooms.len() + open) as f32,
+    })
+}
+
+/// The floors of a region: where its volume's layers of probes are set
+/// (`super::grid::VolumeGrid::on_floors`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Floors {
+    /// Height of the floor under most of the region's rooms, m: the most roofed floor samples
+    /// within a least gap of each other (their median); over all the floor samples when
+    /// under [`ROOFED_SHARE`] of them are roofed. A flat roof, open to the sky, is as large
+    /// as the floor under it; the rooms are what moving objects walk in.
+    pub main: f32,
+    /// Height of the lowest floor, m (the lowest hundredth of the floor samples left out: a
+    /// strip of ground at the region's edge is no floor of it), so that nothing stands lower.
+    pub lowest: f32,
+}
+
+/// Samples of the floor heights most common among `ys` (sorted): the median of the
+/// `window`-deep band of heights holding the most.
+fn commonest(ys: &[f32], window: f32) -> Option<f32> {
+    let (mut best, mut end) = ((0, 0), 0);
+    for start in 0..ys.len() {
+        while end < ys.len() && ys[end] <= ys[start] + window {
+            end += 1;
+        }
+        if end - start > best.1 - best.0 {
+            best = (start, end);
+        }
+    }
+    ys.get((best.0 + best.1) / 2).copied()
+}
+
+/// The floors among `tris` over the rectangle `(lo, hi)` (x and z; positions in a frame whose
+/// y axis is up), ignoring gaps under `least_gap` metres (the ground under a floor slab is no
+/// floor). `None` when there is no floor there.
+pub fn floors(tris: &[[Vec3; 3]], (lo, hi): (Vec2, Vec2), least_gap: f32) -> Option<Floors> {
+    let samples = floor_samples(tris, (lo, hi), least_gap)?;
+    let sorted = |roofed_only: bool| {
+        let mut ys: Vec<f32> = (samples.iter())
+            .filter(|f| !roofed_only || f.headroom.is_some())
+            .map(|f| f.y)
+            .collect();
+        ys.sort_unstable_by(f32::total_cmp);
+        ys
+    };
+    let all = sorted(false);
+    let roofed = sorted(true);
+    let lowest = *all.get(all.len() / 100)?;
+    let main = if roofed.len() as f32 >= ROOFED_SHARE * all.len() as f32 {
+        commonest(&roofed, least_gap)?
+    } else {
+        commonest(&all, least_gap)?
+    };
+    Some(Floors {
+        main,
+        lowest: lowest.min(main),
+    })
+}
+
+/// A floor sample: a walkable surface over a column's centre with at least the least gap
+/// over it.
+struct FloorSample {
+    y: f32,
+    /// Up to the next surface over it; `None`: open sky.
+    headroom: Option<f32>,
+}
+
+/// The floor samples of the columns over `(lo, hi)` (see the module docs); `None` over an
+/// empty or non-finite rectangle.
+fn floor_samples(
+    tris: &[[Vec3; 3]],
+    (lo, hi): (Vec2, Vec2),
+    least_gap: f32,
+) -> Option<Vec<FloorSample>> {
     if !(lo.cmple(hi).all() && lo.is_finite() && hi.is_finite()) {
         return None;
     }
@@ -67,8 +159,7 @@ pub fn headroom(tris: &[[Vec3; 3]], least_gap: f32) -> Option<Headroom> {
     }
     let mut samples = samples?;
     samples.sort_unstable_by(|a, b| a.column.cmp(&b.column).then(a.y.total_cmp(&b.y)));
-    let mut rooms: Vec<f32> = Vec::new();
-    let mut open = 0usize;
+    let mut out = Vec::new();
     for (k, s) in samples.iter().enumerate() {
         if !s.walkable {
             continue;
@@ -79,19 +170,18 @@ pub fn headroom(tris: &[[Vec3; 3]], least_gap: f32) -> Option<Headroom> {
             .take_while(|a| a.column == s.column)
             .find(|a| a.y > s.y);
         match above {
-            None => open += 1,
-            Some(a) if a.y - s.y >= least_gap => rooms.push(a.y - s.y),
+            None => out.push(FloorSample {
+                y: s.y,
+                headroom: None,
+            }),
+            Some(a) if a.y - s.y >= least_gap => out.push(FloorSample {
+                y: s.y,
+                headroom: Some(a.y - s.y),
+            }),
             Some(_) => {}
         }
     }
-    if rooms.is_empty() {
-        return None;
-    }
-    rooms.sort_unstable_by(f32::total_cmp);
-    Some(Headroom {
-        median: rooms[rooms.len() / 2],
-        roofed: rooms.len() as f32 / (rooms.len() + open) as f32,
-    })
+    Some(out)
 }
 
 /// A surface over a column's centre.
@@ -192,6 +282,52 @@ mod tests {
         let big: Vec<[Vec3; 3]> = tris.iter().map(|t| t.map(|v| v * 1000.0)).collect();
         let h = headroom(&big, 50.0).unwrap();
         assert!((h.median - 2500.0).abs() < 20.0, "{h:?}");
+    }
+
+    #[test]
+    fn the_main_floor_is_the_rooms_not_the_roof_over_them() {
+        let (lo, hi) = (Vec2::ZERO, Vec2::splat(10.0));
+        // A room: its floor at 0, its ceiling at 2.5, a flat roof on top at 2.6 (open, as
+        // large as the floor); the ground a millimetre under the floor slab (no floor: the
+        // gap holds nothing); a strip of open ground 4 cm wide at the edge, half a metre down.
+        let mut tris = slab(lo, hi, 0.0, true);
+        tris.extend(slab(lo, hi, 2.5, false));
+        tris.extend(slab(lo, hi, 2.6, true));
+        tris.extend(slab(lo, hi, -0.3, false));
+        tris.extend(slab(lo, hi, -0.301, true));
+        tris.extend(slab(
+            Vec2::new(10.0, 0.0),
+            Vec2::new(10.04, 10.0),
+            -0.5,
+            true,
+        ));
+        let f = floors(&tris, (lo, Vec2::new(10.04, 10.0)), 0.05).unwrap();
+        assert_eq!(
+            f,
+            Floors {
+                main: 0.0,
+                lowest: 0.0
+            }
+        );
+        // Over the strip alone, it is the floor.
+        let strip = (Vec2::new(10.0, 0.0), Vec2::new(10.04, 10.0));
+        assert_eq!(
+            floors(&tris, strip, 0.05),
+            Some(Floors {
+                main: -0.5,
+                lowest: -0.5
+            })
+        );
+        // Open ground alone: its own floor; nothing walkable: none.
+        let ground = slab(lo, hi, 1.0, true);
+        assert_eq!(
+            floors(&ground, (lo, hi), 0.05),
+            Some(Floors {
+                main: 1.0,
+                lowest: 1.0
+            })
+        );
+        assert_eq!(floors(&slab(lo, hi, 1.0, false), (lo, hi), 0.05), None);
     }
 
     #[test]

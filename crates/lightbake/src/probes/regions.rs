@@ -20,15 +20,26 @@
 //!    [`MIN_SIDE_CELLS`] spacings deep; when no region has a wall left, the largest whose grid
 //!    at the wanted spacing would be over [`MAX_AUTO_PROBES`] probes is cut in half across
 //!    its longest side (so a large open area keeps more of its density).
-//! 4. **Boxes.** Each region shrinks to the geometry in it, then grows by one spacing past
-//!    every cut face: a point within a spacing of a cut is inside both neighbours, whose
-//!    probes there are gathered where they stand, so each volume is valid out to its box's
-//!    edge. The falloff spans the overlap from both sides (2 spacings and the grid's rounding
-//!    over the box's size, on each axis with a cut face), so the two weights cross-fade.
+//!    A wall is looked for a spacing clear of the region's cut faces, so the stub of a wall
+//!    already cut through (an inner wall meeting a façade) is no wall across a strip of
+//!    ground beside it.
+//! 4. **Boxes.** Each region shrinks to the geometry in it (its *room*), then grows past
+//!    every cut face: past a wall, [`WALL_REACH`] of a spacing beyond the wall's far face;
+//!    past a halving, a spacing. The falloff spans the overlap from both sides (on each axis
+//!    with a cut face), so the two weights cross-fade in the wall's doors and across a
+//!    halving; inside a room, its own volume alone lights a moving object. (Boxes reaching
+//!    a spacing past every cut put probes beyond a façade a cell from the room and the
+//!    ground's volume a spacing into the building: trilinear filtering carries the sky in, and
+//!    an office floor along its windowed wall reads up to 2.9 times the path tracer's light,
+//!    `tests/volume_regions.rs`.)
+//!    The layers of probes are set on the region's floor ([`super::headroom::floors`],
+//!    [`VolumeGrid::on_floors`]), a region of open ground reaches as high as the rooms'
+//!    headroom, and a probe inside a wall is moved out on its room's side (`super::bake`).
 
-use glam::{Quat, Vec2, Vec3};
+use glam::{Quat, Vec2, Vec3, Vec3Swizzles};
 
-use super::grid::{AutoSpacing, MAX_AUTO_PROBES, VolumeGrid};
+use super::grid::{AutoSpacing, LEAST_GAP_TEXELS, MAX_AUTO_PROBES, VolumeGrid};
+use super::headroom::{floors, headroom};
 use crate::error::Result;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -37,6 +48,11 @@ use crate::unwrap::Layout;
 /// Least share of a region's cross-section the faces at a plane must cover for it to be a
 /// wall between two rooms.
 pub const WALL_COVER: f32 = 0.6;
+
+/// How far past a wall's far face the boxes on either side of it reach, in probe spacings:
+/// they overlap in the wall (and its doors, where Bevy's falloff cross-fades them), and a
+/// room's volume holds no probe of the room beyond.
+pub const WALL_REACH: f32 = 0.1;
 
 /// Least depth of each side of a cut, in probe spacings.
 pub const MIN_SIDE_CELLS: f32 = 4.0;
@@ -60,7 +76,9 @@ pub const FRAME_MIN_DEGREES: f32 = 1.0;
 struct Region {
     lo: Vec3,
     hi: Vec3,
-    cut: [[bool; 2]; 3],
+    /// Per axis, the low and the high face: `Some(reach)` when the face is a cut, the box
+    /// reaching that far past it (m).
+    cut: [[Option<f32>; 2]; 3],
 }
 
 /// The grids of the volumes over the instances `layout` gives a lightmap: one per region
@@ -90,18 +108,17 @@ pub fn plan_volumes(
         Some(_) => AutoSpacing::of_texels(texel_density),
         None => AutoSpacing::for_level(world, texel_density, settings.volume.probes_per_headroom),
     };
+    let least_gap = LEAST_GAP_TEXELS / texel_density;
+    let world = triangles(scene, &baked, Quat::IDENTITY);
     if most == 1 {
-        let world = match settings.volume.probe_spacing {
-            Some(_) => Vec::new(),
-            None => triangles(scene, &baked, Quat::IDENTITY),
-        };
+        let (lo, hi) = bounds(world.iter().flatten().copied());
+        let footing = floors(&world, (lo.xz(), hi.xz()), least_gap);
         return Ok(
-            VolumeGrid::plan(scene, layout, settings, &auto_for(&world))?
+            VolumeGrid::plan(scene, layout, settings, &auto_for(&world), footing)?
                 .into_iter()
                 .collect(),
         );
     }
-    let world = triangles(scene, &baked, Quat::IDENTITY);
     let auto = auto_for(&world);
     let rotation = if settings.volume.oriented {
         wall_frame(&world)
@@ -119,30 +136,38 @@ pub fn plan_volumes(
         return Ok(Vec::new());
     }
     let spacing = settings.volume.probe_spacing.unwrap_or(auto.spacing);
+    // How high above its floor a region's box reaches at least: the rooms' headroom, or
+    // the level's top where no floor is roofed.
+    let level_hi = hi;
+    let reach = headroom(&tris, least_gap).map_or(f32::INFINITY, |h| h.median);
     let mut regions = vec![Region {
         lo,
         hi,
-        cut: [[false; 2]; 3],
+        cut: [[None; 2]; 3],
     }];
     // Each region's triangles (those whose bounds reach into it) and its wall cut, found
     // once.
-    let mut walls: Vec<Option<(usize, f32)>> = vec![wall_cut(&tris, &regions[0], spacing)];
+    let mut walls: Vec<Option<(usize, f32, f32)>> = vec![wall_cut(&tris, &regions[0], spacing)];
     let mut within: Vec<Vec<[Vec3; 3]>> = vec![tris];
     while regions.len() < most {
         let mut order: Vec<usize> = (0..regions.len()).collect();
         order.sort_by(|&a, &b| volume(&regions[b]).total_cmp(&volume(&regions[a])));
         // A wall anywhere first, then a halving of a region too large for its grid.
-        let wall = (order.iter()).find_map(|&k| walls[k].map(|(a, p)| (k, a, p)));
-        let Some((k, axis, plane)) = wall.or_else(|| {
-            (order.iter()).find_map(|&k| halving_cut(&regions[k], spacing).map(|(a, p)| (k, a, p)))
+        // A wall's box reaches a tenth of a spacing past its far face; a halving's a
+        // spacing past the cut.
+        let wall = (order.iter())
+            .find_map(|&k| walls[k].map(|(a, p, half)| (k, a, p, half + WALL_REACH * spacing)));
+        let Some((k, axis, plane, reach)) = wall.or_else(|| {
+            (order.iter())
+                .find_map(|&k| halving_cut(&regions[k], spacing).map(|(a, p)| (k, a, p, spacing)))
         }) else {
             break;
         };
         let mut high = regions[k].clone();
         regions[k].hi[axis] = plane;
-        regions[k].cut[axis][1] = true;
+        regions[k].cut[axis][1] = Some(reach);
         high.lo[axis] = plane;
-        high.cut[axis][0] = true;
+        high.cut[axis][0] = Some(reach);
         let parent = std::mem::take(&mut within[k]);
         for (slot, r) in [(Some(k), regions[k].clone()), (None, high)] {
             let own: Vec<[Vec3; 3]> = (parent.iter())
@@ -167,28 +192,42 @@ pub fn plan_volumes(
     let mut grids = Vec::with_capacity(regions.len());
     for (r, tris) in regions.iter().zip(&within) {
         let (mut lo, mut hi) = fitted(tris, r);
+        let room = [lo, hi];
+        let mut footing = floors(tris, (lo.xz(), hi.xz()), least_gap);
         for axis in 0..3 {
-            if r.cut[axis][0] {
-                lo[axis] = r.lo[axis] - spacing;
+            if let Some(reach) = r.cut[axis][0] {
+                lo[axis] = r.lo[axis] - reach;
             }
-            if r.cut[axis][1] {
-                hi[axis] = r.hi[axis] + spacing;
+            if let Some(reach) = r.cut[axis][1] {
+                hi[axis] = r.hi[axis] + reach;
             }
         }
-        let mut grid = VolumeGrid::for_bounds(lo, hi, settings.volume.probe_spacing, &auto)?;
+        if let Some(f) = footing.filter(|_| r.cut[1][1].is_none()) {
+            // A region of open ground beside a building holds what stands on it as high
+            // as the building's rooms (the fitted box is as thin as the ground itself).
+            hi.y = hi.y.max(level_hi.y.min(f.main + reach));
+        }
+        if let Some(f) = footing.as_mut().filter(|_| r.cut[1][0].is_some()) {
+            // Cut under it (a storey): the box reaches below the cut.
+            f.lowest = lo.y;
+        }
+        let mut grid =
+            VolumeGrid::for_bounds(lo, hi, settings.volume.probe_spacing, &auto, footing)?;
         grid.rotation = rotation;
+        grid.room = room;
         for axis in 0..3 {
-            if !(r.cut[axis][0] || r.cut[axis][1]) {
+            if r.cut[axis] == [None; 2] {
                 continue;
             }
-            // The ramp reaches from the box's face to a spacing inside the cut, on each side.
+            // The ramp reaches from the box's face as far inside the cut as the box reaches
+            // past it, on each side.
             let size = grid.max[axis] - grid.min[axis];
             let mut ramp: f32 = 0.0;
-            if r.cut[axis][0] {
-                ramp = ramp.max(r.lo[axis] + grid.spacing - grid.min[axis]);
+            if let Some(reach) = r.cut[axis][0] {
+                ramp = ramp.max(r.lo[axis] + reach - grid.min[axis]);
             }
-            if r.cut[axis][1] {
-                ramp = ramp.max(grid.max[axis] - (r.hi[axis] - grid.spacing));
+            if let Some(reach) = r.cut[axis][1] {
+                ramp = ramp.max(grid.max[axis] - (r.hi[axis] - reach));
             }
             grid.falloff[axis] = (ramp / size).clamp(0.0, 1.0);
         }
@@ -286,26 +325,27 @@ fn fitted(tris: &[[Vec3; 3]], r: &Region) -> (Vec3, Vec3) {
     }
 }
 
-/// Where to cut `r` at a wall, if anywhere: (axis, coordinate in the frame).
-fn wall_cut(tris: &[[Vec3; 3]], r: &Region, spacing: f32) -> Option<(usize, f32)> {
+/// Where to cut `r` at a wall, if anywhere: (axis, coordinate in the frame, half the wall's
+/// thickness).
+fn wall_cut(tris: &[[Vec3; 3]], r: &Region, spacing: f32) -> Option<(usize, f32, f32)> {
     let ext = r.hi - r.lo;
     let min_side = MIN_SIDE_CELLS * spacing;
-    let mut best: Option<(f32, usize, f32)> = None;
+    let mut best: Option<(f32, usize, f32, f32)> = None;
     for axis in 0..3 {
         if ext[axis] < 2.0 * min_side {
             continue;
         }
-        if let Some((cover, plane)) = best_wall(tris, r, axis, spacing, min_side) {
-            let better = best.is_none_or(|(c, a, p)| {
+        if let Some((cover, plane, half)) = best_wall(tris, r, axis, spacing, min_side) {
+            let better = best.is_none_or(|(c, a, p, _)| {
                 let mid = |a: usize, p: f32| (p - 0.5 * (r.lo[a] + r.hi[a])).abs() / ext[a];
                 cover > c + 1e-3 || (cover > c - 1e-3 && mid(axis, plane) < mid(a, p))
             });
             if better {
-                best = Some((cover, axis, plane));
+                best = Some((cover, axis, plane, half));
             }
         }
     }
-    best.map(|(_, axis, plane)| (axis, plane))
+    best.map(|(_, axis, plane, half)| (axis, plane, half))
 }
 
 /// The cut in half across its longest side of a region too large for one grid at the
@@ -319,7 +359,8 @@ fn halving_cut(r: &Region, spacing: f32) -> Option<(usize, f32)> {
 }
 
 /// The plane across `axis` whose facing surfaces cover most of `r`'s occupied cross-section,
-/// if one covers [`WALL_COVER`] of it: (cover, the middle of those surfaces along the axis).
+/// if one covers [`WALL_COVER`] of it: (cover, the middle of those surfaces along the axis,
+/// half their distance: the wall's half thickness).
 /// A point of the cross-section is occupied on one side when the line along the axis through
 /// it meets geometry on that side beyond the wall's own surfaces (inside a building, not in
 /// the open air over a ground plane); the cover is measured for each side on a [`RASTER`]²
@@ -331,8 +372,12 @@ fn best_wall(
     axis: usize,
     spacing: f32,
     min_side: f32,
-) -> Option<(f32, f32)> {
+) -> Option<(f32, f32, f32)> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    // Measured a spacing clear of the region's cut faces across the axis: what lies within
+    // a spacing of a cut is the neighbour's too (its box reaches that far), and a sliver of
+    // the wall cut through there is no wall across this region.
+    let r = &r.clear_of_cuts(spacing, [u, v])?;
     // Half a spacing, or coarser on a region so long that there would be more than
     // MAX_BINS of them (the search's work stays bounded; such a grid is refused later).
     let bin = (0.5 * spacing).max((r.hi[axis] - r.lo[axis]) / MAX_BINS as f32);
@@ -394,7 +439,7 @@ fn best_wall(
         })
         .collect();
     candidates.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-    let mut best: Option<(f32, f32)> = None;
+    let mut best: Option<(f32, f32, f32)> = None;
     for &(_, k) in candidates.iter().take(3) {
         let slab = (k as f32 - 1.0) * bin + r.lo[axis]..(k as f32 + 2.0) * bin + r.lo[axis];
         let wall: Vec<(f32, &[Vec3; 3])> = (facing.iter())
@@ -428,9 +473,9 @@ fn best_wall(
             if total >= 16
                 && area >= 0.5 * widest
                 && cover >= WALL_COVER
-                && best.is_none_or(|(c, _)| cover > c)
+                && best.is_none_or(|(c, _, _)| cover > c)
             {
-                best = Some((cover, plane));
+                best = Some((cover, plane, 0.5 * (b - a)));
             }
         }
     }
@@ -469,6 +514,24 @@ fn wall_faces(wall: &[(f32, &[Vec3; 3])], axis: usize, bin: f32) -> (f32, f32) {
 }
 
 impl Region {
+    /// The region with its cut faces on the axes `across` moved `by` inwards; none when
+    /// that leaves it empty.
+    fn clear_of_cuts(&self, by: f32, across: [usize; 2]) -> Option<Self> {
+        let mut r = self.clone();
+        for a in across {
+            if r.cut[a][0].is_some() {
+                r.lo[a] += by;
+            }
+            if r.cut[a][1].is_some() {
+                r.hi[a] -= by;
+            }
+            if r.lo[a] >= r.hi[a] {
+                return None;
+            }
+        }
+        Some(r)
+    }
+
     /// Whether the bounds `a`..`b` reach into the region.
     fn holds(&self, a: Vec3, b: Vec3) -> bool {
         a.cmple(self.hi).all() && b.cmpge(self.lo).all()
@@ -610,11 +673,11 @@ mod tests {
         let all = Region {
             lo,
             hi,
-            cut: [[false; 2]; 3],
+            cut: [[None; 2]; 3],
         };
         // The ground around the building is open: the first cut is a façade, x = −0.125
         // (west, 25 cm thick) or 18.125 (east), or a wall between rooms.
-        let (axis, plane) = wall_cut(&tris, &all, 0.5).expect("a wall");
+        let (axis, plane, _) = wall_cut(&tris, &all, 0.5).expect("a wall");
         assert_eq!(axis, 0);
         assert!(
             [-0.125, 6.0, 12.0, 18.125]
@@ -626,21 +689,34 @@ mod tests {
         let building = Region {
             lo: Vec3::new(-0.125, lo.y, -0.125),
             hi: Vec3::new(18.125, hi.y, 5.125),
-            cut: [[false; 2]; 3],
+            cut: [[None; 2]; 3],
         };
-        let (axis, plane) = wall_cut(&tris, &building, 0.5).expect("a wall");
+        let (axis, plane, half) = wall_cut(&tris, &building, 0.5).expect("a wall");
         assert_eq!(axis, 0);
         assert!(
             (plane - 6.0).abs() < 0.01 || (plane - 12.0).abs() < 0.01,
             "{plane}"
         );
+        // The walls between rooms are 12 cm thick.
+        assert!((half - 0.06).abs() < 0.01, "{half}");
         // A room alone (the building's first up to the cut in its wall, without the ground
         // around it) has no wall across it, and is small enough for one grid.
         let room = Region {
             lo: Vec3::new(-0.25, lo.y, -0.25),
             hi: Vec3::new(6.0, hi.y, 5.25),
-            cut: [[false; 2]; 3],
+            cut: [[None; 2]; 3],
         };
         assert_eq!(wall_cut(&tris, &room, 0.5), None);
+        // The strip of ground south of the building, cut from it in the middle of its façade
+        // (and at the side façades): nothing across it is a wall.
+        // (Without the clearance, the façade's window jambs and the joints of its pieces at
+        // x = 6 and 12 m, in its 12.5 cm beyond the cut, covered the strip's cross-section
+        // there: a "wall".)
+        let strip = Region {
+            lo: Vec3::new(-0.125, lo.y, -7.0),
+            hi: Vec3::new(18.125, hi.y, -0.125),
+            cut: [[Some(0.1); 2], [None; 2], [None, Some(0.1)]],
+        };
+        assert_eq!(wall_cut(&tris, &strip, 0.75), None);
     }
 }

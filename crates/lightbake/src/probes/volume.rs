@@ -7,7 +7,10 @@
 //! filtering a black voxel darkens every point within a cell of it. Its gather stops as soon
 //! as its back hits pass that fraction of its rays (the verdict is then certain). Such a
 //! probe is moved past the nearest back faces it saw (the way out of the solid), at most one
-//! cell away, and gathered there; a probe with no such way out, or one enclosed in a sliver
+//! cell away, and gathered there: first to places in the volume's room (`VolumeGrid::room`),
+//! then past each back face on the way to the room's centre, then elsewhere (a probe in a
+//! façade moved past its outer face would carry the sky into the room); a probe with no such
+//! way out, or one enclosed in a sliver
 //! between surfaces ([`ENCLOSED_FRACTION`]), is *filled*: the mean of its open neighbours,
 //! repeated outwards, as the lightmap's dilation fills hidden texels.
 //!

@@ -23,6 +23,23 @@ pub const ALL_SOLVERS: [SolverChoice; 8] = {
     ]
 };
 
+/// Calls `f` with the volume stage's view of `out`'s solution (its ray scene and emitters
+/// built here), for gathering probes outside a bake.
+pub fn with_solution<R>(
+    out: &BakeOutput,
+    f: impl FnOnce(&lightbake::probes::gather::Solution<'_>) -> R,
+) -> R {
+    let rays = lightbake::bvh::RayScene::build(&out.baked_scene);
+    let emitters = lightbake::lights::Emitters::collect(&out.baked_scene, &rays);
+    f(&lightbake::probes::gather::Solution {
+        scene: &out.baked_scene,
+        layout: &out.layout,
+        pages: &out.pages,
+        rays: &rays,
+        emitters: &emitters,
+    })
+}
+
 /// Bakes in memory and panics with the error on failure.
 pub fn bake(scene: &Scene, settings: &BakeSettings) -> BakeOutput {
     lightbake::bake(scene, settings, &Progress::new())
