@@ -175,20 +175,22 @@ impl Facts<'_> {
     /// Unwrap, raster, BVH and validity.
     pub(super) fn geometry_stages(&self) -> Vec<PlannedStage> {
         vec![
-            stage(
-                Stage::Unwrap,
-                self.unwrapping > 0 || self.keeping > 0,
+            stage(Stage::Unwrap, self.unwrapping > 0 || self.keeping > 0, {
+                let moved = match self.settings.formats.ktx2_bc6h {
+                    true => ", their charts moved by whole texels onto BC6H blocks",
+                    false => "",
+                };
                 match (self.unwrapping, self.keeping) {
                     (0, 0) => "no instance is baked".to_string(),
                     (u, 0) => format!("xatlas unwraps {u} mesh(es)"),
-                    (0, k) => {
-                        format!("all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas)")
-                    }
+                    (0, k) => format!(
+                        "all {k} mesh(es) keep their own TEXCOORD_1 (validated; no xatlas{moved})"
+                    ),
                     (u, k) => {
-                        format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1")
+                        format!("xatlas unwraps {u} mesh(es); {k} keep their own TEXCOORD_1{moved}")
                     }
-                },
-            ),
+                }
+            }),
             stage(
                 Stage::Raster,
                 self.work,

@@ -166,8 +166,9 @@ pub struct OutputFormats {
     pub hdr: bool,
     /// KTX2, `R16G16B16A16_SFLOAT`, uncompressed (`lightmap_N.ktx2`). Default off.
     pub ktx2: bool,
-    /// KTX2, BC6H blocks (`lightmap_N.bc6h.ktx2`); the layout then aligns charts to 4×4
-    /// blocks. Default off.
+    /// KTX2, BC6H blocks (`lightmap_N.bc6h.ktx2`); the layout then gives every chart 4×4
+    /// blocks of its own (a mesh's own `TEXCOORD_1` charts moved onto them by whole texels).
+    /// Default off.
     #[serde(default)]
     pub ktx2_bc6h: bool,
     /// A tonemapped sRGB PNG to look at (`lightmap_N.preview.png`). Default on.

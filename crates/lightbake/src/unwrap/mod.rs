@@ -3,7 +3,8 @@
 //! Each mesh gets its own lightmap rectangle of `width × height` texels, with `TEXCOORD_1` in
 //! [0, 1]² spanning it: xatlas segments, parameterises and packs its charts (with `padding`
 //! texels between them; for BC6H pages they are packed again on 4×4 blocks of their own,
-//! [`block_pack`]), or the mesh's own `TEXCOORD_1` is kept after validation. Every baked
+//! [`block_pack`]), or the mesh's own `TEXCOORD_1` is kept after validation (for BC6H pages
+//! its charts moved by whole texels onto blocks of their own, `existing::on_blocks`). Every baked
 //! *instance* of the mesh then gets a copy of that rectangle on an atlas page; Bevy's
 //! `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves every
 //! instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
@@ -23,9 +24,9 @@ mod squashed;
 pub mod xatlas;
 
 use atlas::xatlas_unwrap;
-use existing::existing_uvs;
 #[cfg(any(test, feature = "internals"))]
 pub use existing::overlapping_texels;
+use existing::{existing_uvs, on_blocks};
 use pack::pack_instances;
 
 use glam::{Vec2, Vec3};
@@ -42,7 +43,8 @@ pub enum UvOrigin {
     /// Unwrapped by lightbake: xatlas, with a big mesh's planar regions charted directly
     /// and the rest given to xatlas in pieces (`unwrap::pieces`).
     Xatlas,
-    /// The mesh's own `TEXCOORD_1`, validated and kept.
+    /// The mesh's own `TEXCOORD_1`, validated and kept (for BC6H pages its charts moved by
+    /// whole texels onto 4×4 blocks: then `xref` is set).
     Existing,
 }
 
@@ -400,6 +402,28 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
         let keep_existing = !settings.layout.reunwrap && mesh.uv1.is_some();
         let unwrap = if keep_existing {
             match existing_uvs(mesh, request, settings) {
+                Ok(u) if settings.formats.ktx2_bc6h => {
+                    let kept = |why: &str| {
+                        format!(
+                            "mesh '{}': its own TEXCOORD_1 is kept as it is ({why}), so a BC6H block may hold two of its charts",
+                            mesh.name
+                        )
+                    };
+                    if textures_use_set_1(scene, mesh) {
+                        let why = "its material's textures are mapped by it";
+                        layout.warnings.push(kept(why));
+                        u
+                    } else if let Some(moved) = on_blocks(mesh, &u, settings) {
+                        moved
+                    } else {
+                        let why = format!(
+                            "its charts on their own 4×4 blocks fit no {0}² page",
+                            settings.layout.max_page_size
+                        );
+                        layout.warnings.push(kept(&why));
+                        u
+                    }
+                }
                 Ok(u) => u,
                 Err(problem) => {
                     layout.warnings.push(format!(
@@ -589,6 +613,70 @@ mod tests {
             layout.warnings[0].contains("TEXCOORD_1"),
             "{:?}",
             layout.warnings
+        );
+    }
+
+    #[test]
+    fn existing_uv1_is_moved_onto_blocks_for_bc6h_unless_textures_use_it() {
+        let mut s = Scene::default();
+        let mut m = plane("p", 1.0);
+        // Its one chart a third of a texel (of 32) in from its rectangle's corner.
+        m.uv1 = Some(
+            m.uv0
+                .clone()
+                .unwrap()
+                .iter()
+                .map(|p| *p * 0.5 + 0.01)
+                .collect(),
+        );
+        let id = s.add_mesh(m);
+        s.instances.push(Instance::new("p", id, Affine3A::IDENTITY));
+        let mut bc6h = BakeSettings::default();
+        bc6h.formats.ktx2_bc6h = true;
+        let kept = unwrap_scene(&s, &BakeSettings::default(), 16.0).unwrap();
+        let moved = unwrap_scene(&s, &bc6h, 16.0).unwrap();
+        let (k, u) = (
+            kept.meshes[0].as_ref().unwrap(),
+            moved.meshes[0].as_ref().unwrap(),
+        );
+        assert_eq!(u.origin, UvOrigin::Existing);
+        let xref = u.xref.as_ref().expect("moved");
+        let texel = |uv: Vec2, w: u32, h: u32| uv * Vec2::new(w as f32, h as f32);
+        let shift =
+            texel(u.uv1[0], u.width, u.height) - texel(k.uv1[xref[0] as usize], k.width, k.height);
+        assert!(
+            (shift - shift.round()).abs().max_element() < 1e-4,
+            "{shift}"
+        );
+        for (v, &src) in xref.iter().enumerate() {
+            let d =
+                texel(u.uv1[v], u.width, u.height) - texel(k.uv1[src as usize], k.width, k.height);
+            assert!((d - shift).abs().max_element() < 1e-4, "{d} {shift}");
+        }
+        assert!(moved.warnings.is_empty(), "{:?}", moved.warnings);
+        // A base colour texture mapped by TEXCOORD_1: kept as it is, with a warning.
+        s.textures.push(crate::scene::Texture {
+            name: "t".into(),
+            width: 1,
+            height: 1,
+            rgba8: vec![[255; 4]],
+            wrap_u: crate::scene::Wrap::Repeat,
+            wrap_v: crate::scene::Wrap::Repeat,
+        });
+        let material = s.add_material(crate::scene::Material {
+            base_color_texture: Some(crate::scene::TextureRef {
+                texture: 0,
+                tex_coord: 1,
+            }),
+            ..crate::scene::Material::diffuse("m", Vec3::ONE)
+        });
+        s.meshes[0].material = Some(material);
+        let textured = unwrap_scene(&s, &bc6h, 16.0).unwrap();
+        assert!(textured.meshes[0].as_ref().unwrap().xref.is_none());
+        assert!(
+            textured.warnings[0].contains("kept as it is"),
+            "{:?}",
+            textured.warnings
         );
     }
 
