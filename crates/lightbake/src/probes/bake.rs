@@ -165,10 +165,11 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
         let dir = (home - centre).normalize_or_zero();
         let mut from = 0.0;
         for k in 0..g.nearest_backs.len() {
-            let Some(hit) = (dir != Vec3::ZERO)
-                .then(|| solution.rays.closest_hit(centre, dir, from, grid.spacing))
-                .flatten()
-            else {
+            if dir == Vec3::ZERO {
+                break;
+            }
+            spent += 1;
+            let Some(hit) = solution.rays.closest_hit(centre, dir, from, grid.spacing) else {
                 break;
             };
             from = hit.t + margin;

@@ -90,8 +90,8 @@ pub struct Floors {
     pub lowest: f32,
 }
 
-/// Samples of the floor heights most common among `ys` (sorted): the median of the
-/// `window`-deep band of heights holding the most.
+/// The height most common among `ys` (sorted): the median of the `window`-deep band of
+/// heights holding the most of them.
 fn commonest(ys: &[f32], window: f32) -> Option<f32> {
     let (mut best, mut end) = ((0, 0), 0);
     for start in 0..ys.len() {

@@ -20,9 +20,9 @@
 //!    [`MIN_SIDE_CELLS`] spacings deep; when no region has a wall left, the largest whose grid
 //!    at the wanted spacing would be over [`MAX_AUTO_PROBES`] probes is cut in half across
 //!    its longest side (so a large open area keeps more of its density).
-//!    A wall is looked for a spacing clear of the region's cut faces, so the stub of a wall
-//!    already cut through (an inner wall meeting a façade) is no wall across a strip of
-//!    ground beside it.
+//!    A wall is looked for a spacing clear of the region's cut faces, so the joints and
+//!    window jambs of a façade cut through its middle are no wall across the strip of ground
+//!    beside it.
 //! 4. **Boxes.** Each region shrinks to the geometry in it (its *room*), then grows past
 //!    every cut face: past a wall, [`WALL_REACH`] of a spacing beyond the wall's far face;
 //!    past a halving, a spacing. The falloff spans the overlap from both sides (on each axis
@@ -139,7 +139,7 @@ pub fn plan_volumes(
     // How high above its floor a region's box reaches at least: the rooms' headroom, or
     // the level's top where no floor is roofed.
     let level_hi = hi;
-    let reach = headroom(&tris, least_gap).map_or(f32::INFINITY, |h| h.median);
+    let room_height = headroom(&tris, least_gap).map_or(f32::INFINITY, |h| h.median);
     let mut regions = vec![Region {
         lo,
         hi,
@@ -205,7 +205,7 @@ pub fn plan_volumes(
         if let Some(f) = footing.filter(|_| r.cut[1][1].is_none()) {
             // A region of open ground beside a building holds what stands on it as high
             // as the building's rooms (the fitted box is as thin as the ground itself).
-            hi.y = hi.y.max(level_hi.y.min(f.main + reach));
+            hi.y = hi.y.max(level_hi.y.min(f.main + room_height));
         }
         if let Some(f) = footing.as_mut().filter(|_| r.cut[1][0].is_some()) {
             // Cut under it (a storey): the box reaches below the cut.
