@@ -164,10 +164,7 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
         let home = grid.rotation * (0.5 * (grid.room[0] + grid.room[1]));
         let dir = (home - centre).normalize_or_zero();
         let mut from = 0.0;
-        for k in 0..g.nearest_backs.len() {
-            if dir == Vec3::ZERO {
-                break;
-            }
+        for k in (0..g.nearest_backs.len()).take_while(|_| dir != Vec3::ZERO) {
             spent += 1;
             let Some(hit) = solution.rays.closest_hit(centre, dir, from, grid.spacing) else {
                 break;
@@ -182,7 +179,7 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
             }
         }
     }
-    places.sort_by_key(|&(k, at)| (!grid.in_room(at, 0.0), k));
+    places.sort_by_key(|&(k, at)| (!grid.in_room(at), k));
     for (k, at) in places {
         let key = hash_words(&[key, k as u32 + 1]);
         let moved = solution.gather(at, rays, key, test.most_backs, test.near);

@@ -316,10 +316,10 @@ impl VolumeGrid {
         self.rotation.inverse() * (world - centre) / size
     }
 
-    /// Whether `world` lies in the volume's [`Self::room`] (within `margin` m of it).
-    pub fn in_room(&self, world: Vec3, margin: f32) -> bool {
+    /// Whether `world` lies in the volume's [`Self::room`].
+    pub fn in_room(&self, world: Vec3) -> bool {
         let p = self.rotation.inverse() * world;
-        (p.cmpge(self.room[0] - margin) & p.cmple(self.room[1] + margin)).all()
+        (p.cmpge(self.room[0]) & p.cmple(self.room[1])).all()
     }
 
     /// The weight Bevy gives this volume at `world` (`light_probe.wesl`): per axis, a ramp

@@ -3,8 +3,7 @@
 
 use glam::Vec2;
 
-use super::block_pack::pack_items;
-use super::items::{assemble, shrink_to_page};
+use super::items::shrink_to_page;
 use super::{Density, MeshUnwrap, UvOrigin, block_pack, xatlas};
 use crate::error::{BakeError, Result};
 use crate::scene::Mesh;
@@ -160,19 +159,14 @@ pub(super) fn xatlas_unwrap(
         };
         if bc6h {
             // BC6H pages: each chart on blocks of its own, lower when they fit no page.
-            let items = block_pack::chart_items(&unwrap);
-            let (corners, width, height) = pack_items(&items, settings);
-            if width.max(height) > max_page {
-                scaled = true;
-                pack.texels_per_unit *= shrink_to_page(width, height, max_page) as f32;
-                continue;
+            match block_pack::onto_blocks(mesh, &unwrap, settings) {
+                Ok(moved) => unwrap = moved,
+                Err((width, height)) => {
+                    scaled = true;
+                    pack.texels_per_unit *= shrink_to_page(width, height, max_page) as f32;
+                    continue;
+                }
             }
-            let same = Density {
-                texels_per_unit: 1.0,
-                texels_per_metre: unwrap.texels_per_metre,
-            };
-            unwrap = assemble(mesh, &items, &corners, width, height, same, 1.0);
-            unwrap.scaled_to_fit = scaled;
         }
         if scaled {
             warnings.push(format!(

@@ -22,8 +22,9 @@ use std::collections::HashMap;
 
 use glam::Vec2;
 
-use super::MeshUnwrap;
-use super::items::{Item, shelf_pack};
+use super::items::{Item, assemble, shelf_pack};
+use super::{Density, MeshUnwrap};
+use crate::scene::Mesh;
 use crate::settings::BakeSettings;
 
 /// Half-width of the square around a texel's centre that a chart must meet to own the texel,
@@ -358,8 +359,32 @@ pub(super) fn split_charts(item: &Item) -> Vec<Item> {
         .collect()
 }
 
+/// `unwrap` with each of its charts moved by a whole number of texels (its sampling
+/// unchanged) onto 4×4 blocks of its own, packed by [`pack_items`]; its origin, density and
+/// `scaled_to_fit` kept. `Err((width, height))`: the packed charts need a page that large,
+/// over `layout.max_page_size`.
+pub(super) fn onto_blocks(
+    mesh: &Mesh,
+    unwrap: &MeshUnwrap,
+    settings: &BakeSettings,
+) -> Result<MeshUnwrap, (u32, u32)> {
+    let items = chart_items(unwrap);
+    let (corners, width, height) = pack_items(&items, settings);
+    if width.max(height) > settings.layout.max_page_size {
+        return Err((width, height));
+    }
+    let same = Density {
+        texels_per_unit: 1.0,
+        texels_per_metre: unwrap.texels_per_metre,
+    };
+    let mut moved = assemble(mesh, &items, &corners, width, height, same, 1.0);
+    moved.origin = unwrap.origin;
+    moved.scaled_to_fit = unwrap.scaled_to_fit;
+    Ok(moved)
+}
+
 /// A mesh's unwrap as items of one chart each (see [`split_charts`]).
-pub(super) fn chart_items(unwrap: &MeshUnwrap) -> Vec<Item> {
+fn chart_items(unwrap: &MeshUnwrap) -> Vec<Item> {
     split_charts(&unwrap_item(unwrap))
 }
 

@@ -1,11 +1,9 @@
 //! A mesh's own `TEXCOORD_1`, validated (in [0, 1], no texel claimed twice) and kept, with
-//! its charts found from shared vertices; for BC6H pages its charts moved by whole texels onto
-//! 4×4 blocks of their own ([`on_blocks`]).
+//! its charts found from shared vertices (for BC6H pages `super::unwrap_scene` moves them by
+//! whole texels onto 4×4 blocks of their own, `super::block_pack::onto_blocks`).
 
 use glam::Vec2;
 
-use super::block_pack::{chart_items, pack_items};
-use super::items::assemble;
 use super::{Density, MeshUnwrap, UvOrigin};
 use crate::scene::Mesh;
 use crate::settings::BakeSettings;
@@ -56,30 +54,6 @@ pub(super) fn existing_uvs(
             / tpu,
         scaled_to_fit: size < texels,
     })
-}
-
-/// The mesh's own UVs `unwrap` with each chart moved by a whole number of texels (its
-/// sampling unchanged) onto 4×4 blocks of its own, packed as `super::block_pack` packs
-/// xatlas' charts for BC6H pages: the baked glTF and the plugin's meshes get the moved
-/// `TEXCOORD_1`. `None` when the charts on their blocks fit no page.
-pub(super) fn on_blocks(
-    mesh: &Mesh,
-    unwrap: &MeshUnwrap,
-    settings: &BakeSettings,
-) -> Option<MeshUnwrap> {
-    let items = chart_items(unwrap);
-    let (corners, width, height) = pack_items(&items, settings);
-    if width.max(height) > settings.layout.max_page_size {
-        return None;
-    }
-    let same = Density {
-        texels_per_unit: 1.0,
-        texels_per_metre: unwrap.texels_per_metre,
-    };
-    let mut moved = assemble(mesh, &items, &corners, width, height, same, 1.0);
-    moved.origin = UvOrigin::Existing;
-    moved.scaled_to_fit = unwrap.scaled_to_fit;
-    Some(moved)
 }
 
 /// Counts texel centres claimed by more than one triangle, rasterising with the top-left rule

@@ -4,7 +4,7 @@
 //! [0, 1]² spanning it: xatlas segments, parameterises and packs its charts (with `padding`
 //! texels between them; for BC6H pages they are packed again on 4×4 blocks of their own,
 //! [`block_pack`]), or the mesh's own `TEXCOORD_1` is kept after validation (for BC6H pages
-//! its charts moved by whole texels onto blocks of their own, `existing::on_blocks`). Every baked
+//! its charts moved by whole texels onto blocks of their own, [`block_pack::onto_blocks`]). Every baked
 //! *instance* of the mesh then gets a copy of that rectangle on an atlas page; Bevy's
 //! `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves every
 //! instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
@@ -24,9 +24,9 @@ mod squashed;
 pub mod xatlas;
 
 use atlas::xatlas_unwrap;
+use existing::existing_uvs;
 #[cfg(any(test, feature = "internals"))]
 pub use existing::overlapping_texels;
-use existing::{existing_uvs, on_blocks};
 use pack::pack_instances;
 
 use glam::{Vec2, Vec3};
@@ -413,7 +413,7 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
                         let why = "its material's textures are mapped by it";
                         layout.warnings.push(kept(why));
                         u
-                    } else if let Some(moved) = on_blocks(mesh, &u, settings) {
+                    } else if let Ok(moved) = block_pack::onto_blocks(mesh, &u, settings) {
                         moved
                     } else {
                         let why = format!(
