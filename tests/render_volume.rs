@@ -6,10 +6,13 @@
 //! in real time: all of the plate's light comes from the volume) and the sunlit room (sky and
 //! interreflection from the volume; in the sun patch Bevy's real-time sun adds the direct
 //! light, with its shadows); and two office rooms lit by the sky through their windows, plates
-//! in each room and across the wall between them (with a volume per room where the GPU draws
-//! several; one volume on lavapipe, which has no texture binding arrays, without which Bevy
-//! reads every volume from one texture). Skips when no Vulkan driver is installed (fails
-//! instead with `LIGHTBAKE_REQUIRE_VULKAN=1`, which `.ci/run` sets after installing one).
+//! in each room and across the wall between them. Each scene gets the volumes a default bake
+//! places (a volume per room, more over the ground) where the driver has texture binding
+//! arrays, as Mesa 25's lavapipe does, and one volume where it has none (Mesa 22's), without
+//! which Bevy reads every volume from one texture; `LIGHTBAKE_REQUIRE_BINDING_ARRAYS=1`, which
+//! `.ci/run` sets on Debian 12 after installing Mesa 25 from its backports, makes the tests
+//! fail there instead. Skips when no Vulkan driver is installed (fails instead with
+//! `LIGHTBAKE_REQUIRE_VULKAN=1`, which `.ci/run` sets after installing one).
 
 mod render_common;
 #[path = "../examples/support/mod.rs"]
@@ -29,13 +32,16 @@ use render_common::{exposure_for, mean_at, pixel, wait_for_bake};
 const W: u32 = 320;
 const H: u32 = 240;
 
+/// Per spot, the indices of the volumes Bevy draws whose boxes hold it.
+type Holders = Vec<Vec<usize>>;
+
 /// Bakes `scene` in the app with `settings` (volumes among them), lays a plate of `size` m
 /// (the floor's material, not baked) on the floor (the instance `floor_name`) at each of
 /// `spots`, and renders from `camera` (the instances named in `hidden` out of its sight; the
 /// scene's sky baked when `sky`, else none),
 /// once per spot with the exposure that puts the floor there at about a third of white.
 /// Returns, per spot, the plate's brightness and the floor's (the mean of four points `size`
-/// m beside the plate).
+/// m beside the plate); and, where the GPU draws several volumes, the volumes each spot lies in.
 fn plates_against_floor(
     scene: &Scene,
     mut settings: BakeSettings,
@@ -43,13 +49,19 @@ fn plates_against_floor(
     (floor_name, hidden, sky): (&str, &[&str], bool),
     camera: (Transform, Projection),
     name: &str,
-) -> Vec<(Vec3, Vec3)> {
+) -> (Vec<(Vec3, Vec3)>, Option<Holders>) {
     let dir = tempfile::tempdir().unwrap();
     let (mut app, target) = support::render_test_app(dir.path(), W, H);
     let device = app
         .world()
         .resource::<bevy::render::renderer::RenderDevice>();
-    if !bevy_lightbake::volumes::draws_several_volumes(device) {
+    let several = bevy_lightbake::volumes::draws_several_volumes(device);
+    if !several {
+        // `.ci/run` installs a driver that has them.
+        assert!(
+            !std::env::var("LIGHTBAKE_REQUIRE_BINDING_ARRAYS").is_ok_and(|v| v == "1"),
+            "LIGHTBAKE_REQUIRE_BINDING_ARRAYS=1 but this Vulkan driver has no texture binding arrays, so Bevy draws one irradiance volume (Debian 12: mesa-vulkan-drivers from bookworm-backports has them)"
+        );
         // Bevy would read every volume from the first one's texture here.
         println!("{name}: this GPU draws one irradiance volume: baking one");
         settings.volume.regions = 1;
@@ -97,6 +109,26 @@ fn plates_against_floor(
         assert_ne!(baked, Some(0), "the bake made no volume");
         ready && baked == Some(volumes.iter(world).count())
     });
+    // Per spot, the volumes whose box (a unit cube scaled and placed by its transform) holds it.
+    let boxes: Vec<Mat4> = app
+        .world_mut()
+        .query_filtered::<&GlobalTransform, With<IrradianceVolume>>()
+        .iter(app.world())
+        .map(|t| t.to_matrix().inverse())
+        .collect();
+    let holders: Vec<Vec<usize>> = spots
+        .iter()
+        .map(|s| {
+            let p = Vec3::new(s.x, 0.002, s.y);
+            (0..boxes.len())
+                .filter(|&k| boxes[k].transform_point3(p).abs().max_element() <= 0.5)
+                .collect()
+        })
+        .collect();
+    println!(
+        "{name}: Bevy draws {} irradiance volume(s); the spots lie in {holders:?}",
+        boxes.len()
+    );
     let mut results = Vec::new();
     for (k, s) in spots.iter().enumerate() {
         let world = app.world_mut();
@@ -120,7 +152,7 @@ fn plates_against_floor(
             / 4.0;
         results.push((on_plate, beside));
     }
-    results
+    (results, several.then_some(holders))
 }
 
 fn check(name: &str, spots: &[Vec2], results: &[(Vec3, Vec3)]) {
@@ -158,7 +190,7 @@ fn a_dynamic_plate_lit_by_the_volume_matches_the_lightmapped_floor() {
     // The Cornell box, seen from above (its ceiling and panel face down, so Bevy culls them).
     let cornell = cornell_box(CornellLight::Area);
     let spots = [Vec2::new(-0.15, 0.15), Vec2::new(0.16, -0.16)];
-    let results = plates_against_floor(
+    let (results, _) = plates_against_floor(
         &cornell,
         {
             let mut s = BakeSettings::medium();
@@ -201,15 +233,13 @@ fn a_dynamic_plate_lit_by_the_volume_matches_the_lightmapped_floor() {
             );
         }
     }
-    let results = plates_against_floor(
+    let (results, _) = plates_against_floor(
         &room,
         {
             let mut s = BakeSettings::medium();
             s.volume.enabled = true;
             s.volume.probe_spacing = Some(0.25);
             s.volume.probe_rays = 512;
-            // One volume: the room with the ground around it would get five.
-            s.volume.regions = 1;
             s
         },
         (&spots, 0.3),
@@ -236,8 +266,8 @@ fn plates_across_two_rooms_volumes_match_the_lightmapped_floor() {
     // m), lit by the sky alone through their windows, so Bevy draws no light in real time
     // and all of a plate's light comes from the volumes: one per room and four over the
     // ground around the building (narrowed to 19.2 m), blended by Bevy's falloff where they
-    // overlap — on a GPU with texture binding arrays; on one without (lavapipe), one volume
-    // over the level, as the plugin's warning advises. Seen from above, the ceiling slab out
+    // overlap — on a GPU with texture binding arrays; on one without (Mesa 22's lavapipe),
+    // one volume over the level, as the plugin's warning advises. Seen from above, the ceiling slab out
     // of the camera's sight.
     let mut rooms = office_level(2, 1);
     rooms.lights.clear();
@@ -256,7 +286,7 @@ fn plates_across_two_rooms_volumes_match_the_lightmapped_floor() {
         Vec2::new(5.7, 2.3),
         Vec2::new(6.3, 2.3),
     ];
-    let results = plates_against_floor(
+    let (results, holders) = plates_against_floor(
         &rooms,
         {
             let mut s = BakeSettings::medium();
@@ -277,4 +307,18 @@ fn plates_across_two_rooms_volumes_match_the_lightmapped_floor() {
         "two_rooms",
     );
     check("two rooms", &spots, &results);
+    if let Some(holders) = holders {
+        // The rooms in volumes of their own, so the plates across the wall and the door are
+        // lit from two volumes, with Bevy's falloff between them.
+        for (a, b) in [(0, 1), (2, 3), (4, 5)] {
+            assert!(
+                !holders[a].is_empty() && !holders[b].is_empty(),
+                "spots {a} and {b} lie in no volume: {holders:?}"
+            );
+            assert!(
+                holders[a].iter().all(|k| !holders[b].contains(k)),
+                "spots {a} and {b}, on either side of the wall, share a volume: {holders:?}"
+            );
+        }
+    }
 }

@@ -185,10 +185,10 @@ pub(crate) fn attach_gltf_volumes(
 /// Whether the GPU lets Bevy draw several irradiance volumes in a view, each from its own
 /// voxels. Bevy 0.20 binds them as one texture array, which needs texture binding arrays
 /// (`bevy_pbr`'s `binding_arrays_are_usable`: the features below and room for its 16
-/// material textures and 8 light probes); without them (WebGL 2, many mobile GPUs, Mesa's
-/// lavapipe) every volume a fragment lies in is read from one texture, the first volume's,
-/// so a level baked with several volumes is lit wrongly there: bake it with
-/// `--volume-regions 1` for such targets.
+/// material textures and 8 light probes); without them (WebGL 2, many mobile GPUs, Mesa
+/// 22's lavapipe; Mesa 25's has them) every volume a fragment lies in is read from one
+/// texture, the first volume's, so a level baked with several volumes is lit wrongly there:
+/// bake it with `--volume-regions 1` for such targets.
 pub fn draws_several_volumes(device: &RenderDevice) -> bool {
     const BINDINGS: u32 = 16 + 8;
     let limits = device.limits();
