@@ -248,4 +248,22 @@ fn a_meshs_own_lightmap_uvs_are_moved_onto_blocks_by_whole_texels() {
     }
     println!("{charts} charts moved");
     assert!(charts > 100);
+    // Hundreds of small charts, each rounded up to whole blocks: the warning says how much
+    // larger they are and suggests a new unwrap.
+    let texels = |l: &Layout| -> u64 {
+        (l.meshes.iter().flatten())
+            .map(|u| u64::from(u.width) * u64::from(u.height))
+            .sum()
+    };
+    let growth = texels(&layout) as f64 / texels(&kept) as f64;
+    println!("{growth:.2}× the texels; {:?}", layout.warnings);
+    assert!(growth > 1.5);
+    assert!(
+        layout
+            .warnings
+            .iter()
+            .any(|w| w.contains(&format!("{growth:.2}×")) && w.contains("--reunwrap")),
+        "{:?}",
+        layout.warnings
+    );
 }

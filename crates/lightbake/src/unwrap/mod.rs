@@ -393,6 +393,9 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
         }
     }
     let mut raised = Vec::new();
+    // Meshes whose own TEXCOORD_1 was moved onto blocks, and their rectangles' texels before
+    // and after.
+    let mut moved_own = (0usize, 0u64, 0u64);
     for (m, mesh) in scene.meshes.iter().enumerate() {
         let request = requests[m];
         if request.texels_per_unit <= 0.0 || mesh.area() <= 0.0 {
@@ -414,6 +417,10 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
                         layout.warnings.push(kept(why));
                         u
                     } else if let Ok(moved) = block_pack::onto_blocks(mesh, &u, settings) {
+                        let area = |u: &MeshUnwrap| u64::from(u.width) * u64::from(u.height);
+                        moved_own.0 += 1;
+                        moved_own.1 += area(&u);
+                        moved_own.2 += area(&moved);
                         moved
                     } else {
                         let why = format!(
@@ -459,9 +466,20 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
             if raised.len() > 3 { ", …" } else { "" }
         ));
     }
+    let (n, before, after) = moved_own;
+    if after as f64 > OWN_UV_GROWTH_WARNING * before as f64 {
+        layout.warnings.push(format!(
+            "{n} mesh(es)' own TEXCOORD_1 charts take {:.2}× the texels on 4×4 blocks of their own for BC6H (each chart rounds up to whole blocks with its padding); --reunwrap lets xatlas chart them for blocks",
+            after as f64 / before as f64
+        ));
+    }
     pack_instances(scene, settings, &mut layout);
     Ok(layout)
 }
+
+/// How much larger the meshes' own charts may grow, moved onto BC6H blocks, before a warning
+/// suggests `--reunwrap` (the texels of their rectangles, after over before).
+const OWN_UV_GROWTH_WARNING: f64 = 1.5;
 
 /// A new unwrap of one mesh: by xatlas, or in pieces when it is big ([`pieces`]). When the
 /// unwrap squashes or stretches triangles ([`squashed`]), the mesh is charted again with
