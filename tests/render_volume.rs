@@ -267,8 +267,8 @@ fn plates_across_two_rooms_volumes_match_the_lightmapped_floor() {
     // and all of a plate's light comes from the volumes: one per room and four over the
     // ground around the building (narrowed to 19.2 m), blended by Bevy's falloff where they
     // overlap — on a GPU with texture binding arrays; on one without (Mesa 22's lavapipe),
-    // one volume over the level, as the plugin's warning advises. Seen from above, the ceiling slab out
-    // of the camera's sight.
+    // one volume over the level, as the plugin's warning advises. Seen from above, the
+    // ceiling slab out of the camera's sight.
     let mut rooms = office_level(2, 1);
     rooms.lights.clear();
     for inst in &mut rooms.instances {
@@ -308,8 +308,8 @@ fn plates_across_two_rooms_volumes_match_the_lightmapped_floor() {
     );
     check("two rooms", &spots, &results);
     if let Some(holders) = holders {
-        // The rooms in volumes of their own, so the plates across the wall and the door are
-        // lit from two volumes, with Bevy's falloff between them.
+        // The rooms in volumes of their own: the plates on either side of the wall and of
+        // the door are lit from different volumes, with Bevy's falloff between them.
         for (a, b) in [(0, 1), (2, 3), (4, 5)] {
             assert!(
                 !holders[a].is_empty() && !holders[b].is_empty(),

@@ -469,7 +469,7 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
     let (n, before, after) = moved_own;
     if after as f64 > OWN_UV_GROWTH_WARNING * before as f64 {
         layout.warnings.push(format!(
-            "{n} mesh(es)' own TEXCOORD_1 charts take {:.2}× the texels on 4×4 blocks of their own for BC6H (each chart rounds up to whole blocks with its padding); --reunwrap lets xatlas chart them for blocks",
+            "the own TEXCOORD_1 charts of {n} mesh(es) take {:.2}× the texels on 4×4 blocks of their own for BC6H (each chart rounds up to whole blocks with its padding); --reunwrap lets xatlas chart them for blocks",
             after as f64 / before as f64
         ));
     }
