@@ -160,11 +160,11 @@ fn probe(solution: &Solution<'_>, grid: &VolumeGrid, i: usize, rays: u32, seed: 
     // Then out past each back face towards the room's centre (solids overlapping at a corner
     // have several), within one cell: a probe in a façade cut at its outer face sees the
     // near, outer face first, and the sky is behind it.
-    {
-        let home = grid.rotation * (0.5 * (grid.room[0] + grid.room[1]));
-        let dir = (home - centre).normalize_or_zero();
+    let home = grid.rotation * (0.5 * (grid.room[0] + grid.room[1]));
+    let dir = (home - centre).normalize_or_zero();
+    if dir != Vec3::ZERO {
         let mut from = 0.0;
-        for k in (0..g.nearest_backs.len()).take_while(|_| dir != Vec3::ZERO) {
+        for k in 0..g.nearest_backs.len() {
             spent += 1;
             let Some(hit) = solution.rays.closest_hit(centre, dir, from, grid.spacing) else {
                 break;

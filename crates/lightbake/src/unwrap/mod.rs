@@ -4,10 +4,10 @@
 //! [0, 1]² spanning it: xatlas segments, parameterises and packs its charts (with `padding`
 //! texels between them; for BC6H pages they are packed again on 4×4 blocks of their own,
 //! [`block_pack`]), or the mesh's own `TEXCOORD_1` is kept after validation (for BC6H pages
-//! its charts moved by whole texels onto blocks of their own, [`block_pack::onto_blocks`]). Every baked
-//! *instance* of the mesh then gets a copy of that rectangle on an atlas page; Bevy's
-//! `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves every
-//! instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
+//! its charts moved by whole texels onto blocks of their own, [`block_pack::onto_blocks`]).
+//! Every baked *instance* of the mesh then gets a copy of that rectangle on an atlas page;
+//! Bevy's `Lightmap::uv_rect` maps the mesh's [0, 1]² onto it, so one `TEXCOORD_1` serves
+//! every instance. Rectangles are shelf-packed into pages of at most `max_page_size` texels, with
 //! `padding` texels between them.
 //!
 //! Texel conventions (Bevy's and glTF's): texel (x, y) covers [x, x+1] × [y, y+1] in texel
