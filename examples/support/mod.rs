@@ -4,9 +4,15 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Duration;
 
 use bevy::app::{PluginGroupBuilder, ScheduleRunnerPlugin};
+use bevy::log::tracing::field::{Field, Visit};
+use bevy::log::tracing::{Event, Level, Subscriber};
+use bevy::log::tracing_subscriber::Layer;
+use bevy::log::tracing_subscriber::layer::Context;
+use bevy::log::{BoxedLayer, LogPlugin};
 use bevy::prelude::*;
 use bevy::window::ExitCondition;
 use bevy_lightbake::capture::{FrameCapture, FrameCapturePlugin};
@@ -50,8 +56,52 @@ pub fn positional_arg() -> Option<String> {
     None
 }
 
+/// Error-level log messages of this process (at most 1 000), as `target: message`.
+static ERRORS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// The error-level messages logged so far by the apps [`default_plugins`] made headless
+/// (Bevy's shader and pipeline errors among them), as `target: message`. The first such
+/// app sets the process's log subscriber, so one app per test process sees them all.
+pub fn logged_errors() -> Vec<String> {
+    ERRORS.lock().map(|e| e.clone()).unwrap_or_default()
+}
+
+/// Keeps error-level events in [`ERRORS`].
+struct ErrorLog;
+
+/// The `message` field of an event.
+struct Message(String);
+
+impl Visit for Message {
+    fn record_debug(&mut self, field: &Field, value: &dyn std::fmt::Debug) {
+        if field.name() == "message" {
+            self.0 = format!("{value:?}");
+        }
+    }
+}
+
+impl<S: Subscriber> Layer<S> for ErrorLog {
+    fn on_event(&self, event: &Event<'_>, _: Context<'_, S>) {
+        if *event.metadata().level() != Level::ERROR {
+            return;
+        }
+        let mut message = Message(String::new());
+        event.record(&mut message);
+        if let Ok(mut errors) = ERRORS.lock()
+            && errors.len() < 1000
+        {
+            errors.push(format!("{}: {}", event.metadata().target(), message.0));
+        }
+    }
+}
+
+fn error_log(_: &mut App) -> Option<BoxedLayer> {
+    Some(Box::new(ErrorLog))
+}
+
 /// Bevy's default plugins, reading assets from `assets` (absolute, or relative to the
-/// workspace). Headless: no window, no winit, a run loop; rendering goes to images only.
+/// workspace). Headless: no window, no winit, a run loop; rendering goes to images only, and
+/// error-level messages are kept for [`logged_errors`].
 pub fn default_plugins(headless: bool, assets: &Path) -> PluginGroupBuilder {
     let group = DefaultPlugins.build().set(AssetPlugin {
         file_path: assets.to_string_lossy().into_owned(),
@@ -59,6 +109,10 @@ pub fn default_plugins(headless: bool, assets: &Path) -> PluginGroupBuilder {
     });
     if headless {
         group
+            .set(LogPlugin {
+                custom_layer: error_log,
+                ..default()
+            })
             .set(WindowPlugin {
                 primary_window: None,
                 exit_condition: ExitCondition::DontExit,

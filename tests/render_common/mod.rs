@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod combos;
+
 use bevy::camera::{Exposure, RenderTarget, ShadowLodOrigin};
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::pbr::Lightmap;

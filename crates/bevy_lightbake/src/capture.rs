@@ -2,20 +2,24 @@
 //! frame that is *settled* — every render pipeline compiled and the picture unchanged over a
 //! few read-backs. Software renderers (Mesa's lavapipe) compile pipelines for many frames;
 //! counting frames is not enough, so this waits for the pipeline cache to be empty instead.
+//! A render pipeline that failed to build (a shader that does not compile for a mesh's
+//! attributes draws nothing of that mesh) fails the capture, naming the error, rather than
+//! giving a frame with the mesh silently missing.
 //!
 //! Used by the examples' `--screenshot PATH` and by the render tests.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use bevy::asset::RenderAssetUsages;
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{
-    Extent3d, PipelineCache, TextureDimension, TextureFormat, TextureUsages,
+    CachedPipelineState, Extent3d, PipelineCache, TextureDimension, TextureFormat, TextureUsages,
 };
 use bevy::render::{Render, RenderApp, RenderSystems};
+use bevy::shader::ShaderCacheError;
 
 /// Read-back frames, 8-bit sRGB RGBA, rows top to bottom.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -122,6 +126,9 @@ pub struct FrameCapture {
     pub pipelines_compiling: usize,
     /// Read-backs seen since the capture was armed (diagnostics).
     pub readbacks: u32,
+    /// The render pipelines that failed to build at the last read-back, one error each. A
+    /// frame that settles with any fails the capture.
+    pub pipeline_errors: Vec<String>,
     latest: Option<Vec<u8>>,
     previous: Option<Vec<u8>>,
     fresh: bool,
@@ -162,6 +169,7 @@ impl FrameCapture {
             fresh: false,
             same: 0,
             readbacks: 0,
+            pipeline_errors: Vec::new(),
         }
     }
 
@@ -184,9 +192,10 @@ impl FrameCapture {
     }
 }
 
-/// Pipelines the render world is still compiling, shared with the main world.
+/// Pipelines the render world is still compiling, and the errors of those that failed,
+/// shared with the main world.
 #[derive(Resource, Clone, Default)]
-struct PipelinesWaiting(Arc<AtomicUsize>);
+struct PipelinesWaiting(Arc<AtomicUsize>, Arc<Mutex<Vec<String>>>);
 
 /// Adds frame capture. Needs Bevy's `RenderPlugin` with a real device; the app inserts a
 /// [`FrameCapture`].
@@ -209,6 +218,19 @@ fn count_waiting(cache: Res<PipelineCache>, waiting: Res<PipelinesWaiting>) {
     waiting
         .0
         .store(cache.waiting_pipelines().count(), Ordering::Relaxed);
+    // Not loaded yet is retried by the cache; the other errors are final.
+    let failed = (cache.pipelines())
+        .filter_map(|p| match &p.state {
+            CachedPipelineState::Err(
+                e @ (ShaderCacheError::ProcessShaderError(_)
+                | ShaderCacheError::CreateShaderModule(_)),
+            ) => Some(e.to_string()),
+            _ => None,
+        })
+        .collect();
+    if let Ok(mut errors) = waiting.1.lock() {
+        *errors = failed;
+    }
 }
 
 #[derive(Component)]
@@ -279,6 +301,7 @@ fn settle_capture(
     }
     c.readbacks += 1;
     c.pipelines_compiling = waiting.0.load(Ordering::Relaxed);
+    c.pipeline_errors = waiting.1.lock().map(|e| e.clone()).unwrap_or_default();
     let compiling = c.pipelines_compiling > 0;
     let same = c.previous.as_ref() == Some(&pixels);
     c.same = if same && !compiling { c.same + 1 } else { 0 };
@@ -294,6 +317,12 @@ fn settle_capture(
         {
             c.failed = Some(e.to_string());
         }
+        if let Some(first) = c.pipeline_errors.first() {
+            c.failed = Some(format!(
+                "{} render pipeline(s) failed to build, so what they draw is missing from the frame; the first: {first}",
+                c.pipeline_errors.len()
+            ));
+        }
         c.frame = Some(frame);
     } else if c.readbacks >= c.max_readbacks {
         c.failed = Some(format!(
@@ -302,6 +331,9 @@ fn settle_capture(
         ));
     }
     if c.done() {
+        if let Some(reason) = &c.failed {
+            error!("lightbake: the frame capture failed: {reason}");
+        }
         for e in &readbacks {
             commands.entity(e).despawn();
         }

@@ -1,13 +1,21 @@
 //! Lightmaps applied to the world: meshes get the unwrap's `UV_1`, baked mesh entities get
 //! their pages as Bevy's `Lightmap`, baked lights stop lighting lightmapped meshes, and the
 //! `Lightmap` components are kept in step with their images ([`LightbakeSystems::Lightmaps`]).
+//!
+//! Bevy 0.20's `StandardMaterial` shader does not compile for a mesh that has `UV_1` but no
+//! `UV_0` (it reads `uv`, which it declares only with `UV_0`), and such a mesh is not drawn.
+//! So every mesh that has `UV_1` and no `UV_0` is given a `UV_0`, a copy of its `UV_1`
+//! ([`give_uv0`]): an in-app bake's meshes when they get their `UV_1`, and any other mesh
+//! (a baked glTF's, loaded from a file written before the `bake` command wrote `TEXCOORD_0`
+//! itself, or a mesh of the game's) in `Update` after it is added or changed, before its
+//! entities are first drawn.
 
 use std::collections::{HashMap, HashSet};
 
 use bevy::asset::AssetId;
 use bevy::diagnostic::FrameCount;
 use bevy::light::GlobalAmbientLight;
-use bevy::mesh::{Indices, MeshAccessError};
+use bevy::mesh::{Indices, MeshAccessError, VertexAttributeValues};
 use bevy::pbr::Lightmap;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
@@ -32,7 +40,70 @@ impl Plugin for LightmapsPlugin {
                 (prepare_lightmap_images, sync_lightmaps)
                     .chain()
                     .in_set(LightbakeSystems::Lightmaps),
-            );
+            )
+            .add_systems(Update, give_meshes_uv0.in_set(LightbakeSystems::Gltf));
+    }
+}
+
+/// Gives `mesh` a `UV_0` when it has `UV_1` and none, so Bevy's `StandardMaterial` shader
+/// compiles for it (see the module docs): a copy of `UV_1` when that is plain `Float32x2`,
+/// else zeros (a compressed `UV_1` cannot be copied without its range). A texture sampled by
+/// `UV_0` needs a `UV_0` of its own, so nothing a textured mesh shows changes. Returns whether
+/// it added one.
+///
+/// # Errors
+/// When the mesh's data is only on the GPU.
+pub fn give_uv0(mesh: &mut Mesh) -> Result<bool, MeshAccessError> {
+    if mesh.try_contains_attribute(Mesh::ATTRIBUTE_UV_0)?
+        || !mesh.try_contains_attribute(Mesh::ATTRIBUTE_UV_1)?
+    {
+        return Ok(false);
+    }
+    let uv0 = match mesh.try_attribute(Mesh::ATTRIBUTE_UV_1)? {
+        VertexAttributeValues::Float32x2(uv) => uv.clone(),
+        other => vec![[0.0, 0.0]; other.len()],
+    };
+    mesh.try_insert_attribute(Mesh::ATTRIBUTE_UV_0, uv0)?;
+    Ok(true)
+}
+
+/// Gives every mesh added or changed since the last frame that has `UV_1` and no `UV_0` a
+/// `UV_0` ([`give_uv0`]). Runs in `Update`: a glTF's meshes are loaded a frame or more before
+/// its scene spawns, so its entities are drawn with the `UV_0` from their first frame.
+pub(crate) fn give_meshes_uv0(
+    mut events: MessageReader<AssetEvent<Mesh>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut warned: Local<HashSet<AssetId<Mesh>>>,
+) {
+    let ids: HashSet<AssetId<Mesh>> = (events.read())
+        .filter_map(|event| match event {
+            AssetEvent::Added { id }
+            | AssetEvent::Modified { id }
+            | AssetEvent::LoadedWithDependencies { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    for id in ids {
+        let wants = meshes.get(id).is_some_and(|m| {
+            m.try_contains_attribute(Mesh::ATTRIBUTE_UV_1)
+                .unwrap_or(false)
+                && !m
+                    .try_contains_attribute(Mesh::ATTRIBUTE_UV_0)
+                    .unwrap_or(true)
+        });
+        if !wants {
+            continue;
+        }
+        let Some(mut mesh) = meshes.get_mut(id) else {
+            continue;
+        };
+        match give_uv0(&mut mesh) {
+            Ok(_) => debug!("lightbake: mesh {id} has UV_1 and no UV_0; UV_0 added"),
+            Err(e) if warned.insert(id) => warn!(
+                "lightbake: mesh {id} has UV_1 and no UV_0, and Bevy's StandardMaterial cannot draw it; adding UV_0 failed ({e})"
+            ),
+            Err(_) => {}
+        }
     }
 }
 
@@ -50,7 +121,7 @@ pub(crate) struct ResizedImages(HashSet<AssetId<Image>>);
 pub(crate) struct ReinsertAfter(u32);
 
 /// `original` with the unwrap's vertex split applied to every attribute, its triangle list
-/// replaced and `UV_1` set.
+/// replaced and `UV_1` set (and `UV_0`, a copy of it, when it had none: [`give_uv0`]).
 ///
 /// # Errors
 /// When the mesh's data is only on the GPU.
@@ -65,6 +136,7 @@ pub fn apply_unwrap(original: &Mesh, unwrap: &MeshUnwrap) -> Result<Mesh, MeshAc
     let uv1: Vec<[f32; 2]> = unwrap.uv1.iter().map(|v| v.to_array()).collect();
     mesh.try_insert_attribute(Mesh::ATTRIBUTE_UV_1, uv1)?;
     mesh.try_insert_indices(Indices::U32(unwrap.indices.clone()))?;
+    give_uv0(&mut mesh)?;
     Ok(mesh)
 }
 
@@ -457,5 +529,77 @@ mod tests {
         assert_eq!(uv1[4], [0.2, 0.2]);
         let indices: Vec<usize> = out.indices().unwrap().iter().collect();
         assert_eq!(indices, vec![0, 1, 2, 4, 2, 3]);
+        // It had no UV_0: Bevy's StandardMaterial needs one beside UV_1, a copy of it.
+        assert_eq!(
+            out.attribute(Mesh::ATTRIBUTE_UV_0),
+            out.attribute(Mesh::ATTRIBUTE_UV_1)
+        );
+    }
+
+    fn quad(uv0: bool, uv1: Option<VertexAttributeValues>) -> Mesh {
+        let mut mesh = Mesh::new(
+            PrimitiveTopology::TriangleList,
+            RenderAssetUsages::default(),
+        )
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+        );
+        if uv0 {
+            mesh.insert_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.5f32, 0.5]; 3]);
+        }
+        if let Some(uv1) = uv1 {
+            mesh.insert_attribute(Mesh::ATTRIBUTE_UV_1, uv1);
+        }
+        mesh
+    }
+
+    #[test]
+    fn uv0_is_given_only_beside_a_lone_uv1() {
+        let uv1 = vec![[0.1f32, 0.2], [0.3, 0.4], [0.5, 0.6]];
+        let mut lone = quad(false, Some(uv1.clone().into()));
+        assert!(give_uv0(&mut lone).unwrap());
+        assert_eq!(
+            lone.attribute(Mesh::ATTRIBUTE_UV_0),
+            Some(&VertexAttributeValues::Float32x2(uv1.clone()))
+        );
+        assert!(!give_uv0(&mut lone).unwrap(), "once is enough");
+        // A textured mesh keeps its own UV_0; a mesh without UV_1 gets none.
+        let mut textured = quad(true, Some(uv1.into()));
+        assert!(!give_uv0(&mut textured).unwrap());
+        assert_eq!(
+            textured.attribute(Mesh::ATTRIBUTE_UV_0),
+            Some(&VertexAttributeValues::Float32x2(vec![[0.5, 0.5]; 3]))
+        );
+        let mut plain = quad(false, None);
+        assert!(!give_uv0(&mut plain).unwrap());
+        assert!(!plain.contains_attribute(Mesh::ATTRIBUTE_UV_0));
+    }
+
+    #[test]
+    fn meshes_added_with_a_lone_uv1_get_uv0_in_the_app() {
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+            .init_asset::<Mesh>()
+            .configure_sets(Update, LightbakeSystems::Gltf)
+            .add_systems(Update, give_meshes_uv0.in_set(LightbakeSystems::Gltf));
+        let uv1 = vec![[0.1f32, 0.2], [0.3, 0.4], [0.5, 0.6]];
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        let lone = meshes.add(quad(false, Some(uv1.clone().into())));
+        let plain = meshes.add(quad(false, None));
+        // The asset events of one frame are read in the next.
+        app.update();
+        app.update();
+        let meshes = app.world().resource::<Assets<Mesh>>();
+        assert_eq!(
+            meshes.get(&lone).unwrap().attribute(Mesh::ATTRIBUTE_UV_0),
+            Some(&VertexAttributeValues::Float32x2(uv1))
+        );
+        assert!(
+            !meshes
+                .get(&plain)
+                .unwrap()
+                .contains_attribute(Mesh::ATTRIBUTE_UV_0)
+        );
     }
 }

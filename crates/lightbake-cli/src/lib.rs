@@ -573,6 +573,20 @@ fn write_and_print(
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
     }
+    for w in &written.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(first) = written.texcoord_0_added.first() {
+        let n = written.texcoord_0_added.len();
+        let more = if n > 1 {
+            format!(" and {} more", n - 1)
+        } else {
+            String::new()
+        };
+        println!(
+            "baked glTF: TEXCOORD_0 added to {n} primitive(s) ({first}{more}) as their TEXCOORD_1, since Bevy's StandardMaterial shader needs UV_0 where UV_1 is set (report.json: texcoord_0_added)"
+        );
+    }
     for (i, e) in written.bc6h.iter().enumerate() {
         println!("{}", e.summary(i));
     }

@@ -442,6 +442,11 @@ pub struct BakeReport {
     pub verification: Option<Verification>,
     /// Repairs, compromises and clamps.
     pub warnings: Vec<String>,
+    /// The baked glTF's primitives given a `TEXCOORD_0` naming their `TEXCOORD_1`'s
+    /// accessor, as `mesh 'NAME' primitive P` (filled in by the writer): Bevy's
+    /// `StandardMaterial` shader does not compile for a mesh with `UV_1` and no `UV_0`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub texcoord_0_added: Vec<String>,
     /// Wall time of the whole bake (writing excluded), seconds.
     pub total_seconds: f64,
     /// The process's peak resident memory when the bake ended, MiB (`VmHWM`; none where the

@@ -587,3 +587,104 @@ fn a_rebake_removes_the_earlier_bakes_stale_files_and_nothing_else() {
     assert!(out_dir.join("lightmaps/notes.txt").is_file());
     assert!(out_dir.join("cornell_box.gltf.bak").is_file());
 }
+
+/// The accessor index of `semantic` on every primitive of `json` that has one.
+fn attribute_of(json: &Value, semantic: &str) -> Vec<Option<u64>> {
+    let mut out = Vec::new();
+    for mesh in json["meshes"].as_array().unwrap() {
+        for prim in mesh["primitives"].as_array().unwrap() {
+            out.push(prim["attributes"][semantic].as_u64());
+        }
+    }
+    out
+}
+
+#[test]
+fn primitives_without_texcoord_0_get_their_lightmap_uvs_as_one() {
+    // An OpenArena level: positions and normals only. Bevy's StandardMaterial shader does not
+    // compile for a mesh with UV_1 and no UV_0.
+    let dir = tempfile::tempdir().unwrap();
+    let source =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/corpus/openarena/q3dm6ish.gltf");
+    let imported = import(&source).unwrap();
+    let mut settings = BakeSettings::preview();
+    settings.layout.texel_budget = 20_000;
+    let out = lightbake::bake(&imported.scene, &settings, &Progress::new()).unwrap();
+    let first = dir.path().join("first");
+    let written = write_outputs(
+        &first,
+        &out,
+        &imported.scene,
+        Some(&imported.source),
+        &settings,
+    )
+    .unwrap();
+    let json: Value =
+        serde_json::from_slice(&std::fs::read(first.join("q3dm6ish.gltf")).unwrap()).unwrap();
+    let (uv0, uv1) = (
+        attribute_of(&json, "TEXCOORD_0"),
+        attribute_of(&json, "TEXCOORD_1"),
+    );
+    assert!(uv1.iter().all(Option::is_some));
+    assert_eq!(
+        uv0, uv1,
+        "TEXCOORD_0 names the TEXCOORD_1 accessor (no bytes of its own)"
+    );
+    assert_eq!(written.texcoord_0_added.len(), uv1.len());
+    assert!(
+        written.texcoord_0_added[0].starts_with("mesh '"),
+        "{:?}",
+        written.texcoord_0_added
+    );
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(first.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["texcoord_0_added"].as_array().unwrap().len(),
+        uv1.len()
+    );
+
+    // Baked again with new lightmap UVs: TEXCOORD_0 follows the new TEXCOORD_1.
+    let baked = import(&first.join("q3dm6ish.gltf")).unwrap();
+    settings.layout.reunwrap = true;
+    let again = lightbake::bake(&baked.scene, &settings, &Progress::new()).unwrap();
+    let second = dir.path().join("second");
+    write_outputs(
+        &second,
+        &again,
+        &baked.scene,
+        Some(&baked.source),
+        &settings,
+    )
+    .unwrap();
+    let json2: Value =
+        serde_json::from_slice(&std::fs::read(second.join("q3dm6ish.gltf")).unwrap()).unwrap();
+    let (uv0, uv1) = (
+        attribute_of(&json2, "TEXCOORD_0"),
+        attribute_of(&json2, "TEXCOORD_1"),
+    );
+    assert_eq!(uv0, uv1);
+
+    // A primitive with its own TEXCOORD_0 (the shipped Cornell box) keeps it.
+    let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/cornell_box.gltf");
+    let imported = import(&cornell).unwrap();
+    let settings = fast_settings();
+    let out = lightbake::bake(&imported.scene, &settings, &Progress::new()).unwrap();
+    let third = dir.path().join("third");
+    let written = write_outputs(
+        &third,
+        &out,
+        &imported.scene,
+        Some(&imported.source),
+        &settings,
+    )
+    .unwrap();
+    assert!(written.texcoord_0_added.is_empty());
+    let json3: Value =
+        serde_json::from_slice(&std::fs::read(third.join("cornell_box.gltf")).unwrap()).unwrap();
+    for (a, b) in attribute_of(&json3, "TEXCOORD_0")
+        .iter()
+        .zip(attribute_of(&json3, "TEXCOORD_1"))
+    {
+        assert!(a.is_some() && *a != b);
+    }
+}

@@ -363,6 +363,7 @@ fn bake_in_pool(
         threads,
         memory: admitted.estimate,
         warnings,
+        texcoord_0_added: Vec::new(),
         error: lit.error,
         error_budget,
         floor,

@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 
+use super::drawable;
 use crate::error::{BakeError, Result};
 use crate::scene::extras::{
     self, LightBakeExtras, LightExtras, NodeExtras, NodeLightmap, SceneExtras,
@@ -25,11 +26,17 @@ use crate::scene::resources::{percent_decode, percent_encode_path, used_buffer_v
 use crate::scene::{GltfPrimitiveRef, Scene};
 use crate::unwrap::{Layout, MeshUnwrap};
 
-/// The files of the baked glTF.
+/// The files of the baked glTF, and what it adds or cannot help for Bevy to draw it.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct BakedGltf {
     /// (path relative to the output directory, bytes) of every file.
     pub files: Vec<(PathBuf, Vec<u8>)>,
+    /// The primitives given a `TEXCOORD_0` (the accessor of their `TEXCOORD_1`), as
+    /// `mesh 'NAME' primitive P` ([`drawable::add_texcoord_0`]).
+    pub texcoord_0_added: Vec<String>,
+    /// Why parts of the baked scene draw other than as baked in Bevy
+    /// ([`drawable::drawing_warnings`]).
+    pub warnings: Vec<String>,
 }
 
 fn err(path: &Path, message: impl Into<String>) -> BakeError {
@@ -102,6 +109,7 @@ pub fn baked_gltf(
     // 1. The buffer views in use copied into one blob, the others dropped.
     let mut blob = merge_buffers(&mut json, &source.buffers).map_err(|m| err(path, m))?;
     // 2. Unwrapped primitives rewritten.
+    let mut baked = Vec::new();
     for (m, unwrap) in layout.meshes.iter().enumerate() {
         let (Some(unwrap), Some(src)) = (unwrap, original.meshes[m].source) else {
             continue;
@@ -124,13 +132,17 @@ pub fn baked_gltf(
             )
         };
         rewrite_primitive(&mut out, source, &gprim, src, unwrap, &context)?;
+        baked.push((src.mesh, src.primitive));
     }
-    // 3. Lightmap references in node extras, volumes in the scenes' extras; 4. punctual
+    // 3. What Bevy needs to draw the primitives: TEXCOORD_0 where only TEXCOORD_1 is.
+    let warnings = drawable::drawing_warnings(&json, &baked);
+    let texcoord_0_added = drawable::add_texcoord_0(&mut json);
+    // 4. Lightmap references in node extras, volumes in the scenes' extras; 5. punctual
     // lights marked as baked (or baked indirect only).
     write_node_lightmaps(&mut json, lightmaps);
     write_scene_extras(&mut json, written);
     mark_lights_baked(&mut json, original);
-    // 5. Images copied (gltf) or embedded (glb), then one buffer and the container.
+    // 6. Images copied (gltf) or embedded (glb), then one buffer and the container.
     let mut taken: HashSet<String> = reserved.iter().map(|r| r.to_lowercase()).collect();
     for ext in ["gltf", "glb", "bin"] {
         taken.insert(format!("{stem}.{ext}").to_lowercase());
@@ -150,7 +162,11 @@ pub fn baked_gltf(
         files.push((PathBuf::from(format!("{stem}.gltf")), text));
         files.push((PathBuf::from(bin), blob));
     }
-    Ok(BakedGltf { files })
+    Ok(BakedGltf {
+        files,
+        texcoord_0_added,
+        warnings,
+    })
 }
 
 /// The document and the merged buffer being written.
@@ -236,12 +252,17 @@ fn rewrite_primitive(
         out.json,
         json!({ "bufferView": uv1_view, "componentType": 5126, "count": unwrap.uv1.len(), "type": "VEC2" }),
     );
+    // A TEXCOORD_0 sharing the TEXCOORD_1 accessor is an earlier bake's addition: dropped
+    // here, and given again on the new TEXCOORD_1 by `drawable::add_texcoord_0`.
+    let earlier_copy = drawable::shares_lightmap_uvs(
+        &source.json["meshes"][src.mesh]["primitives"][src.primitive],
+    );
     let mut new_attributes = serde_json::Map::new();
     let mut new_targets: Vec<serde_json::Map<String, Value>> = Vec::new();
     if let Some(xref) = &unwrap.xref {
         for (semantic, accessor) in gprim.attributes() {
             let name = semantic.to_string();
-            if name == "TEXCOORD_1" {
+            if name == "TEXCOORD_1" || (earlier_copy && name == "TEXCOORD_0") {
                 continue;
             }
             let idx = gather(out, source, &accessor, xref, &name, context)?;
@@ -273,6 +294,9 @@ fn rewrite_primitive(
         }
     } else {
         prim["attributes"]["TEXCOORD_1"] = json!(uv1_accessor);
+        if earlier_copy && let Some(attributes) = prim["attributes"].as_object_mut() {
+            attributes.remove("TEXCOORD_0");
+        }
     }
     // Indices: always a triangle list after unwrapping (strips and fans are converted).
     if unwrap.xref.is_some() || prim.get("mode").is_some_and(|m| m.as_u64() != Some(4)) {

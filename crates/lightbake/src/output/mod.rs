@@ -17,7 +17,7 @@
 //!   report.json                                      settings, plan, timings, rays, warnings
 //! ```
 
-internal!(gltf_export, images);
+internal!(drawable, gltf_export, images);
 pub mod bc6h;
 pub mod manifest;
 
@@ -47,6 +47,14 @@ pub struct Written {
     /// (fewer pages, volumes or groups, other formats), removed so that no stale image lies
     /// beside the ones the manifest and glTF list.
     pub removed: Vec<PathBuf>,
+    /// The baked glTF's primitives given a `TEXCOORD_0` (their `TEXCOORD_1`'s accessor),
+    /// without which Bevy's `StandardMaterial` shader fails for a lightmapped mesh; as
+    /// `mesh 'NAME' primitive P`. Also in the report
+    /// ([`BakeReport::texcoord_0_added`](crate::report::BakeReport::texcoord_0_added)).
+    pub texcoord_0_added: Vec<String>,
+    /// Why parts of the baked glTF draw other than as baked in Bevy (one line each; also
+    /// among the report's warnings).
+    pub warnings: Vec<String>,
 }
 
 fn encode_err(path: &Path) -> impl FnOnce(String) -> BakeError + '_ {
@@ -140,9 +148,15 @@ pub fn write_outputs(
         )?),
         None => None,
     };
-    let manifest = manifest(output, original, (&pages, &group_pages), baked_gltf);
+    let (gltf_name, texcoord_0_added, warnings) = match baked_gltf {
+        Some((name, added, warnings)) => (Some(name), added, warnings),
+        None => Default::default(),
+    };
+    let manifest = manifest(output, original, (&pages, &group_pages), gltf_name);
     stage_json(&mut staged, &dir.join("manifest.json"), &manifest)?;
     let mut report = output.report.clone();
+    report.texcoord_0_added = texcoord_0_added.clone();
+    report.warnings.extend(warnings.iter().cloned());
     let report_path = dir.join("report.json");
     report.outputs = staged
         .destinations()
@@ -191,6 +205,8 @@ pub fn write_outputs(
         files,
         bc6h: compressed,
         removed,
+        texcoord_0_added,
+        warnings,
     })
 }
 
@@ -333,7 +349,8 @@ fn stage_pages(
     Ok(compressed)
 }
 
-/// Stages the baked glTF (and its buffer and images); returns its file name.
+/// Stages the baked glTF (and its buffer and images); returns its file name, the primitives
+/// given a `TEXCOORD_0` and the warnings on what Bevy draws other than as baked.
 fn stage_baked_gltf(
     staged: &mut StagedFiles,
     dir: &Path,
@@ -341,7 +358,7 @@ fn stage_baked_gltf(
     original: &Scene,
     source: &GltfSource,
     (pages, group_pages): (&[PageFiles], &[Vec<PageFiles>]),
-) -> Result<String> {
+) -> Result<(String, Vec<String>, Vec<String>)> {
     let stem = source
         .path
         .file_stem()
@@ -402,12 +419,11 @@ fn stage_baked_gltf(
     for (rel, bytes) in &baked.files {
         staged.stage(&dir.join(rel), bytes)?;
     }
-    Ok(baked
-        .files
-        .iter()
+    let name = (baked.files.iter())
         .map(|(p, _)| p.to_string_lossy().into_owned())
         .find(|p| p.ends_with(".gltf") || p.ends_with(".glb"))
-        .unwrap_or_default())
+        .unwrap_or_default();
+    Ok((name, baked.texcoord_0_added, baked.warnings))
 }
 
 /// Stages `value` as pretty-printed JSON at `path`.
