@@ -415,6 +415,7 @@ fn cancel_keeps_nothing_and_a_new_request_restarts() {
     world.resource_mut::<LightbakeConfig>().settings = settings(Method::Direct);
     world.write_message(RequestBake {
         settings: Some(BakeSettings::high()),
+        full: false,
     });
     run_until(&mut app, "the second bake to start", TIMEOUT, |w| {
         w.resource::<BakeStatus>().is_running()
@@ -483,9 +484,10 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
     };
     let first = size_of(app.world()).unwrap();
 
-    // Twice the density: the meshes keep the UV_1 the first bake gave them, the page grows,
-    // and the plugin re-inserts every `Lightmap` (Bevy ignores an image that changes size
-    // under an existing one).
+    // Twice the density: the bake reads the meshes as they were before the first bake gave
+    // them UV_1 (`rebake::UnwrappedMeshes`) and unwraps them for the new density, the page
+    // grows, and the plugin re-inserts every `Lightmap` (Bevy ignores an image that changes
+    // size under an existing one).
     let mut removed = 0;
     app.world_mut().resource_mut::<LightbakeConfig>().settings = {
         let mut s = settings(Method::Direct);
@@ -510,9 +512,17 @@ fn rebake_at_another_size_replaces_lightmaps_and_the_toggle_shows_real_time_ligh
         .last_report
         .clone()
         .unwrap();
-    assert_eq!(
-        report.plan.meshes_to_unwrap, 0,
-        "the second bake keeps the first UV_1"
+    let meshes = report.plan.meshes_to_unwrap;
+    assert!(
+        meshes > 0,
+        "the second bake at another density unwraps the meshes as they were: {meshes}"
+    );
+    let inc = report.incremental.as_ref().expect("an incremental report");
+    assert!(
+        inc.full
+            .as_ref()
+            .is_some_and(|why| why.contains("settings")),
+        "another density is a full bake: {inc:?}"
     );
 
     // Real-time lighting: every plugin-managed Lightmap goes, and comes back.

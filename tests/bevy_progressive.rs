@@ -145,6 +145,7 @@ fn a_bake_cancelled_after_its_first_preview_puts_the_previous_lightmaps_back() {
             s.threads = 1;
             s
         }),
+        full: false,
     });
     run_until(&mut app, "the first preview", TIMEOUT, |w| {
         w.resource::<BakeStatus>().preview == Some(PreviewKind::Direct)

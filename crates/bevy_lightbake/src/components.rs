@@ -147,6 +147,18 @@ pub struct LightbakeConfig {
     /// when an in-app bake finishes (its pages show as half floats until the BC6H files are
     /// read). Default `true`.
     pub bc6h: bool,
+    /// Bake again, incrementally, after an edit: when a [`Lightbaked`] entity moves, a baked
+    /// light moves or changes its colour, intensity, range or cone, or a baked mesh's
+    /// material changes its base colour or emission, a [`RequestBake`] is sent once the
+    /// world has stayed unchanged for [`Self::rebake_after_seconds`]. The bake follows the
+    /// last finished one (`lightbake::incremental`): unchanged meshes keep their lightmap
+    /// layout and only what the edit can change is computed again. Watched only after a
+    /// first bake has finished; the sky is not watched. Default `false`.
+    pub auto_rebake: bool,
+    /// How long the world must stay unchanged after an edit before an automatic rebake
+    /// starts, seconds (an edit during a rebake cancels it and starts another after this
+    /// pause). Default 0.3.
+    pub rebake_after_seconds: f32,
 }
 
 impl Default for LightbakeConfig {
@@ -165,6 +177,8 @@ impl Default for LightbakeConfig {
             disable_ambient_on_lightmapped: true,
             previews: true,
             bc6h: true,
+            auto_rebake: false,
+            rebake_after_seconds: 0.3,
         }
     }
 }
@@ -228,6 +242,10 @@ impl BakeStatus {
 pub struct RequestBake {
     /// Settings for this bake only; `None` uses [`LightbakeConfig::settings`].
     pub settings: Option<BakeSettings>,
+    /// Bake every texel even where the last finished bake in the app could be followed
+    /// (`lightbake::incremental`). Default `false`: a bake with the same settings as the last
+    /// one recomputes only what changed since.
+    pub full: bool,
 }
 
 /// Message: stop the running bake. Nothing is written and the previous lightmaps stay.

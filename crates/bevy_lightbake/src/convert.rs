@@ -486,6 +486,7 @@ fn extract_instances(
     let images = world.resource::<Assets<Image>>();
     let materials = world.resource::<Assets<StandardMaterial>>();
     let server = world.get_resource::<AssetServer>();
+    let unwrapped = world.get_resource::<crate::rebake::UnwrappedMeshes>();
     let mut mats = Materials::default();
     let mut core_meshes: HashMap<(AssetId<Mesh>, Option<AssetId<StandardMaterial>>), usize> =
         HashMap::new();
@@ -499,6 +500,11 @@ fn extract_instances(
                     .ok_or_else(|| ConvertError::MeshNotLoaded {
                         label: label.clone(),
                     })?;
+                // The mesh as it was before a bake in the app gave it lightmap UVs.
+                let mesh = match unwrapped {
+                    Some(u) => u.source(mesh_handle.id(), mesh),
+                    None => mesh,
+                };
                 if mesh.has_morph_targets() {
                     scene.warnings.push(format!(
                         "{label}: morph targets are ignored; the mesh is baked in its rest pose"

@@ -85,6 +85,7 @@ pub mod groups;
 pub mod images;
 pub mod lightmaps;
 mod preview;
+pub mod rebake;
 pub mod requests;
 pub mod sample;
 pub mod spawn;
@@ -162,6 +163,7 @@ impl Plugin for LightbakePlugin {
                 volumes::VolumesPlugin,
                 gltf::GltfScenesPlugin,
                 groups::LightGroupsPlugin,
+                rebake::AutoRebakePlugin,
             ));
     }
 }

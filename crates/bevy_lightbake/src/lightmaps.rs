@@ -162,11 +162,30 @@ pub(crate) fn apply_meshes(
                 continue;
             }
         };
+        let summary = crate::rebake::written_summary(&mesh);
         let mut meshes = world.resource_mut::<Assets<Mesh>>();
-        if source.needs_own_asset {
-            new_handles.insert(m, meshes.add(mesh));
+        // An asset that already holds these UVs (a rebake of an unchanged mesh) is left as
+        // it is: Bevy uploads and specializes nothing again.
+        let holds = |meshes: &Assets<Mesh>| {
+            (meshes.get(source.handle.id()))
+                .is_some_and(|c| crate::rebake::written_summary(c) == summary)
+        };
+        if !source.needs_own_asset && holds(&meshes) {
+            continue;
+        }
+        let id = if source.needs_own_asset {
+            let handle = meshes.add(mesh);
+            let id = handle.id();
+            new_handles.insert(m, handle);
+            id
         } else if meshes.insert(source.handle.id(), mesh).is_err() {
             warn!("lightbake: a baked mesh asset was removed during the bake");
+            continue;
+        } else {
+            source.handle.id()
+        };
+        if let Some(mut u) = world.get_resource_mut::<crate::rebake::UnwrappedMeshes>() {
+            u.insert(id, source.original.clone(), summary);
         }
     }
 

@@ -144,8 +144,15 @@ pub(crate) fn start_bake(world: &mut World) {
     } else {
         PreviewSlot::default()
     };
+    // The bake follows the last finished one in the app where it can
+    // (`lightbake::incremental`); the plan says what it keeps and why.
+    let kept = world.resource::<crate::rebake::KeptBake>().0.clone();
+    let plan = lightbake::incremental::plan(Ok(kept), &scene, &settings, request.full);
+    info!("lightbake: {}", plan.describe().trim_end());
+    crate::rebake::bake_started(world);
     let spawned = lightbake::BakeBuilder::new(scene)
         .settings(settings)
+        .following(plan)
         .previews(std::sync::Arc::new(previews))
         .spawn_then(then);
     let handle = match spawned {
@@ -176,7 +183,7 @@ pub(crate) fn start_bake(world: &mut World) {
 /// After the bake, on its thread: (optionally) write the outputs atomically into the assets
 /// folder.
 fn write_files(
-    output: BakeOutput,
+    mut output: BakeOutput,
     scene: &Scene,
     settings: &BakeSettings,
     out_dir: Option<&std::path::Path>,
@@ -184,7 +191,12 @@ fn write_files(
 ) -> Result<Finished, BakeError> {
     let (page_paths, bc6h_paths, volume_paths) = match out_dir {
         Some(dir) => {
-            lightbake::write_outputs(dir, &output, scene, None, settings)?;
+            // The app keeps the cache for its next bake in memory (`rebake::KeptBake`): none
+            // is written into the assets folder, where the game would ship it.
+            let cache = output.cache.take();
+            let written = lightbake::write_outputs(dir, &output, scene, None, settings);
+            output.cache = cache;
+            written?;
             let pages = lightbake::output::page_files(&output, settings);
             let volumes = lightbake::output::volumes(&output);
             let bc6h: Option<Vec<String>> = (pages.iter())
@@ -289,6 +301,9 @@ fn apply_bake(world: &mut World, finished: Finished, mapping: &SceneMapping) -> 
         bc6h_paths,
         volume_paths,
     } = finished;
+    if output.cache.is_some() {
+        world.resource_mut::<crate::rebake::KeptBake>().0 = output.cache.clone();
+    }
     let new_handles = apply_meshes(world, &output.layout, mapping);
     let bc6h = !bc6h_paths.is_empty()
         && loads_bc6h(

@@ -47,6 +47,7 @@
 //! | 7 | `density` | texel density that follows the light: the direct-light pilot and each chart's scale |
 //! | 7 | `context` | what every lighting pass reads |
 //! | 7 | `runner` | how a pass runs its stages and where their work units run (the driver implements it) |
+//! | 7 | [`incremental`] | what a bake keeps for the next one, what an edit changed, and how far it moves each texel's light |
 //! | 8 | `direct` | direct light at every texel |
 //! | 9 | `solve` | the matrix F and the linear solvers (pure linear algebra) |
 //! | 10 | `radiosity` | nodes, basis, form factors, stochastic Jacobi, hierarchical radiosity, the radiosity pass |
@@ -92,6 +93,7 @@ pub mod scene;
 internal!(
     unwrap, bvh, raster, lights, plan, memory, density, context, runner
 );
+pub mod incremental;
 // 8–11. The lighting passes.
 internal!(direct, solve, radiosity, vpl);
 // 12–17. Results, the driver, writing, analysis.

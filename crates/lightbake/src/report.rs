@@ -447,6 +447,11 @@ pub struct BakeReport {
     /// `StandardMaterial` shader does not compile for a mesh with `UV_1` and no `UV_0`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub texcoord_0_added: Vec<String>,
+    /// How the bake followed the cached bake in its output folder, when it was run to
+    /// ([`crate::BakeBuilder::following`]): full (and why) or the edits it followed, how
+    /// the layout was kept, and each split stage's items computed again.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub incremental: Option<crate::incremental::IncrementalReport>,
     /// Wall time of the whole bake (writing excluded), seconds.
     pub total_seconds: f64,
     /// The process's peak resident memory when the bake ended, MiB (`VmHWM`; none where the

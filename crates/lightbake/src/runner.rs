@@ -55,7 +55,10 @@ pub trait StageRunner<'p> {
 pub trait WorkScope: Copy {
     /// The values of stage `stage`'s `items` items (item `i` belongs to patch `patch(i)`) and
     /// the (closest, any-hit) rays this process traced for them: `compute(only)` computes the
-    /// items `only` marks (`None`: every item), the rest come from elsewhere.
+    /// items `only` marks (`None`: every item), the rest come from elsewhere. `summary`, when
+    /// the pass knows it, states each item's inputs in one number (lux, luminance) whose
+    /// change bounds the change of the item's value — for a gather, the coarse light the node
+    /// gathers — so that a bake following an edit keeps the items whose inputs barely moved.
     ///
     /// # Errors
     /// A part of another process that cannot be read, or a cancel.
@@ -64,6 +67,7 @@ pub trait WorkScope: Copy {
         stage: Stage,
         items: usize,
         patch: impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
         compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])>;
 
@@ -84,6 +88,11 @@ pub trait Record: Copy + Default {
     fn put(&self, out: &mut Vec<u8>);
     /// Reads a value from `BYTES` bytes.
     fn get(b: &[u8]) -> Self;
+    /// The value's level (luminance of its light, lux): what an incremental bake weighs a
+    /// change of the value's inputs against. Default 0 (every change counts).
+    fn level(&self) -> f32 {
+        0.0
+    }
 }
 
 fn f32s(b: &[u8], k: usize) -> f32 {
@@ -99,6 +108,9 @@ impl Record for (Vec3, f32) {
     }
     fn get(b: &[u8]) -> Self {
         (Vec3::new(f32s(b, 0), f32s(b, 1), f32s(b, 2)), f32s(b, 3))
+    }
+    fn level(&self) -> f32 {
+        crate::color::luminance(self.0)
     }
 }
 
@@ -116,6 +128,9 @@ impl Record for (Vec3, f32, Vec3) {
             f32s(b, 3),
             Vec3::new(f32s(b, 4), f32s(b, 5), f32s(b, 6)),
         )
+    }
+    fn level(&self) -> f32 {
+        crate::color::luminance(self.0)
     }
 }
 

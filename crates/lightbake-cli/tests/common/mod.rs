@@ -49,10 +49,14 @@ pub fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 }
 
 /// Every output file of a bake, by name relative to `dir` (the report aside: its times
-/// differ from run to run).
+/// differ from run to run; and the cache a bake in one process keeps for the next bake into
+/// the folder, which a split bake's merge does not write).
 pub fn outputs(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
     let mut out = files(dir);
-    out.retain(|p, _| p.file_name().is_some_and(|n| n != "report.json"));
+    out.retain(|p, _| {
+        p.file_name()
+            .is_some_and(|n| n != "report.json" && n != "lightbake.cache")
+    });
     out
 }
 

@@ -26,9 +26,10 @@ use super::handle::BakeHandle;
 use super::preview::PreviewSlot;
 use super::shard::ShardRun;
 use super::stages::Scope;
-use super::subset::TexelRun;
+use super::subset::{Checkpoint, TexelRun};
 use super::{BakeOutput, bake_split, bake_texels, bake_with};
 use crate::error::Result;
+use crate::incremental::Plan;
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -41,6 +42,20 @@ pub struct BakeBuilder {
     settings: BakeSettings,
     progress: Arc<Progress>,
     previews: Arc<PreviewSlot>,
+    /// How the bake follows the cached bake of its output folder, when it keeps a cache.
+    following: Option<Plan>,
+    /// Where a bake that keeps a cache hands its state after each split stage.
+    checkpoint: Option<Sink>,
+}
+
+/// A [`Checkpoint`] in the builder (shown as its presence).
+#[derive(Clone)]
+struct Sink(Checkpoint);
+
+impl std::fmt::Debug for Sink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Checkpoint")
+    }
 }
 
 /// How one process of a split bake ended.
@@ -61,6 +76,8 @@ impl BakeBuilder {
             settings: BakeSettings::default(),
             progress: Arc::new(Progress::new()),
             previews: Arc::new(PreviewSlot::default()),
+            following: None,
+            checkpoint: None,
         }
     }
 
@@ -85,17 +102,42 @@ impl BakeBuilder {
         self
     }
 
+    /// Follows `plan` ([`crate::incremental::plan`]): a full bake, or an edit of the cached
+    /// bake that recomputes only what the edit changed (see [`crate::incremental`]); either
+    /// way the output keeps a cache for the next bake ([`BakeOutput::cache`]).
+    pub fn following(mut self, plan: Plan) -> Self {
+        self.following = Some(plan);
+        self
+    }
+
+    /// With [`Self::following`]: `sink` gets, after each split stage, the cache of a bake
+    /// that stopped there. A bake of the same input that follows it keeps the stages it
+    /// finished: the `bake` command writes it to `OUT/lightbake.partial` so that a killed
+    /// bake run again resumes.
+    pub fn checkpoints(mut self, sink: Checkpoint) -> Self {
+        self.checkpoint = Some(Sink(sink));
+        self
+    }
+
     /// Runs the bake on this thread (its work on a pool of `settings.threads` threads).
     ///
     /// # Errors
     /// As [`super::bake()`].
     pub fn run(self) -> Result<BakeOutput> {
-        bake_with(
-            &self.scene,
-            &self.settings,
-            &self.progress,
-            &self.previews,
-            Scope::All,
+        let Self {
+            scene,
+            settings,
+            progress,
+            previews,
+            following,
+            checkpoint,
+        } = self;
+        run_following(
+            &scene,
+            &settings,
+            &progress,
+            &previews,
+            (following, checkpoint),
         )
     }
 
@@ -150,11 +192,37 @@ impl BakeBuilder {
             settings,
             progress,
             previews,
+            following,
+            checkpoint,
         } = self;
         let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
         BakeHandle::start(progress, previews, move || {
-            let output = bake_with(&scene, &settings, &watched, &published, Scope::All)?;
+            let plan = (following, checkpoint);
+            let output = run_following(&scene, &settings, &watched, &published, plan)?;
             then(output, &scene, &settings)
         })
+    }
+}
+
+/// A bake in one process: whole, or following `plan` over a [`TexelRun`].
+fn run_following(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+    previews: &PreviewSlot,
+    (plan, checkpoint): (Option<Plan>, Option<Sink>),
+) -> Result<BakeOutput> {
+    // Light groups and a target error's rounds take every texel: no cache is kept for them
+    // (the plan says why a later bake is full).
+    let whole = !settings.groups.is_empty() || settings.target_error.is_some();
+    match plan {
+        Some(plan) if !whole => {
+            let mut run = TexelRun::following(plan);
+            if let Some(Sink(sink)) = checkpoint {
+                run = run.with_checkpoints(sink);
+            }
+            bake_with(scene, settings, progress, previews, Scope::Subset(&run))
+        }
+        _ => bake_with(scene, settings, progress, previews, Scope::All),
     }
 }

@@ -78,7 +78,7 @@ pub(super) fn texel_patches(
             })?;
             stages.annotate(RayKind::Shadow, None);
             if let Some(run) = stages.scope().texel_run() {
-                run.patches_known(&patches, settings)?;
+                run.patches_known((scene, layout, rays), &patches, settings)?;
             }
             if let Some(run) = stages.scope().split_bake() {
                 // Prepare writes the patches and the work units here, and stops.

@@ -38,6 +38,8 @@ use crate::bvh::workload::RayRates;
 use crate::context::BakeContext;
 use crate::error::{BakeError, Result};
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
+use crate::incremental::BakeCache;
+pub use crate::incremental::StageValues;
 use crate::lightmap::contacts::ContactStats;
 use crate::lightmap::denoise::DenoiseStats;
 use crate::lightmap::stitch::StitchStats;
@@ -63,7 +65,7 @@ pub use handle::BakeHandle;
 pub use preview::{Preview, PreviewKind, PreviewSlot};
 pub use shard::{Role, ShardRun};
 use stages::{Scope, Stages};
-pub use subset::{StageValues, TexelRun};
+pub use subset::{Checkpoint, TexelRun};
 
 /// Rays of each kind the floor calibration traces.
 const CALIBRATION_RAYS: usize = 65_536;
@@ -88,6 +90,9 @@ pub struct BakeOutput {
     pub groups: Vec<GroupPages>,
     /// Timings, counts, plan and warnings.
     pub report: BakeReport,
+    /// What the next bake of the scene can follow ([`BakeBuilder::following`]): written
+    /// beside the outputs as `lightbake.cache`. None for other bakes.
+    pub cache: Option<BakeCache>,
 }
 
 /// Bakes `scene` with `settings` on this thread, reporting progress to (and obeying
@@ -301,6 +306,9 @@ fn bake_in_pool(
     let (layout, early_rays, density) =
         prefix::density(scene, settings, &plan, layout, &mut stages, &mut decisions)?;
     warnings.extend(layout.warnings.iter().cloned());
+    if let Some(run) = stages.scope().texel_run() {
+        run.layout_known(scene, settings, plan.texel_density, &layout);
+    }
     let admitted = prefix::admit(scene, settings, &plan, &layout, previews, &mut decisions)?;
     let baked_scene = layout.apply(scene);
     let mut lit = if plan.nothing_to_bake {
@@ -364,6 +372,7 @@ fn bake_in_pool(
         memory: admitted.estimate,
         warnings,
         texcoord_0_added: Vec::new(),
+        incremental: scope.texel_run().and_then(TexelRun::report),
         error: lit.error,
         error_budget,
         floor,
@@ -372,6 +381,17 @@ fn bake_in_pool(
         peak_resident_mib: memory::peak_resident_bytes().map(|b| b as f64 / 1048576.0),
         outputs: Vec::new(),
     };
+    let cache = (scope.texel_run()).filter(|r| r.keeps_cache()).map(|r| {
+        let error = report.error.as_ref().map_or(0.0, |e| e.relative_rms as f32);
+        BakeCache::new(
+            scene,
+            settings,
+            report.plan.texel_density,
+            &layout,
+            r.values(),
+            error,
+        )
+    });
     Ok(BakeOutput {
         layout,
         baked_scene,
@@ -379,6 +399,7 @@ fn bake_in_pool(
         irradiance_volumes,
         groups: lit.groups,
         report,
+        cache,
     })
 }
 

@@ -281,6 +281,7 @@ fn direct_round(
         Stage::Direct,
         patches.patches.len(),
         |p| p,
+        None,
         |only| {
             let r = direct_light_of(ctx, emitters, only, progress);
             let realtime = |i: usize| r.realtime.get(i).copied().unwrap_or_default();

@@ -24,8 +24,14 @@ pub(super) fn plan(
     settings: &BakeSettings,
     stages: &mut Stages<'_>,
 ) -> Result<BakePlan> {
+    let earlier = stages.scope().texel_run().and_then(|r| r.earlier_density());
     let plan = stages.run(Stage::Plan, 1, || {
-        let plan = BakePlan::new(scene, settings);
+        let mut plan = BakePlan::new(scene, settings);
+        if let Some(density) = earlier {
+            // An edit keeps the cached bake's layout, so its density: a new one would move
+            // every chart.
+            plan.follow_layout(density);
+        }
         let note = format!("{} texels/m", crate::plan::density_text(plan.texel_density));
         Ok((plan, 0, note))
     })?;
@@ -41,6 +47,17 @@ pub(super) fn unwrap(
     plan: &BakePlan,
     stages: &mut Stages<'_>,
 ) -> Result<Layout> {
+    if let Some(run) = stages.scope().texel_run()
+        && let Some(earlier) = run.earlier_layout()
+    {
+        return stages.run(Stage::Unwrap, scene.meshes.len() as u64, || {
+            let (layout, lines) =
+                crate::unwrap::stable::follow(scene, settings, plan.texel_density, &earlier)?;
+            let note = format!("the cached bake's layout followed: {}", lines.join("; "));
+            run.layout_followed(lines);
+            Ok((layout, 0, note))
+        });
+    }
     stages.run(Stage::Unwrap, scene.meshes.len() as u64, || {
         let layout = unwrap_scene(scene, settings, plan.texel_density)?;
         let note = format!(

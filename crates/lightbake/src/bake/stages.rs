@@ -39,12 +39,13 @@ impl WorkScope for Scope<'_> {
         stage: Stage,
         items: usize,
         patch: impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
         compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])> {
         match self {
             Scope::All => Ok(compute(None)),
             Scope::Split(run) => run.split(stage, items, patch, compute),
-            Scope::Subset(run) => run.split(stage, items, patch, compute),
+            Scope::Subset(run) => run.split(stage, items, patch, summary, compute),
         }
     }
 

@@ -1,58 +1,67 @@
 //! A bake over a subset of the texels: the third place a stage's work units run, beside one
-//! whole process and one shard of a split bake ([`super::stages::Scope`]).
+//! whole process and one shard of a split bake ([`super::stages::Scope`]). It is the seam
+//! incremental bakes run on.
 //!
-//! A [`TexelRun`] either computes every texel and keeps each split stage's values
-//! ([`TexelRun::all`]), or computes only the texels it marks and takes every other texel's
-//! values from an earlier run's [`StageValues`] ([`TexelRun::only`]). The earlier values
-//! must come from a bake with the same settings and texel patches (the same geometry and
-//! layout; lights and materials may differ), checked by hashes of both and by each split
-//! stage's name and size in the order the bake reaches it. Every value is the
-//! same function of its texel and the stages before it in either case (as in a split bake),
-//! so a run over a subset with values kept from a run of the same input gives the same bits
-//! as the whole bake; the texels outside the subset keep what the earlier run computed. This
-//! is the seam incremental rebakes run on: they decide which texels a change touches.
+//! A [`TexelRun`] computes every texel and keeps each split stage's values
+//! ([`TexelRun::all`]); computes only the texels it marks and takes every other texel's
+//! values from an earlier run of the same patches ([`TexelRun::only`]); or follows an edit
+//! of a cached bake ([`TexelRun::following`]): the layout of the meshes that did not change
+//! is kept, each texel patch is found again by its key (its instance, its texel in the
+//! instance's rectangle, its own geometry), and an item is computed again where its patch is
+//! new or its inputs moved, relative to their earlier level, by more than
+//! [`SHARE`](crate::incremental::SHARE) of the earlier bake's estimated error — the direct
+//! light by the bound of [`direct_bounds`] (what the edit can change there) over its earlier
+//! value, a gather by the change of the input summary its pass states (the coarse light the
+//! node gathers). A split stage that states neither is computed whole. Every computed value is the same function of its texel and the
+//! stages before it as in a whole bake, so values kept from the same input give the whole
+//! bake's bits.
 
+use std::collections::HashMap;
 use std::sync::Mutex;
 
 use super::shard::patches_hash;
+use crate::bvh::RayScene;
 use crate::error::{BakeError, Result};
+use crate::incremental::{
+    BakeCache, Edits, IncrementalReport, KeptStage, Plan, SHARE, StageShare, StageValues,
+    deciding_settings, direct_bounds, patch_keys,
+};
 use crate::raster::Patches;
 use crate::runner::Record;
 use crate::sampling::Fnv1a;
+use crate::scene::Scene;
+use crate::scene::hashes::identities;
 use crate::settings::BakeSettings;
 use crate::stage::Stage;
+use crate::unwrap::Layout;
+use crate::unwrap::stable::Earlier;
 
-/// The values of a bake's split stages (direct light, the gather's pilot, final gather,
-/// correction), in the order the bake computed them, with hashes of the texel patches they
-/// belong to and of the settings that computed them. Held in memory (not written to a file).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct StageValues {
-    patches_hash: u64,
-    settings_hash: u64,
-    stages: Vec<(Stage, usize, Vec<u8>)>,
-}
-
-impl StageValues {
-    /// The stages kept, in order, with their item counts.
-    pub fn stages(&self) -> impl Iterator<Item = (Stage, usize)> + '_ {
-        self.stages.iter().map(|(s, n, _)| (*s, *n))
-    }
-}
+/// Per item of a split stage, whether it is computed here, and the earlier item each of the
+/// others takes its value from.
+type Subset = (Vec<bool>, Vec<Option<u32>>);
 
 /// Whether texel (page, x, y) is computed here.
 type TexelMask = Box<dyn Fn(u32, u32, u32) -> bool + Send + Sync>;
 
+/// Which texels a run computes.
+enum Mode {
+    /// Every texel.
+    All,
+    /// The texels the mask marks, over the earlier run's patches.
+    Only(TexelMask),
+    /// Those an edit of the cached bake can change (the cache without its values, and the
+    /// edits), or every texel with the reason for a full bake.
+    Follow(Box<Following>),
+}
+
+/// An incremental bake's view of the cached bake.
+struct Following {
+    /// Why the bake is full, or the edits it follows over `cache`.
+    edit: std::result::Result<(Edits, BakeCache), String>,
+}
+
 /// Which texels a bake computes, and where the others' values come from
-/// ([`super::BakeBuilder::run_texels`]).
-///
-/// [`TexelRun::all`] computes every texel and keeps each split stage's values (direct light,
-/// the gather's pilot, final gather, correction); [`TexelRun::only`] computes the texels it
-/// marks and takes every other texel's values from an earlier run's [`StageValues`], which
-/// must come from a bake of the same settings and texel patches (checked). The stages between
-/// and after them run whole, on the merged values. Since each value is the same function of
-/// its texel and the stages before it, values kept from the same input give the whole bake's
-/// bits; after a change, the texels outside the subset keep the earlier light. This is the
-/// seam incremental rebakes run on: they decide which texels a change touches.
+/// ([`super::BakeBuilder::run_texels`], [`super::BakeBuilder::following`]).
 ///
 /// ```no_run
 /// use lightbake::bake::{BakeBuilder, TexelRun};
@@ -65,39 +74,66 @@ type TexelMask = Box<dyn Fn(u32, u32, u32) -> bool + Send + Sync>;
 /// # Ok::<(), lightbake::BakeError>(())
 /// ```
 pub struct TexelRun {
-    /// Whether texel (page, x, y) is computed here; `None`: every texel.
-    texels: Option<TexelMask>,
+    mode: Mode,
     earlier: StageValues,
     state: Mutex<RunState>,
+    /// Called with what a later bake can follow after each split stage (a resumable bake).
+    checkpoint: Option<Checkpoint>,
 }
+
+/// A sink for a bake's state after each split stage: the cache of a bake that stopped there,
+/// which a bake of the same input follows to keep the stages it finished.
+pub type Checkpoint = std::sync::Arc<dyn Fn(&BakeCache) + Send + Sync>;
 
 #[derive(Default)]
 struct RunState {
-    /// Per patch: computed here (known once the patches are).
+    /// Per patch: computed here (`only` runs, known once the patches are).
     mask: Option<Vec<bool>>,
+    /// Per patch, the earlier run's patch with its key (runs that follow an edit).
+    earlier_patch: Vec<Option<u32>>,
+    /// Per patch, the bound of its direct light's change (runs that follow an edit).
+    direct_bound: Vec<f32>,
     /// This run's values, kept for a later run.
     kept: StageValues,
     /// Items computed here and items in all, over the split stages.
     computed: [u64; 2],
+    /// Per split stage, items computed here and in all.
+    shares: Vec<StageShare>,
+    /// How the layout followed the earlier one.
+    layout: Vec<String>,
+    /// The cache a checkpoint writes, without its values (known once the patches are).
+    template: Option<BakeCache>,
 }
 
 impl std::fmt::Debug for TexelRun {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TexelRun")
-            .field("subset", &self.texels.is_some())
+            .field("subset", &!matches!(self.mode, Mode::All))
             .field("earlier_stages", &self.earlier.stages.len())
             .finish()
     }
 }
 
 impl TexelRun {
+    fn with(mode: Mode, earlier: StageValues) -> Self {
+        Self {
+            mode,
+            earlier,
+            state: Mutex::new(RunState::default()),
+            checkpoint: None,
+        }
+    }
+
+    /// This run with `sink` called after each split stage with the cache of a bake that
+    /// stopped there (see [`Checkpoint`]).
+    pub fn with_checkpoints(mut self, sink: Checkpoint) -> Self {
+        self.checkpoint = Some(sink);
+        self
+    }
+
     /// Every texel computed; each split stage's values kept ([`Self::values`]).
     pub fn all() -> Self {
-        Self {
-            texels: None,
-            earlier: StageValues::default(),
-            state: Mutex::new(RunState::default()),
-        }
+        Self::with(Mode::All, StageValues::default())
     }
 
     /// Only the texels `texels(page, x, y)` marks computed; every other texel's values taken
@@ -106,10 +142,27 @@ impl TexelRun {
         earlier: StageValues,
         texels: impl Fn(u32, u32, u32) -> bool + Send + Sync + 'static,
     ) -> Self {
-        Self {
-            texels: Some(Box::new(texels)),
-            earlier,
-            state: Mutex::new(RunState::default()),
+        Self::with(Mode::Only(Box::new(texels)), earlier)
+    }
+
+    /// A run that follows `plan`: a full bake (every texel, values kept for the next), or an
+    /// edit of the cached bake (see the module docs).
+    pub fn following(plan: Plan) -> Self {
+        match plan {
+            Plan::Full(why) => Self::with(
+                Mode::Follow(Box::new(Following { edit: Err(why) })),
+                StageValues::default(),
+            ),
+            Plan::Edit(edit) => {
+                let (edits, mut cache) = *edit;
+                let values = std::mem::take(&mut cache.values);
+                Self::with(
+                    Mode::Follow(Box::new(Following {
+                        edit: Ok((edits, cache)),
+                    })),
+                    values,
+                )
+            }
         }
     }
 
@@ -124,6 +177,64 @@ impl TexelRun {
         self.lock().computed
     }
 
+    /// Whether the bake keeps a cache for the next one (a run that follows a plan).
+    pub(super) fn keeps_cache(&self) -> bool {
+        matches!(self.mode, Mode::Follow(_))
+    }
+
+    /// The edit this run follows, if any.
+    fn edit(&self) -> Option<&(Edits, BakeCache)> {
+        match &self.mode {
+            Mode::Follow(f) => f.edit.as_ref().ok(),
+            _ => None,
+        }
+    }
+
+    /// The cached bake's density, when this run follows an edit of it.
+    pub(super) fn earlier_density(&self) -> Option<f32> {
+        self.edit().map(|(_, c)| c.density)
+    }
+
+    /// The cached bake's layout and what it was made of, when this run follows an edit.
+    pub(super) fn earlier_layout(&self) -> Option<Earlier<'_>> {
+        let (_, c) = self.edit()?;
+        Some(Earlier {
+            layout: &c.layout,
+            requests: &c.requests,
+            mesh_geometry: &c.scene.meshes,
+            instances: &c.scene.instances,
+        })
+    }
+
+    /// Notes how the layout followed the earlier one.
+    pub(super) fn layout_followed(&self, lines: Vec<String>) {
+        self.lock().layout = lines;
+    }
+
+    /// What the run did, for the report (runs that follow a plan).
+    pub(super) fn report(&self) -> Option<IncrementalReport> {
+        let Mode::Follow(f) = &self.mode else {
+            return None;
+        };
+        let state = self.lock();
+        let [computed, items] = state.computed;
+        Some(IncrementalReport {
+            full: f.edit.as_ref().err().cloned(),
+            changes: f
+                .edit
+                .as_ref()
+                .map(|(e, _)| e.lines.clone())
+                .unwrap_or_default(),
+            layout: state.layout.clone(),
+            stages: state.shares.clone(),
+            recomputed: if items == 0 {
+                1.0
+            } else {
+                computed as f64 / items as f64
+            },
+        })
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, RunState> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -132,90 +243,131 @@ impl TexelRun {
         BakeError::Subset { message }
     }
 
-    /// Marks the patches this run computes, once the bake knows them; refuses earlier values
-    /// of other patches or other settings.
+    /// Marks the patches this run computes, once the bake knows them (`scene` the unwrapped
+    /// scene over `layout`, `rays` its ray queries); refuses earlier values of other patches
+    /// or other settings.
     ///
     /// # Errors
     /// [`BakeError::Subset`] when the earlier values belong to other texel patches or were
     /// kept by a bake with other settings.
-    pub(super) fn patches_known(&self, patches: &Patches, settings: &BakeSettings) -> Result<()> {
+    pub(super) fn patches_known(
+        &self,
+        (scene, layout, rays): (&Scene, &Layout, &RayScene),
+        patches: &Patches,
+        settings: &BakeSettings,
+    ) -> Result<()> {
         let hash = patches_hash(patches);
-        // Every setting but the thread count (which changes no bit) decides the values.
-        let settings = BakeSettings {
-            threads: 0,
-            ..settings.clone()
-        };
         let mut h = Fnv1a::default();
-        h.bytes(&serde_json::to_vec(&settings).unwrap_or_default());
+        h.bytes(&serde_json::to_vec(&deciding_settings(settings)).unwrap_or_default());
+        let ids = identities(scene.instances.iter().map(|i| i.name.as_str()));
         let mut state = self.lock();
         state.kept = StageValues {
-            patches_hash: hash,
             settings_hash: h.finish(),
+            patches_hash: hash,
+            patch_keys: patch_keys(patches, layout, &ids),
             stages: Vec::new(),
         };
         state.computed = [0; 2];
-        if let Some(texels) = &self.texels {
-            if self.earlier.patches_hash != hash {
-                return Err(Self::err(
-                    "the earlier values belong to other texel patches: the geometry, its layout or the settings changed since they were kept, so every texel must be baked again".into(),
-                ));
+        state.shares.clear();
+
+        let other_settings = || {
+            Self::err(
+                "the earlier values were kept by a bake with other settings: every texel must be baked again".into(),
+            )
+        };
+        match &self.mode {
+            Mode::All => {}
+            Mode::Only(texels) => {
+                if self.earlier.patches_hash != hash {
+                    return Err(Self::err(
+                        "the earlier values belong to other texel patches: the geometry, its layout or the settings changed since they were kept, so every texel must be baked again".into(),
+                    ));
+                }
+                if self.earlier.settings_hash != state.kept.settings_hash {
+                    return Err(other_settings());
+                }
+                state.mask = Some(
+                    (patches.patches.iter())
+                        .map(|p| texels(p.page, p.x, p.y))
+                        .collect(),
+                );
             }
-            if self.earlier.settings_hash != state.kept.settings_hash {
-                return Err(Self::err(
-                    "the earlier values were kept by a bake with other settings: every texel must be baked again".into(),
-                ));
+            Mode::Follow(_) => {
+                let Some((edits, cache)) = self.edit() else {
+                    return Ok(());
+                };
+                if self.earlier.settings_hash != state.kept.settings_hash {
+                    return Err(other_settings());
+                }
+                let earlier: HashMap<u64, u32> = (self.earlier.patch_keys.iter())
+                    .enumerate()
+                    .map(|(i, &k)| (k, i as u32))
+                    .collect();
+                state.earlier_patch = (state.kept.patch_keys.iter())
+                    .map(|k| earlier.get(k).copied())
+                    .collect();
+                let emitted = (scene.materials.iter())
+                    .map(|m| m.emissive.max_element())
+                    .fold(0.0f32, f32::max);
+                let hidden = emitted
+                    .max(scene.sky.max_element())
+                    .max(cache.sky.max_element());
+                state.direct_bound = direct_bounds(edits, &scene.lights, hidden, rays, patches);
             }
-            state.mask = Some(
-                (patches.patches.iter())
-                    .map(|p| texels(p.page, p.x, p.y))
-                    .collect(),
-            );
         }
         Ok(())
     }
 
+    /// The bake's input `scene` (before the layout's UVs are given to it), `settings` and
+    /// its layout at `density` are known: what a checkpoint writes besides the values.
+    pub(super) fn layout_known(
+        &self,
+        scene: &Scene,
+        settings: &BakeSettings,
+        density: f32,
+        layout: &Layout,
+    ) {
+        if self.checkpoint.is_some() {
+            let cache = BakeCache::new(
+                scene,
+                settings,
+                density,
+                layout,
+                StageValues::default(),
+                0.0,
+            );
+            self.lock().template = Some(cache);
+        }
+    }
+
     /// The values of the `index`-th split stage `stage` of `items` items (item `i` belongs
-    /// to patch `patch(i)`): `compute(only)` computes the items in the subset (`None`: all),
-    /// the rest are the earlier run's.
+    /// to patch `patch(i)`, `summary[i]` states its inputs where the pass knows them):
+    /// `compute(only)` computes the items in the subset (`None`: all), the rest are the
+    /// earlier run's.
     ///
     /// # Errors
-    /// [`BakeError::Subset`] when the earlier run has no values for this stage or they do
-    /// not fit.
+    /// [`BakeError::Subset`] when an `only` run's earlier values have no values for this
+    /// stage or they do not fit.
     pub(super) fn split<T: Record>(
         &self,
         stage: Stage,
         items: usize,
         patch: impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
         compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])> {
-        let (mask, index) = {
-            let state = self.lock();
-            (state.mask.clone(), state.kept.stages.len())
-        };
-        let (values, rays, computed) = match mask {
+        let index = self.lock().kept.stages.len();
+        let only = self.subset::<T>(stage, index, items, &patch, summary)?;
+        let (values, rays, computed) = match only {
             None => {
                 let (v, r) = compute(None);
                 (v, r, items as u64)
             }
-            Some(mask) => {
-                let earlier = match self.earlier.stages.get(index) {
-                    Some((s, n, bytes))
-                        if *s == stage && *n == items && bytes.len() == items * T::BYTES =>
-                    {
-                        bytes
-                    }
-                    _ => {
-                        return Err(Self::err(format!(
-                            "the earlier values have no '{stage}' stage of {items} items at step {}: they were kept by a bake with other settings",
-                            index + 1
-                        )));
-                    }
-                };
-                let only: Vec<bool> = (0..items).map(|i| mask[patch(i)]).collect();
+            Some((only, earlier)) => {
                 let (mut v, r) = compute(Some(&only));
                 for (i, value) in v.iter_mut().enumerate() {
-                    if !only[i] {
-                        *value = T::get(&earlier[i * T::BYTES..(i + 1) * T::BYTES]);
+                    if let (false, Some(j)) = (only[i], earlier[i]) {
+                        *value = self.earlier.stages[index].value(j as usize);
                     }
                 }
                 let computed = only.iter().filter(|&&m| m).count() as u64;
@@ -227,9 +379,113 @@ impl TexelRun {
             v.put(&mut bytes);
         }
         let mut state = self.lock();
-        state.kept.stages.push((stage, items, bytes));
+        state.kept.stages.push(KeptStage {
+            stage,
+            items,
+            item_patch: (0..items).map(|i| patch(i) as u32).collect(),
+            summary: summary.map(<[f32]>::to_vec).unwrap_or_default(),
+            bytes,
+        });
         state.computed[0] += computed;
         state.computed[1] += items as u64;
+        state.shares.push(StageShare {
+            stage,
+            computed,
+            items: items as u64,
+        });
+        let checkpoint = (state.template.clone()).map(|mut c| {
+            c.values = state.kept.clone();
+            c
+        });
+        drop(state);
+        if let (Some(sink), Some(cache)) = (&self.checkpoint, checkpoint) {
+            sink(&cache);
+        }
         Ok((values, rays))
+    }
+
+    /// Which items of split stage `index` are computed here, and the earlier item each of
+    /// the others takes its value from; `None` when every item is computed.
+    fn subset<T: Record>(
+        &self,
+        stage: Stage,
+        index: usize,
+        items: usize,
+        patch: &impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
+    ) -> Result<Option<Subset>> {
+        let state = self.lock();
+        match &self.mode {
+            Mode::All => Ok(None),
+            Mode::Only(_) => {
+                let Some(mask) = &state.mask else {
+                    return Ok(None);
+                };
+                match self.earlier.stages.get(index) {
+                    Some(k)
+                        if k.stage == stage
+                            && k.items == items
+                            && k.bytes.len() == items * T::BYTES => {}
+                    _ => {
+                        return Err(Self::err(format!(
+                            "the earlier values have no '{stage}' stage of {items} items at step {}: they were kept by a bake with other settings",
+                            index + 1
+                        )));
+                    }
+                }
+                let only: Vec<bool> = (0..items).map(|i| mask[patch(i)]).collect();
+                let earlier = (0..items).map(|i| Some(i as u32)).collect();
+                Ok(Some((only, earlier)))
+            }
+            Mode::Follow(_) => {
+                let kept = match self.earlier.stages.get(index) {
+                    Some(k) if k.stage == stage && k.bytes.len() == k.items * T::BYTES => k,
+                    _ => return Ok(None),
+                };
+                // A stage that states nothing of its inputs but the patches is computed whole,
+                // but for the direct light, whose inputs the edit's bounds cover.
+                let stated =
+                    stage == Stage::Direct || (summary.is_some() && !kept.summary.is_empty());
+                if self.edit().is_none() || !stated {
+                    return Ok(None);
+                }
+                let item_of = kept.item_of_patch(self.earlier.patch_keys.len());
+                let tolerance = self.edit().map_or(0.0, |(_, cache)| SHARE * cache.error);
+                let mut only = vec![true; items];
+                let mut earlier = vec![None; items];
+                for i in 0..items {
+                    let p = patch(i);
+                    let Some(j) = state
+                        .earlier_patch
+                        .get(p)
+                        .copied()
+                        .flatten()
+                        .and_then(|q| item_of[q as usize])
+                    else {
+                        continue;
+                    };
+                    // The change of the item's inputs, relative to their earlier level.
+                    let mut change = if stage == Stage::Direct {
+                        let bound = state.direct_bound.get(p).copied().unwrap_or(f32::INFINITY);
+                        if bound > 0.0 {
+                            bound / kept.value::<T>(j as usize).level()
+                        } else {
+                            0.0
+                        }
+                    } else {
+                        0.0
+                    };
+                    if let Some(s) = summary.filter(|_| !kept.summary.is_empty()) {
+                        let (new, old) = (s[i], kept.summary[j as usize]);
+                        if new != old {
+                            change = change.max((new - old).abs() / old.abs());
+                        }
+                    }
+                    earlier[i] = Some(j);
+                    only[i] = change.is_nan() || change > tolerance;
+                }
+                Ok(Some((only, earlier)))
+            }
+        }
     }
 }

@@ -15,6 +15,7 @@
 //!   irradiance_volumes/groups/<group>/volume_0.ktx2  each light group's volume
 //!   manifest.json                                    instance → page file + uv_rect
 //!   report.json                                      settings, plan, timings, rays, warnings
+//!   lightbake.cache                                  what the next bake into the folder follows
 //! ```
 
 internal!(drawable, gltf_export, images);
@@ -26,6 +27,7 @@ use std::path::{Path, PathBuf};
 use crate::atomic::StagedFiles;
 use crate::bake::BakeOutput;
 use crate::error::{BakeError, Result};
+use crate::incremental::{CACHE_FILE, PARTIAL_FILE};
 use crate::lightmap::LightmapPage;
 use crate::scene::Scene;
 use crate::scene::extras::{GroupExtras, NodeLightmap, SceneExtras};
@@ -154,6 +156,9 @@ pub fn write_outputs(
     };
     let manifest = manifest(output, original, (&pages, &group_pages), gltf_name);
     stage_json(&mut staged, &dir.join("manifest.json"), &manifest)?;
+    if let Some(cache) = &output.cache {
+        staged.stage(&dir.join(CACHE_FILE), &cache.to_bytes())?;
+    }
     let mut report = output.report.clone();
     report.texcoord_0_added = texcoord_0_added.clone();
     report.warnings.extend(warnings.iter().cloned());
@@ -189,9 +194,27 @@ pub fn write_outputs(
         .into_iter()
         .map(|p| p.strip_prefix(&root).map_or(p.clone(), |rel| dir.join(rel)))
         .collect();
-    let removed: Vec<PathBuf> = (stale.into_iter())
+    let mut removed: Vec<PathBuf> = (stale.into_iter())
         .filter(|p| std::fs::remove_file(p).is_ok())
         .collect();
+    // The finished bake's cache supersedes the checkpoints of an unfinished one (a file of
+    // that name only, not a link or a folder).
+    let partial = dir.join(PARTIAL_FILE);
+    if std::fs::symlink_metadata(&partial).is_ok_and(|m| m.is_file())
+        && std::fs::remove_file(&partial).is_ok()
+    {
+        removed.push(partial);
+    }
+    // And the files a bake killed while writing one left (`incremental::write_partial`).
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let unfinished = entry
+            .file_name()
+            .to_string_lossy()
+            .starts_with(".lightbake.partial.");
+        if unfinished && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
     for p in &removed {
         // The folders a removed file leaves empty (a group's, `groups/`, `irradiance_volumes/`)
         // go too; `remove_dir` takes only empty ones.
@@ -213,9 +236,11 @@ pub fn write_outputs(
 /// The page and volume files an earlier bake into `dir` wrote (its `report.json`'s
 /// `outputs`) that this one does not (`kept`, relative to `dir`): after a rebake with fewer
 /// pages, volumes or groups, or other formats, they would lie beside the files the new
-/// manifest and glTF list. Only regular files named as the bake names pages and volumes
-/// (`lightmaps/[groups/G/]lightmap_N.*`, `irradiance_volumes/[groups/G/]volume_N.ktx2`)
-/// inside `dir` are taken; an earlier report that cannot be read gives none.
+/// manifest and glTF list; and an earlier bake's cache a bake that keeps none leaves (it
+/// would follow a bake older than the outputs). Only regular files named as the bake names
+/// pages and volumes (`lightmaps/[groups/G/]lightmap_N.*`,
+/// `irradiance_volumes/[groups/G/]volume_N.ktx2`) and its cache (`lightbake.cache`) inside
+/// `dir` are taken; an earlier report that cannot be read gives none.
 fn stale_outputs(dir: &Path, kept: &[String]) -> Vec<PathBuf> {
     #[derive(serde::Deserialize)]
     struct Earlier {
@@ -236,7 +261,7 @@ fn stale_outputs(dir: &Path, kept: &[String]) -> Vec<PathBuf> {
         (p.parent().and_then(|d| d.canonicalize().ok())).is_some_and(|d| d.starts_with(&root))
     };
     (earlier.outputs.iter())
-        .filter(|f| is_page_or_volume_file(f) && !kept.contains(f))
+        .filter(|f| (is_page_or_volume_file(f) || *f == CACHE_FILE) && !kept.contains(f))
         .map(|f| dir.join(f))
         .filter(|p| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file()) && inside(p))
         .collect()

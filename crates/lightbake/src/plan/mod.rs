@@ -184,6 +184,17 @@ impl BakePlan {
         }
     }
 
+    /// The plan of a bake that follows a cached bake's layout at `density` texels per metre:
+    /// that density, and no density pass (the cached charts keep their own).
+    pub fn follow_layout(&mut self, density: f32) {
+        self.texel_density = density;
+        self.texel_density_source = "the cached bake's layout, which this bake follows".into();
+        for s in self.stages.iter_mut().filter(|s| s.stage == Stage::Density) {
+            s.run = false;
+            s.reason = "the cached bake's layout is kept: its charts keep their densities, so no asset that refers to an unchanged mesh changes".into();
+        }
+    }
+
     /// Refuses a bake estimated to trace more than `settings.max_rays` rays.
     ///
     /// # Errors

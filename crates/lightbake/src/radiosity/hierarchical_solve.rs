@@ -64,12 +64,15 @@ pub fn solve_round<'p>(
     let coarse = coarse_stage(ctx, &mapper, nodes, direct, round, stages)?;
     let cell_indirect = &coarse.solution.indirect;
     let b = hierarchical::fine_exitance(nodes, direct, &coarse.clusters, cell_indirect);
-    let gathered = final_gather(ctx, &mapper, nodes, &b, direct, &coarse, round, stages)?;
     let coarse_per_node = coarse.clusters.prolong(cell_indirect);
+    // What each node's gathers read, in one number: the coarse light it gathers.
+    let summary: Vec<f32> = coarse_per_node.iter().map(|c| luminance(*c)).collect();
+    let grid = (&mapper, nodes, summary.as_slice());
+    let gathered = final_gather(ctx, grid, &b, direct, &coarse, round, stages)?;
     let missed = hierarchical::missed_exitance(nodes, &gathered.light, &coarse_per_node);
     drop(coarse_per_node);
     let correction_rays = correction_rays(ctx.settings.radiosity.transport_rays);
-    let corrected = correction_stages(ctx, &mapper, nodes, &missed, round, stages)?;
+    let corrected = correction_stages(ctx, grid, &missed, round, stages)?;
     let (correction, mut node_error) = (corrected.light, gathered.error);
     for (e, ce) in node_error.iter_mut().zip(&corrected.error) {
         *e = e.hypot(*ce);
@@ -212,12 +215,15 @@ struct Gathered {
     error: Vec<f32>,
 }
 
+/// The nodes a gather runs over, with their mapper and each node's input summary (the coarse
+/// light it gathers, luminance, lux; see [`crate::runner::WorkScope::split`]).
+type Grid<'a> = (&'a HitMapper<'a>, &'a Nodes, &'a [f32]);
+
 /// The correction of the missed exitance `missed`, then (near geometry) the correction's own
 /// reflection, as two stages; a process of a split bake stops between them.
 fn correction_stages<'p>(
     ctx: &BakeContext<'_>,
-    mapper: &HitMapper<'_>,
-    nodes: &Nodes,
+    (mapper, nodes, summary): Grid<'_>,
     missed: &[Vec3],
     round: u32,
     stages: &mut impl StageRunner<'p>,
@@ -226,7 +232,7 @@ fn correction_stages<'p>(
     let per_node = |_: usize| 0..rays;
     let (mut correction, error) = gather_stage(
         ctx,
-        (mapper, nodes),
+        (mapper, nodes, summary),
         (missed, &per_node, Gather::Correction),
         StageRun {
             stage: Stage::Correction,
@@ -360,8 +366,7 @@ struct FinalGather {
 #[allow(clippy::too_many_arguments)]
 fn final_gather<'p>(
     ctx: &BakeContext<'_>,
-    mapper: &HitMapper<'_>,
-    nodes: &Nodes,
+    grid: Grid<'_>,
     b: &[Vec3],
     direct: &[Vec3],
     coarse: &Coarse,
@@ -370,7 +375,7 @@ fn final_gather<'p>(
 ) -> Result<FinalGather> {
     let rays = ctx.settings.radiosity.transport_rays;
     let run = |stage: Stage| StageRun { stage, round };
-    let grid = (mapper, nodes);
+    let nodes = grid.1;
     if ctx.settings.radiosity.cache_spacing > 1 {
         return cached_final_gather(ctx, grid, b, run(Stage::FinalGather), stages);
     }
@@ -437,7 +442,7 @@ type GatherOf<'a> = (&'a [Vec3], &'a (dyn Fn(usize) -> Range<u32> + Sync), Gathe
 /// stage, whatever the round). Gives the light per node and its standard error.
 fn gather_stage<'p>(
     ctx: &BakeContext<'_>,
-    (mapper, nodes): (&HitMapper<'_>, &Nodes),
+    (mapper, nodes, summary): Grid<'_>,
     (field, rays, gather): GatherOf<'_>,
     run: StageRun,
     note: impl FnOnce(GatherRays) -> String,
@@ -445,7 +450,7 @@ fn gather_stage<'p>(
 ) -> Result<(Vec<Vec3>, Vec<f32>)> {
     let progress = stages.progress();
     split_stage(
-        nodes,
+        (nodes, summary),
         run,
         |only| hierarchical::final_gather(ctx, mapper, nodes, field, rays, gather, only, progress),
         note,
@@ -456,7 +461,7 @@ fn gather_stage<'p>(
 /// A split stage `run` of one value per node: `compute(only)` gives the light and standard
 /// error at the nodes `only` marks (`None`: every node) and the rays it traced.
 fn split_stage<'p>(
-    nodes: &Nodes,
+    (nodes, summary): (&Nodes, &[f32]),
     run: StageRun,
     compute: impl Fn(Option<&[bool]>) -> (Vec<Vec3>, Vec<f32>, GatherRays) + Sync,
     note: impl FnOnce(GatherRays) -> String,
@@ -468,6 +473,7 @@ fn split_stage<'p>(
             run.stage,
             nodes.len(),
             |i| nodes.patch[i] as usize,
+            Some(summary),
             |only| {
                 let (h, se, traced) = compute(only);
                 let values = h.into_iter().zip(se).collect();
@@ -494,7 +500,7 @@ fn split_stage<'p>(
 /// ([`gather_cache`]), as the split stage `run`.
 fn cached_final_gather<'p>(
     ctx: &BakeContext<'_>,
-    (mapper, nodes): (&HitMapper<'_>, &Nodes),
+    (mapper, nodes, summary): Grid<'_>,
     b: &[Vec3],
     run: StageRun,
     stages: &mut impl StageRunner<'p>,
@@ -508,7 +514,7 @@ fn cached_final_gather<'p>(
     let progress = stages.progress();
     let counts = std::sync::Mutex::new(None);
     let (light, error) = split_stage(
-        nodes,
+        (nodes, summary),
         run,
         |only| {
             let c = gather_cache::cached_gather(

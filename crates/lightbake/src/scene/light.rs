@@ -2,12 +2,12 @@
 //! computed in [`crate::lights`].
 
 use glam::Vec3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{BakeError, Result};
 
 /// What kind of punctual light.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum LightKind {
     /// Emits equally in every direction from `position`.
@@ -40,7 +40,7 @@ pub enum LightKind {
 }
 
 /// Which part of a light's light the lightmaps hold.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LightBake {
     /// Direct and indirect light: the engine must not light lightmapped meshes with it again
@@ -55,7 +55,7 @@ pub enum LightBake {
 }
 
 /// A punctual light (`KHR_lights_punctual`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Light {
     /// Name used in messages and the plan.
     pub name: String,

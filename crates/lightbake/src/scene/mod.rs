@@ -29,6 +29,7 @@ internal!(glb, gltf_accessor, gltf_data, resources);
 pub mod gltf_import;
 pub mod gltf_write;
 pub mod groups;
+pub mod hashes;
 mod light;
 mod material;
 mod mesh;

@@ -21,6 +21,7 @@ mod pack;
 mod pieces;
 mod rescale;
 mod squashed;
+pub mod stable;
 pub mod xatlas;
 
 use atlas::xatlas_unwrap;
@@ -362,12 +363,16 @@ fn area_scale(mesh: &Mesh, transform: &glam::Affine3A) -> f32 {
 /// # Errors
 /// [`BakeError::Unwrap`] when xatlas refuses a mesh.
 pub fn unwrap_scene(scene: &Scene, settings: &BakeSettings, density: f32) -> Result<Layout> {
-    // xatlas' workers are kept to the bake's thread count.
+    with_xatlas_threads(settings, || unwrap_meshes(scene, settings, density))
+}
+
+/// Runs `f` with xatlas' workers kept to the bake's thread count.
+fn with_xatlas_threads<T>(settings: &BakeSettings, f: impl FnOnce() -> T) -> T {
     let threads = match settings.threads {
         0 => 0,
         n => n.min(std::thread::available_parallelism().map_or(1, |c| c.get())),
     };
-    xatlas::with_thread_limit(threads, || unwrap_meshes(scene, settings, density))
+    xatlas::with_thread_limit(threads, f)
 }
 
 fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result<Layout> {
@@ -376,7 +381,19 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
         instances: vec![None; scene.instances.len()],
         ..Layout::default()
     };
-    // Texels per mesh unit needed by the most demanding baked instance of each mesh.
+    let requests = requests(scene, density);
+    let mut notes = UnwrapNotes::default();
+    for m in 0..scene.meshes.len() {
+        layout.meshes[m] = unwrap_one(scene, m, requests[m], settings, &mut notes)?;
+    }
+    layout.warnings = notes.finish();
+    pack_instances(scene, settings, &mut layout);
+    Ok(layout)
+}
+
+/// Texels per mesh unit needed by the most demanding baked instance of each mesh, at
+/// `density` texels per metre (zero for a mesh no baked instance uses).
+fn requests(scene: &Scene, density: f32) -> Vec<Density> {
     let mut requests = vec![Density::default(); scene.meshes.len()];
     for inst in scene.instances.iter().filter(|i| i.bake) {
         let mesh = &scene.meshes[inst.mesh];
@@ -392,89 +409,108 @@ fn unwrap_meshes(scene: &Scene, settings: &BakeSettings, density: f32) -> Result
             };
         }
     }
-    let mut raised = Vec::new();
-    // Meshes whose own TEXCOORD_1 was moved onto blocks, and their rectangles' texels before
-    // and after.
-    let mut moved_own = (0usize, 0u64, 0u64);
-    for (m, mesh) in scene.meshes.iter().enumerate() {
-        let request = requests[m];
-        if request.texels_per_unit <= 0.0 || mesh.area() <= 0.0 {
-            continue;
-        }
-        let mut small = false;
-        let keep_existing = !settings.layout.reunwrap && mesh.uv1.is_some();
-        let unwrap = if keep_existing {
-            match existing_uvs(mesh, request, settings) {
-                Ok(u) if settings.formats.ktx2_bc6h => {
-                    let kept = |why: &str| {
-                        format!(
-                            "mesh '{}': its own TEXCOORD_1 is kept as it is ({why}), so a BC6H block may hold two of its charts",
-                            mesh.name
-                        )
-                    };
-                    if textures_use_set_1(scene, mesh) {
-                        let why = "its material's textures are mapped by it";
-                        layout.warnings.push(kept(why));
-                        u
-                    } else if let Ok(moved) = block_pack::onto_blocks(mesh, &u, settings) {
-                        let area = |u: &MeshUnwrap| u64::from(u.width) * u64::from(u.height);
-                        moved_own.0 += 1;
-                        moved_own.1 += area(&u);
-                        moved_own.2 += area(&moved);
-                        moved
-                    } else {
-                        let why = format!(
-                            "its charts on their own 4×4 blocks fit no {0}² page",
-                            settings.layout.max_page_size
-                        );
-                        layout.warnings.push(kept(&why));
-                        u
-                    }
-                }
-                Ok(u) => u,
-                Err(problem) => {
-                    layout.warnings.push(format!(
-                        "mesh '{}': its TEXCOORD_1 cannot be used ({problem}); unwrapped again with xatlas",
-                        mesh.name
-                    ));
-                    unwrap_mesh(mesh, request, settings, &mut layout.warnings, &mut small)?
-                }
-            }
-        } else {
-            unwrap_mesh(mesh, request, settings, &mut layout.warnings, &mut small)?
-        };
-        if small {
-            raised.push(mesh.name.as_str());
-        }
-        if unwrap.origin == UvOrigin::Xatlas
-            && mesh.uv1.is_some()
-            && textures_use_set_1(scene, mesh)
-        {
-            layout.warnings.push(format!(
-                "mesh '{}': its material's textures are mapped by TEXCOORD_1, which the new lightmap UVs replace; the bake, the baked glTF and the plugin's meshes map them by the lightmap UVs",
-                mesh.name
+    requests
+}
+
+/// What the unwrap of the meshes gathers for its warnings.
+#[derive(Default)]
+struct UnwrapNotes {
+    warnings: Vec<String>,
+    /// Meshes raised to the smallest chart.
+    raised: Vec<String>,
+    /// Meshes whose own TEXCOORD_1 was moved onto blocks, and their rectangles' texels before
+    /// and after.
+    moved_own: (usize, u64, u64),
+}
+
+impl UnwrapNotes {
+    fn finish(mut self) -> Vec<String> {
+        if !self.raised.is_empty() {
+            let shown: Vec<&str> = self.raised.iter().take(3).map(String::as_str).collect();
+            self.warnings.push(format!(
+                "{} mesh(es) smaller than two texels at the texel density got the smallest chart instead ({}{})",
+                self.raised.len(),
+                shown.join(", "),
+                if self.raised.len() > 3 { ", …" } else { "" }
             ));
         }
-        layout.meshes[m] = Some(unwrap);
+        let (n, before, after) = self.moved_own;
+        if after as f64 > OWN_UV_GROWTH_WARNING * before as f64 {
+            self.warnings.push(format!(
+                "the own TEXCOORD_1 charts of {n} mesh(es) take {:.2}× the texels on 4×4 blocks of their own for BC6H (each chart rounds up to whole blocks with its padding); --reunwrap lets xatlas chart them for blocks",
+                after as f64 / before as f64
+            ));
+        }
+        self.warnings
     }
-    if !raised.is_empty() {
-        let shown: Vec<&str> = raised.iter().take(3).copied().collect();
-        layout.warnings.push(format!(
-            "{} mesh(es) smaller than two texels at the texel density got the smallest chart instead ({}{})",
-            raised.len(),
-            shown.join(", "),
-            if raised.len() > 3 { ", …" } else { "" }
+}
+
+/// The lightmap UVs of mesh `m` at `request` (none when no baked instance uses it): its own
+/// validated TEXCOORD_1 (moved onto blocks for BC6H pages) or a new unwrap.
+fn unwrap_one(
+    scene: &Scene,
+    m: usize,
+    request: Density,
+    settings: &BakeSettings,
+    notes: &mut UnwrapNotes,
+) -> Result<Option<MeshUnwrap>> {
+    let mesh = &scene.meshes[m];
+    if request.texels_per_unit <= 0.0 || mesh.area() <= 0.0 {
+        return Ok(None);
+    }
+    let mut small = false;
+    let keep_existing = !settings.layout.reunwrap && mesh.uv1.is_some();
+    let warnings = &mut notes.warnings;
+    let unwrap = if keep_existing {
+        match existing_uvs(mesh, request, settings) {
+            Ok(u) if settings.formats.ktx2_bc6h => {
+                let kept = |why: &str| {
+                    format!(
+                        "mesh '{}': its own TEXCOORD_1 is kept as it is ({why}), so a BC6H block may hold two of its charts",
+                        mesh.name
+                    )
+                };
+                if textures_use_set_1(scene, mesh) {
+                    let why = "its material's textures are mapped by it";
+                    warnings.push(kept(why));
+                    u
+                } else if let Ok(moved) = block_pack::onto_blocks(mesh, &u, settings) {
+                    let area = |u: &MeshUnwrap| u64::from(u.width) * u64::from(u.height);
+                    notes.moved_own.0 += 1;
+                    notes.moved_own.1 += area(&u);
+                    notes.moved_own.2 += area(&moved);
+                    moved
+                } else {
+                    let why = format!(
+                        "its charts on their own 4×4 blocks fit no {0}² page",
+                        settings.layout.max_page_size
+                    );
+                    warnings.push(kept(&why));
+                    u
+                }
+            }
+            Ok(u) => u,
+            Err(problem) => {
+                warnings.push(format!(
+                    "mesh '{}': its TEXCOORD_1 cannot be used ({problem}); unwrapped again with xatlas",
+                    mesh.name
+                ));
+                unwrap_mesh(mesh, request, settings, warnings, &mut small)?
+            }
+        }
+    } else {
+        unwrap_mesh(mesh, request, settings, warnings, &mut small)?
+    };
+    if small {
+        notes.raised.push(mesh.name.clone());
+    }
+    if unwrap.origin == UvOrigin::Xatlas && mesh.uv1.is_some() && textures_use_set_1(scene, mesh) {
+        warnings.push(format!(
+            "mesh '{}': its material's textures are mapped by TEXCOORD_1, which the new lightmap UVs replace; the bake, the baked glTF and the plugin's meshes map them by the lightmap UVs",
+            mesh.name
         ));
     }
-    let (n, before, after) = moved_own;
-    if after as f64 > OWN_UV_GROWTH_WARNING * before as f64 {
-        layout.warnings.push(format!(
-            "the own TEXCOORD_1 charts of {n} mesh(es) take {:.2}× the texels on 4×4 blocks of their own for BC6H (each chart rounds up to whole blocks with its padding); --reunwrap lets xatlas chart them for blocks",
-            after as f64 / before as f64
-        ));
-    }
-    pack_instances(scene, settings, &mut layout);
-    Ok(layout)
+    Ok(Some(unwrap))
 }
 
 /// How much larger the meshes' own charts may grow, moved onto BC6H blocks, before a warning

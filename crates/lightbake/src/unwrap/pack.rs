@@ -10,11 +10,7 @@ use crate::settings::BakeSettings;
 /// pages every rectangle starts on a 4×4 block and the next one starts on the first block past
 /// its padding, so no block holds texels of two instances.
 pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mut Layout) {
-    let gap = settings.layout.padding;
-    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
-    let up = |v: u32| v.next_multiple_of(block);
-    let max = settings.layout.max_page_size;
-    let mut order: Vec<(usize, u32, u32)> = scene
+    let order: Vec<(usize, u32, u32)> = scene
         .instances
         .iter()
         .enumerate()
@@ -25,6 +21,23 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
                 .map(|u| (i, u.width, u.height))
         })
         .collect();
+    let (rects, pages) = shelf_pack(order, settings);
+    for (i, rect) in rects {
+        layout.instances[i] = Some(rect);
+    }
+    layout.pages = pages;
+}
+
+/// Shelf packing of rectangles `(instance, width, height)` onto new pages (see
+/// [`pack_instances`]): each instance's rectangle (pages numbered from 0) and the pages.
+pub(super) fn shelf_pack(
+    mut order: Vec<(usize, u32, u32)>,
+    settings: &BakeSettings,
+) -> (Vec<(usize, InstanceRect)>, Vec<PageSize>) {
+    let gap = settings.layout.padding;
+    let block = if settings.formats.ktx2_bc6h { 4 } else { 1 };
+    let up = |v: u32| v.next_multiple_of(block);
+    let max = settings.layout.max_page_size;
     order.sort_by(|a, b| b.2.cmp(&a.2).then(b.1.cmp(&a.1)).then(a.0.cmp(&b.0)));
     let area: u64 = order
         .iter()
@@ -44,6 +57,7 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
         used_h: u32,
     }
     let mut pages: Vec<Page> = Vec::new();
+    let mut rects = Vec::with_capacity(order.len());
     for (inst, w, h) in order {
         let mut placed = None;
         'pages: for (pi, page) in pages.iter_mut().enumerate() {
@@ -80,23 +94,27 @@ pub(super) fn pack_instances(scene: &Scene, settings: &BakeSettings, layout: &mu
         let page = &mut pages[pi];
         page.used_w = page.used_w.max(x + w);
         page.used_h = page.used_h.max(y + h);
-        layout.instances[inst] = Some(InstanceRect {
-            page: pi as u32,
-            x,
-            y,
-            width: w,
-            height: h,
-        });
+        rects.push((
+            inst,
+            InstanceRect {
+                page: pi as u32,
+                x,
+                y,
+                width: w,
+                height: h,
+            },
+        ));
     }
     // Pages are trimmed to what is used (plus the gap, so dilation has room), rounded up to a
     // multiple of 4 for block compression.
-    layout.pages = pages
+    let sizes = pages
         .iter()
         .map(|p| PageSize {
             width: round4((p.used_w + gap).min(max)),
             height: round4((p.used_h + gap).min(max)),
         })
         .collect();
+    (rects, sizes)
 }
 
 fn round4(v: u32) -> u32 {

@@ -1,0 +1,150 @@
+//! The values a bake's split stages ended with, kept for a later bake: per stage its items'
+//! values as [`Record`] bytes, the texel patch each item belongs to, and, for the stages
+//! whose passes state it, each item's *input summary* (a number whose change bounds the
+//! change of the item's value, such as the coarse light a node gathers). Patches are known
+//! across bakes by a key of their instance's identity, their texel within the instance's
+//! rectangle and their own geometry (`patch_key`), so a patch that did not change is found
+//! again wherever the edit moved the others.
+
+use super::codec::{Bad, Reader, Writer};
+use crate::raster::{Patch, Patches};
+use crate::runner::Record;
+use crate::scene::hashes::Hasher;
+use crate::stage::Stage;
+use crate::unwrap::Layout;
+
+/// One split stage's kept values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeptStage {
+    /// The stage.
+    pub stage: Stage,
+    /// Items (texels or radiosity nodes).
+    pub items: usize,
+    /// The patch of each item.
+    pub item_patch: Vec<u32>,
+    /// Each item's input summary, when the pass stated one (else empty).
+    pub summary: Vec<f32>,
+    /// The values, [`Record::BYTES`] bytes each.
+    pub bytes: Vec<u8>,
+}
+
+impl KeptStage {
+    /// Item `i`'s value.
+    pub fn value<T: Record>(&self, i: usize) -> T {
+        T::get(&self.bytes[i * T::BYTES..(i + 1) * T::BYTES])
+    }
+
+    /// The item of each patch (of `patches` patches), if it has one.
+    pub fn item_of_patch(&self, patches: usize) -> Vec<Option<u32>> {
+        let mut out = vec![None; patches];
+        for (i, &p) in self.item_patch.iter().enumerate() {
+            if let Some(slot) = out.get_mut(p as usize) {
+                *slot = Some(i as u32);
+            }
+        }
+        out
+    }
+}
+
+/// The values of a bake's split stages (direct light, the gather's pilot, final gather,
+/// correction, reflection), in the order the bake computed them, with the keys of the texel
+/// patches they belong to and hashes of the patches and of the settings that computed them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StageValues {
+    /// Every setting but the thread count, hashed.
+    pub settings_hash: u64,
+    /// The texel patches, hashed (equal for the same geometry, layout and settings).
+    pub patches_hash: u64,
+    /// Per patch, its key (`patch_key`).
+    pub patch_keys: Vec<u64>,
+    /// The split stages, in order.
+    pub stages: Vec<KeptStage>,
+}
+
+impl StageValues {
+    /// The stages kept, in order, with their item counts.
+    pub fn stages(&self) -> impl Iterator<Item = (Stage, usize)> + '_ {
+        self.stages.iter().map(|s| (s.stage, s.items))
+    }
+
+    pub(super) fn write(&self, w: &mut Writer) {
+        w.u64(self.settings_hash);
+        w.u64(self.patches_hash);
+        w.u64s(&self.patch_keys);
+        w.len(self.stages.len());
+        for s in &self.stages {
+            w.str(s.stage.name());
+            w.len(s.items);
+            w.u32s(&s.item_patch);
+            w.f32s(&s.summary);
+            w.bytes(&s.bytes);
+        }
+    }
+
+    pub(super) fn read(r: &mut Reader<'_>) -> Result<Self, Bad> {
+        let settings_hash = r.u64()?;
+        let patches_hash = r.u64()?;
+        let patch_keys = r.u64s()?;
+        let n = r.len(32)?;
+        let mut stages = Vec::with_capacity(n);
+        for _ in 0..n {
+            let name = r.str()?;
+            let stage: Stage = name
+                .parse()
+                .map_err(|_| format!("it names a stage '{name}'"))?;
+            let items = r.u64()? as usize;
+            let item_patch = r.u32s()?;
+            let summary = r.f32s()?;
+            let bytes = r.bytes()?.to_vec();
+            let fits = item_patch.len() == items
+                && (summary.is_empty() || summary.len() == items)
+                && items > 0
+                && bytes.len() % items == 0
+                && item_patch.iter().all(|&p| (p as usize) < patch_keys.len());
+            if !fits {
+                return Err(format!(
+                    "its '{name}' values do not fit their {items} items"
+                ));
+            }
+            stages.push(KeptStage {
+                stage,
+                items,
+                item_patch,
+                summary,
+                bytes,
+            });
+        }
+        Ok(Self {
+            settings_hash,
+            patches_hash,
+            patch_keys,
+            stages,
+        })
+    }
+}
+
+/// A patch's key: its instance's identity, its texel within the instance's rectangle, and
+/// its own geometry (position, normals, area, flags, footprint size), so that a patch moved
+/// out of geometry differently, or on a moved instance, is a new patch.
+pub(crate) fn patch_key(identity: u64, origin: (u32, u32), p: &Patch) -> u64 {
+    let mut h = Hasher::default();
+    h.u64(identity);
+    h.u32(p.x.wrapping_sub(origin.0))
+        .u32(p.y.wrapping_sub(origin.1));
+    h.vec3(p.position).vec3(p.normal).vec3(p.geometric_normal);
+    h.f32(p.area).f32(p.texel_size);
+    h.u32(u32::from(p.flags)).u32(p.footprint_len);
+    h.finish()
+}
+
+/// The key of every patch of `patches` (of `layout`, whose instances have `identities`).
+pub(crate) fn patch_keys(patches: &Patches, layout: &Layout, identities: &[u64]) -> Vec<u64> {
+    (patches.patches.iter())
+        .map(|p| {
+            let i = p.instance as usize;
+            let origin =
+                (layout.instances.get(i).copied().flatten()).map_or((0, 0), |r| (r.x, r.y));
+            patch_key(identities.get(i).copied().unwrap_or(0), origin, p)
+        })
+        .collect()
+}

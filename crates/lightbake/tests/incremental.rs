@@ -1,0 +1,262 @@
+//! Incremental bakes (`lightbake::incremental`): a bake that follows an earlier bake's cache
+//! keeps the layout of every mesh that did not change, recomputes what the edit can change
+//! and agrees with a full bake of the edited scene within that bake's estimated error; a
+//! cache that cannot be trusted gives a full bake with the reason.
+
+use lightbake::analysis::agreement::{agreement, moved_instances};
+use lightbake::analysis::edit_cases::EditCase;
+use std::sync::{Arc, Mutex};
+
+use lightbake::incremental::{self, BakeCache, CACHE_FILE, Plan, plan};
+use lightbake::lightmap::LightmapPage;
+use lightbake::scene::Scene;
+use lightbake::scene::testscenes::{CornellLight, cornell_box};
+use lightbake::settings::BakeSettings;
+use lightbake::{BakeBuilder, BakeOutput};
+
+fn settings() -> BakeSettings {
+    let mut s = BakeSettings::preview();
+    s.layout.texel_density = Some(48.0);
+    s.layout.texel_density_from_scene = false;
+    s
+}
+
+fn bake(scene: &Scene, s: &BakeSettings, following: Plan) -> BakeOutput {
+    BakeBuilder::new(scene.clone())
+        .settings(s.clone())
+        .following(following)
+        .run()
+        .unwrap()
+}
+
+fn bits(pages: &[LightmapPage]) -> Vec<u32> {
+    (pages.iter())
+        .flat_map(|p| p.texels.iter().flat_map(|t| t.to_array()))
+        .map(f32::to_bits)
+        .collect()
+}
+
+fn first_bake(scene: &Scene, s: &BakeSettings) -> (BakeOutput, BakeCache) {
+    let out = bake(scene, s, Plan::Full("the first bake".into()));
+    let cache = out.cache.clone().expect("a full bake keeps a cache");
+    (out, cache)
+}
+
+#[test]
+fn an_unchanged_scene_keeps_every_value_and_gives_the_same_bits() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings();
+    let (full, cache) = first_bake(&scene, &s);
+    let following = plan(Ok(Some(cache)), &scene, &s, false);
+    assert!(
+        matches!(&following, Plan::Edit(e) if e.0.is_empty()),
+        "{}",
+        following.describe()
+    );
+    let again = bake(&scene, &s, following);
+    assert_eq!(bits(&again.pages), bits(&full.pages));
+    assert_eq!(again.layout.instances, full.layout.instances);
+    let inc = again.report.incremental.expect("an incremental report");
+    assert_eq!(inc.recomputed, 0.0, "{inc:?}");
+}
+
+#[test]
+fn edits_agree_with_a_full_bake_of_the_edited_scene_within_its_estimate() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings();
+    let (base, cache) = first_bake(&scene, &s);
+    for case in [
+        EditCase::LampMoved,
+        EditCase::MeshMoved,
+        EditCase::Albedo,
+        EditCase::MeshAdded,
+        EditCase::MeshRemoved,
+    ] {
+        let (edited, what) = case.apply(&scene).expect("the Cornell box has it");
+        let following = plan(Ok(Some(cache.clone())), &edited, &s, false);
+        assert!(
+            matches!(&following, Plan::Edit(e) if !e.0.is_empty()),
+            "{what}: {}",
+            following.describe()
+        );
+        let inc = bake(&edited, &s, following);
+        let full = bake(&edited, &s, Plan::Full("the reference".into()));
+        let report = inc
+            .report
+            .incremental
+            .clone()
+            .expect("an incremental report");
+        assert!(report.full.is_none(), "{what}: {report:?}");
+        assert!(
+            report.recomputed < 0.99,
+            "{what}: {:.1}% computed again",
+            100.0 * report.recomputed
+        );
+        let estimate = full
+            .report
+            .error
+            .as_ref()
+            .expect("an estimate")
+            .relative_rms;
+        let a = agreement(&edited, &inc, &full, 2048, 7);
+        assert!(
+            a.relative_rms <= 1.5 * estimate,
+            "{what}: incremental against full {:.2}%, the full bake's estimate {:.2}%",
+            100.0 * a.relative_rms,
+            100.0 * estimate
+        );
+        let moved = moved_instances((&base, &scene), (&inc, &edited));
+        assert!(moved.is_empty(), "{what}: {moved:?} moved in the atlas");
+    }
+}
+
+#[test]
+fn a_moved_mesh_recomputes_direct_light_only_where_it_can_change() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings();
+    let (_, cache) = first_bake(&scene, &s);
+    let (edited, what) = EditCase::MeshMoved.apply(&scene).unwrap();
+    let inc = bake(&edited, &s, plan(Ok(Some(cache)), &edited, &s, false));
+    let report = inc.report.incremental.unwrap();
+    let direct = (report.stages.iter())
+        .find(|st| st.stage.to_string() == "direct")
+        .expect("a direct stage");
+    assert!(
+        direct.computed * 2 < direct.items,
+        "{what}: direct light computed again at {} of {} texels",
+        direct.computed,
+        direct.items
+    );
+}
+
+#[test]
+fn settings_that_decide_the_texels_give_a_full_bake_with_the_reason() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings();
+    let (_, cache) = first_bake(&scene, &s);
+    let mut denser = s.clone();
+    denser.layout.texel_density = Some(64.0);
+    let Plan::Full(why) = plan(Ok(Some(cache.clone())), &scene, &denser, false) else {
+        panic!("another density followed the cache");
+    };
+    assert!(why.contains("density") || why.contains("settings"), "{why}");
+    let Plan::Full(why) = plan(Ok(Some(cache)), &scene, &s, true) else {
+        panic!("--full followed the cache");
+    };
+    assert!(why.contains("asked"), "{why}");
+}
+
+#[test]
+fn a_damaged_truncated_or_foreign_cache_gives_a_full_bake_with_a_warning() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings();
+    let (_, cache) = first_bake(&scene, &s);
+    let bytes = cache.to_bytes();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(CACHE_FILE);
+    let read = |b: &[u8]| {
+        std::fs::write(&path, b).unwrap();
+        incremental::read_cache(dir.path(), 1 << 30)
+    };
+    assert!(matches!(read(&bytes), Ok(Some(_))));
+
+    let mut flipped = bytes.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 0x40;
+    let mut older = bytes.clone();
+    older[8] = older[8].wrapping_sub(1);
+    let cases: [(&str, Vec<u8>); 5] = [
+        ("a flipped byte", flipped),
+        ("truncated", bytes[..bytes.len() / 3].to_vec()),
+        ("empty", Vec::new()),
+        ("another format", older),
+        ("foreign", b"glTF\x02\0\0\0 not a cache at all".to_vec()),
+    ];
+    for (name, b) in cases {
+        let why = read(&b).expect_err(name);
+        assert!(
+            !why.contains('\n') && why.contains(CACHE_FILE),
+            "{name}: {why}"
+        );
+        let Plan::Full(reason) = plan(Err(why.clone()), &scene, &s, false) else {
+            panic!("{name}: followed");
+        };
+        assert_eq!(reason, why);
+    }
+
+    // Larger than the limit: refused before it is read.
+    std::fs::write(&path, &bytes).unwrap();
+    let why = incremental::read_cache(dir.path(), 64).expect_err("over the limit");
+    assert!(!why.contains('\n'), "{why}");
+
+    // Another scene's cache: its instances are not this scene's, so every texel is baked.
+    let other = lightbake::scene::testscenes::sunlit_room();
+    let following = plan(Ok(Some(cache)), &other, &s, false);
+    match following {
+        Plan::Full(_) => {}
+        Plan::Edit(e) => {
+            let out = bake(&other, &s, Plan::Edit(e));
+            let inc = out.report.incremental.unwrap();
+            assert!(
+                inc.full.is_some() || inc.recomputed == 1.0,
+                "another scene's values were kept: {inc:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_bake_resumed_from_a_checkpoint_keeps_the_stages_it_finished_and_gives_the_same_bits() {
+    let scene = cornell_box(CornellLight::Point);
+    // The medium preset with the hierarchical solve: its split stages are the direct light
+    // and the gathers.
+    let mut s = BakeSettings::medium();
+    s.layout.texel_density = Some(32.0);
+    s.layout.texel_density_from_scene = false;
+    s.radiosity.solver = lightbake::settings::SolverChoice::Hierarchical;
+    let seen: Arc<Mutex<Vec<BakeCache>>> = Arc::default();
+    let sink = Arc::clone(&seen);
+    let full = BakeBuilder::new(scene.clone())
+        .settings(s.clone())
+        .following(Plan::Full("the first bake".into()))
+        .checkpoints(Arc::new(move |c: &BakeCache| {
+            sink.lock().unwrap().push(c.clone())
+        }))
+        .run()
+        .unwrap();
+    let checkpoints = seen.lock().unwrap().clone();
+    assert!(checkpoints.len() >= 2, "{} checkpoints", checkpoints.len());
+    for (k, c) in checkpoints.iter().enumerate() {
+        assert_eq!(c.values.stages().count(), k + 1, "checkpoint {k}");
+    }
+    // Stopped after its first split stage, as the bytes on disk hold it.
+    let first = BakeCache::from_bytes(&checkpoints[0].to_bytes()).unwrap();
+    let kept: Vec<_> = first
+        .values
+        .stages()
+        .map(|(st, _)| st.to_string())
+        .collect();
+    let why = incremental::edits(&first, &scene, &s).map(|e| e.lines);
+    let resumed_plan = incremental::resume(first, &scene, &s)
+        .unwrap_or_else(|| panic!("the same input does not resume: {why:?}"));
+    let resumed = bake(&scene, &s, resumed_plan);
+    assert_eq!(bits(&resumed.pages), bits(&full.pages));
+    let inc = resumed.report.incremental.unwrap();
+    let first_stage = &inc.stages[0];
+    assert_eq!(
+        (first_stage.stage.to_string(), first_stage.computed),
+        (kept[0].clone(), 0),
+        "{inc:?}"
+    );
+    assert!(
+        inc.stages[1..].iter().all(|st| st.computed == st.items),
+        "{inc:?}"
+    );
+
+    // Another input does not resume it.
+    let (edited, _) = EditCase::LampMoved.apply(&scene).unwrap();
+    assert!(incremental::resume(checkpoints[0].clone(), &edited, &s).is_none());
+    let mut other = s.clone();
+    other.seed += 1;
+    assert!(incremental::resume(checkpoints[0].clone(), &scene, &other).is_none());
+}
