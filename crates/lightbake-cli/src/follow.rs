@@ -15,8 +15,16 @@ pub(crate) fn plan(out: &Path, scene: &Scene, settings: &BakeSettings, full: boo
     // A bake into OUT that was killed: the same input and settings resume it.
     match incremental::read_partial(out, limit) {
         Ok(Some(partial)) if !full => {
-            let stages: Vec<String> =
-                (partial.values.stages().map(|(s, _)| s.to_string())).collect();
+            let stages: Vec<String> = (partial.values.stages.iter())
+                .map(|k| {
+                    let share = k.finished_share();
+                    if share < 1.0 {
+                        format!("{} ({:.0}% of its items)", k.stage, 100.0 * share)
+                    } else {
+                        k.stage.to_string()
+                    }
+                })
+                .collect();
             if let Some(plan) = incremental::resume(partial, scene, settings) {
                 println!(
                     "resuming the bake into {} that stopped: the stages it finished are kept ({})",

@@ -3,7 +3,8 @@
 //! full — and the two are compared at surface points (`lightbake::analysis::agreement`).
 //!
 //! ```text
-//! cargo run --release -p lightbake --features internals,testscenes --example incremental_check -- SCENE.gltf [--quality preview|medium|high] [--points N] [--only EDIT]
+//! cargo run --release -p lightbake --features internals,testscenes --example incremental_check -- SCENE.gltf [--quality preview|medium|high] [--points N] [--only EDIT] [--verify N [--verify-paths P]]
+//! cargo run --release -p lightbake --features internals,testscenes --example incremental_check -- SCENE.gltf --checkpoint-overhead RUNS
 //! ```
 //!
 //! Prints a Markdown table: per edit, the full bake's and the incremental bake's seconds and
@@ -48,9 +49,22 @@ fn main() {
     };
     let points: usize = arg("--points").map_or(4096, |p| p.parse().expect("--points N"));
     let settings = BakeSettings::preset(quality);
+    // `--verify N [--verify-paths P]`: both bakes of each edit checked against the path
+    // tracer at N points (as `bake --verify N`).
+    let verify: Option<u32> = arg("--verify").map(|v| v.parse().expect("--verify N"));
+    let verify_paths: u32 =
+        arg("--verify-paths").map_or(1024, |p| p.parse().expect("--verify-paths P"));
     let scene = lightbake::import_gltf(path.as_ref(), LightConvention::GltfSpec)
         .unwrap_or_else(|e| panic!("{e}"))
         .scene;
+    if let Some(runs) = arg("--checkpoint-overhead") {
+        checkpoint_overhead(
+            &scene,
+            &settings,
+            runs.parse().expect("--checkpoint-overhead N"),
+        );
+        return;
+    }
     let (base, base_seconds) = bake(&scene, &settings, Plan::Full("the first bake".into()));
     let cache: BakeCache = base.cache.clone().expect("a cache");
     println!(
@@ -75,8 +89,11 @@ fn main() {
             continue;
         };
         let following = plan(Ok(Some(cache.clone())), &edited, &settings, false);
-        let (inc, inc_seconds) = bake(&edited, &settings, following);
-        let (full, full_seconds) = bake(&edited, &settings, Plan::Full("the reference".into()));
+        if std::env::var("INCREMENTAL_CHECK_STAGES").is_ok_and(|v| v == "1") {
+            eprint!("{}", following.describe());
+        }
+        let (mut inc, inc_seconds) = bake(&edited, &settings, following);
+        let (mut full, full_seconds) = bake(&edited, &settings, Plan::Full("the reference".into()));
         let a = agreement(&edited, &inc, &full, points, 7);
         let estimate = full.report.error.as_ref().map_or(0.0, |e| e.relative_rms);
         let again = inc
@@ -97,7 +114,27 @@ fn main() {
             a.relative_rms / estimate.max(1e-12),
             if moved.is_empty() { "yes" } else { "no" }
         );
-        if std::env::var_os("INCREMENTAL_CHECK_STAGES").is_some() {
+        if let Some(points) = verify {
+            // Both bakes checked against the path tracer at the same points.
+            let mut line = Vec::new();
+            for (name, out) in [("incremental", &mut inc), ("full", &mut full)] {
+                out.report.settings.checks.verify_points = points;
+                out.report.settings.checks.verify_paths = verify_paths;
+                lightbake::analysis::verify::verify(&edited, out);
+                if let Some(v) = &out.report.verification {
+                    line.push(format!(
+                        "{name} {:.2}% ± {:.2}%",
+                        100.0 * v.relative_rms,
+                        100.0 * v.uncertainty
+                    ));
+                }
+            }
+            println!(
+                "|   `--verify {points}` ({verify_paths} paths) | {} | | | | | | | |",
+                line.join(", ")
+            );
+        }
+        if std::env::var("INCREMENTAL_CHECK_STAGES").is_ok_and(|v| v == "1") {
             for s in inc.report.incremental.iter().flat_map(|r| &r.stages) {
                 eprintln!("    {}: {} of {}", s.stage, s.computed, s.items);
             }
@@ -107,4 +144,60 @@ fn main() {
             }
         }
     }
+}
+
+/// What checkpoints cost a full bake: `runs` pairs of bakes, alternating without and with
+/// checkpoints written to a file (as `bake` writes `OUT/lightbake.partial`); prints each pair,
+/// the checkpoints written and the seconds spent writing them, and the medians.
+fn checkpoint_overhead(scene: &Scene, settings: &BakeSettings, runs: usize) {
+    use std::sync::{Arc, Mutex};
+    let dir = std::env::temp_dir().join("incremental_check_partial");
+    let (mut without, mut with) = (Vec::new(), Vec::new());
+    let stages = std::env::var("INCREMENTAL_CHECK_STAGES").is_ok_and(|v| v == "1");
+    // `--checkpoint-interval S`: seconds between two checkpoints within a split stage.
+    let interval = arg("--checkpoint-interval").map_or(std::time::Duration::from_secs(2), |s| {
+        std::time::Duration::from_secs_f64(s.parse().expect("--checkpoint-interval S"))
+    });
+    for _ in 0..runs {
+        let (plain, seconds) = bake(scene, settings, Plan::Full("plain".into()));
+        without.push(seconds);
+        // (checkpoints written, seconds spent writing them)
+        let written = Arc::new(Mutex::new((0usize, 0.0f64)));
+        let seen = Arc::clone(&written);
+        let target = dir.clone();
+        let start = Instant::now();
+        let out = BakeBuilder::new(scene.clone())
+            .settings(settings.clone())
+            .following(Plan::Full("with checkpoints".into()))
+            .checkpoint_interval(interval)
+            .checkpoints(Arc::new(move |c: &BakeCache| {
+                let t = Instant::now();
+                lightbake::incremental::write_partial(&target, c).expect("the partial file");
+                let mut w = seen.lock().expect("the count");
+                w.0 += 1;
+                w.1 += t.elapsed().as_secs_f64();
+            }))
+            .run()
+            .unwrap_or_else(|e| panic!("{e}"));
+        with.push(start.elapsed().as_secs_f64());
+        let (count, writing) = *written.lock().expect("the count");
+        println!(
+            "without {:.2} s, with {:.2} s ({count} checkpoints, {writing:.2} s writing them)",
+            without.last().unwrap(),
+            with.last().unwrap(),
+        );
+        if stages {
+            eprintln!("{}\n{}", plain.report.table(), out.report.table());
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (a, b) = (median(&mut without), median(&mut with));
+    println!(
+        "medians: without {a:.2} s, with {b:.2} s, ratio {:.3}",
+        b / a
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -68,7 +68,23 @@ pub trait WorkScope: Copy {
         items: usize,
         patch: impl Fn(usize) -> usize,
         summary: Option<&[f32]>,
-        compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+        compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+    ) -> Result<(Vec<T>, [u64; 2])>;
+
+    /// Like [`WorkScope::split`] for a stage that a bake split across processes computes
+    /// whole in one of them (after the shards' part, in the merge): every item is computed
+    /// here but in a bake that follows an edit, which keeps the items whose `summary` barely
+    /// moved.
+    ///
+    /// # Errors
+    /// As [`WorkScope::split`].
+    fn kept_across_edits<T: Record>(
+        self,
+        stage: Stage,
+        items: usize,
+        patch: impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
+        compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])>;
 
     /// Ends this process here when the rest of the bake is another process's (nothing for a

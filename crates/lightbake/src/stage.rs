@@ -42,7 +42,9 @@ stages! {
     Density = "density",
     /// The BVH for the ray queries.
     Bvh = "bvh",
-    /// A split bake's shard or merge reads the prepared texel patches.
+    /// Texel patches made by another bake: a split bake's shard or merge reads prepare's; a
+    /// bake that follows an edit keeps the earlier bake's when the geometry and its layout
+    /// did not change.
     Patches = "patches",
     /// Texel patches rasterised from the unwrapped triangles.
     Raster = "raster",
@@ -91,7 +93,119 @@ stages! {
     Write = "write",
 }
 
+/// A part of a bake's input, as a bake that follows an edit tells edits apart
+/// ([`crate::incremental::Edits::changed`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Input {
+    /// The meshes' geometry and the instances' placement: what rays hit.
+    Geometry,
+    /// The lightmap layout: pages, each instance's rectangle, each mesh's charts.
+    Layout,
+    /// What surfaces reflect: base colour, its texture, metalness, two-sidedness.
+    Albedo,
+    /// What surfaces emit.
+    Emission,
+    /// The punctual and directional lights.
+    Lights,
+    /// The sky.
+    Sky,
+}
+
+/// How a bake that follows an edit of a cached bake treats a stage's output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kept {
+    /// Item by item (a split stage): each texel or node is computed again where the edit can
+    /// move what it reads by more than a share of the bake's error, the rest keep their values.
+    Items,
+    /// Kept whole from the cache when nothing it reads changed, else run again whole.
+    Whole,
+    /// Kept from the cache whatever the edit (the texel density: the layout stays stable;
+    /// `--full` decides it again).
+    Pinned,
+    /// Run again whole in every bake: its output is not kept in the cache.
+    Again,
+}
+
+/// What a stage reads: parts of the input and earlier stages' outputs, and how a bake that
+/// follows an edit treats its own output. The driver orders the stages; this table is what
+/// an incremental bake decides from ([`Stage::changed_by`]) and what its plan lists.
+#[derive(Clone, Copy, Debug)]
+pub struct Reads {
+    /// The parts of the input it reads itself.
+    pub inputs: &'static [Input],
+    /// The earlier stages whose outputs it reads.
+    pub stages: &'static [Stage],
+    /// What a bake that follows an edit does with it.
+    pub kept: Kept,
+}
+
 impl Stage {
+    /// What the stage reads, and how a bake that follows an edit treats it.
+    pub const fn reads(self) -> Reads {
+        use Input::{Albedo, Emission, Geometry, Layout, Lights, Sky};
+        const LIGHT: &[Input] = &[Geometry, Lights, Sky, Emission];
+        const ALL: &[Input] = &[Geometry, Layout, Albedo, Emission, Lights, Sky];
+        let (inputs, stages, kept): (&[Input], &[Stage], Kept) = match self {
+            Stage::Plan | Stage::Indirect => (ALL, &[], Kept::Again),
+            Stage::Unwrap => (&[Geometry], &[], Kept::Items),
+            Stage::Density => (LIGHT, &[Stage::Unwrap], Kept::Pinned),
+            Stage::Bvh | Stage::Calibrate => (&[Geometry], &[], Kept::Again),
+            Stage::Raster | Stage::Patches => (&[Geometry, Layout], &[], Kept::Whole),
+            Stage::Validity => (&[Geometry, Layout], &[Stage::Raster], Kept::Whole),
+            Stage::Direct => (LIGHT, &[Stage::Validity], Kept::Items),
+            Stage::Vpl => (ALL, &[Stage::Validity], Kept::Again),
+            Stage::Nodes => (&[Albedo], &[Stage::Validity], Kept::Again),
+            Stage::Transport => (&[Geometry], &[Stage::Nodes], Kept::Again),
+            Stage::Solve => (&[], &[Stage::Transport, Stage::Direct], Kept::Again),
+            Stage::CoarseSolve => (&[Geometry], &[Stage::Nodes, Stage::Direct], Kept::Again),
+            Stage::GatherPilot => (
+                &[Geometry],
+                &[Stage::Nodes, Stage::Direct, Stage::CoarseSolve],
+                Kept::Items,
+            ),
+            Stage::FinalGather => (
+                &[Geometry],
+                &[Stage::Direct, Stage::CoarseSolve, Stage::GatherPilot],
+                Kept::Items,
+            ),
+            Stage::Correction => (
+                &[Geometry],
+                &[Stage::CoarseSolve, Stage::FinalGather],
+                Kept::Items,
+            ),
+            Stage::Reflection => (&[Geometry], &[Stage::Correction], Kept::Items),
+            Stage::ErrorEstimate => (
+                &[Geometry],
+                &[Stage::Direct, Stage::Reflection, Stage::Solve],
+                Kept::Again,
+            ),
+            Stage::Denoise => (
+                &[Geometry],
+                &[Stage::Direct, Stage::Reflection, Stage::Solve, Stage::Vpl],
+                Kept::Again,
+            ),
+            Stage::GridError => (LIGHT, &[Stage::Direct], Kept::Again),
+            Stage::ContactFit => (&[Geometry], &[Stage::Denoise], Kept::Again),
+            Stage::Dilate => (&[Layout], &[Stage::ContactFit], Kept::Again),
+            Stage::Stitch => (&[Layout], &[Stage::Dilate], Kept::Again),
+            Stage::Volume => (&[Geometry], &[Stage::Stitch], Kept::Again),
+            Stage::Write => (&[], &[Stage::Stitch, Stage::Volume], Kept::Again),
+        };
+        Reads {
+            inputs,
+            stages,
+            kept,
+        }
+    }
+
+    /// Whether an edit that changed the parts `changed` of the input can change this
+    /// stage's output: it reads one of them, or an earlier stage's output that can change.
+    pub fn changed_by(self, changed: &[Input]) -> bool {
+        let r = self.reads();
+        r.inputs.iter().any(|i| changed.contains(i))
+            || r.stages.iter().any(|s| s.changed_by(changed))
+    }
+
     /// The stage of the plan that runs this one: [`Stage::Indirect`] for radiosity's and
     /// instant radiosity's stages, the stage itself otherwise.
     pub const fn planned_as(self) -> Stage {
@@ -211,6 +325,29 @@ mod tests {
             serde_json::from_str::<Stage>(&json).unwrap(),
             Stage::CoarseSolve
         );
+    }
+
+    #[test]
+    fn a_stage_reads_only_stages_before_it_and_follows_what_it_reads() {
+        for &s in Stage::ALL {
+            for &earlier in s.reads().stages {
+                assert!(earlier < s, "{s} reads {earlier}, which runs after it");
+            }
+        }
+        // An edit of the light alone leaves the texel patches and the nodes as they were,
+        // and reaches the gathers through the direct light.
+        let light = [Input::Lights];
+        assert!(!Stage::Validity.changed_by(&light));
+        assert!(!Stage::Nodes.changed_by(&light));
+        assert!(Stage::FinalGather.changed_by(&light));
+        assert!(Stage::Stitch.changed_by(&light));
+        // A new albedo reaches the gathers through the nodes, not the direct light.
+        let albedo = [Input::Albedo];
+        assert!(!Stage::Direct.changed_by(&albedo));
+        assert!(Stage::Correction.changed_by(&albedo));
+        // Moved geometry changes everything that reads it.
+        assert!(Stage::Validity.changed_by(&[Input::Geometry]));
+        assert!(Stage::Validity.changed_by(&[Input::Layout]));
     }
 
     #[test]

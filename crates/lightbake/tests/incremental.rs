@@ -205,11 +205,13 @@ fn a_damaged_truncated_or_foreign_cache_gives_a_full_bake_with_a_warning() {
     }
 }
 
-#[test]
-fn a_bake_resumed_from_a_checkpoint_keeps_the_stages_it_finished_and_gives_the_same_bits() {
-    let scene = cornell_box(CornellLight::Point);
-    // The medium preset with the hierarchical solve: its split stages are the direct light
-    // and the gathers.
+/// The Cornell box with a point light at the medium preset with the hierarchical solve (its
+/// split stages are the direct light and the gathers), baked in full with checkpoints at
+/// `interval` within a stage: the settings, the bake and every checkpoint it handed over.
+fn bake_with_checkpoints(
+    scene: &Scene,
+    interval: std::time::Duration,
+) -> (BakeSettings, BakeOutput, Vec<BakeCache>) {
     let mut s = BakeSettings::medium();
     s.layout.texel_density = Some(32.0);
     s.layout.texel_density_from_scene = false;
@@ -222,9 +224,22 @@ fn a_bake_resumed_from_a_checkpoint_keeps_the_stages_it_finished_and_gives_the_s
         .checkpoints(Arc::new(move |c: &BakeCache| {
             sink.lock().unwrap().push(c.clone())
         }))
+        .checkpoint_interval(interval)
         .run()
         .unwrap();
-    let checkpoints = seen.lock().unwrap().clone();
+    let seen = seen.lock().unwrap().clone();
+    (s, full, seen)
+}
+
+#[test]
+fn a_bake_resumed_from_a_checkpoint_keeps_the_stages_it_finished_and_gives_the_same_bits() {
+    let scene = cornell_box(CornellLight::Point);
+    let (s, full, seen) = bake_with_checkpoints(&scene, std::time::Duration::from_secs(2));
+    // The checkpoints after whole stages (those within a long stage are the next test's).
+    let checkpoints: Vec<BakeCache> = (seen.iter())
+        .filter(|c| c.values.stages.last().is_none_or(|k| k.finished.is_empty()))
+        .cloned()
+        .collect();
     assert!(checkpoints.len() >= 2, "{} checkpoints", checkpoints.len());
     for (k, c) in checkpoints.iter().enumerate() {
         assert_eq!(c.values.stages().count(), k + 1, "checkpoint {k}");
@@ -259,4 +274,102 @@ fn a_bake_resumed_from_a_checkpoint_keeps_the_stages_it_finished_and_gives_the_s
     let mut other = s.clone();
     other.seed += 1;
     assert!(incremental::resume(checkpoints[0].clone(), &scene, &other).is_none());
+}
+
+/// The stages a bake ran, by name.
+fn stage_names(out: &BakeOutput) -> Vec<String> {
+    (out.report.stages.iter())
+        .map(|st| st.run.stage.to_string())
+        .collect()
+}
+
+#[test]
+fn a_bake_killed_within_a_stage_resumes_with_the_items_it_finished_and_the_same_bits() {
+    let scene = cornell_box(CornellLight::Point);
+    let (s, full, seen) = bake_with_checkpoints(&scene, std::time::Duration::ZERO);
+    // A checkpoint within the final gather, about half of its nodes done, as on disk.
+    let within: Vec<BakeCache> = (seen.iter())
+        .filter(|c| {
+            c.values
+                .stages
+                .last()
+                .is_some_and(|k| k.stage.to_string() == "final gather" && !k.finished.is_empty())
+        })
+        .cloned()
+        .collect();
+    assert!(
+        within.len() >= 8,
+        "{} checkpoints within the final gather",
+        within.len()
+    );
+    let middle = &within[within.len() / 2];
+    let stopped = BakeCache::from_bytes(&middle.to_bytes()).unwrap();
+    let last = stopped.values.stages.last().unwrap();
+    let share = last.finished_share();
+    assert!((0.2..0.8).contains(&share), "{share}");
+    let unfinished = last.finished.iter().filter(|&&f| !f).count() as u64;
+    let resumed_plan = incremental::resume(stopped, &scene, &s).expect("the same input resumes");
+    let resumed = bake(&scene, &s, resumed_plan);
+    assert_eq!(bits(&resumed.pages), bits(&full.pages));
+    // It kept the patches, every stage before the final gather, and the gather's finished
+    // nodes.
+    let names = stage_names(&resumed);
+    assert!(names.contains(&"patches".to_string()), "{names:?}");
+    assert!(!names.contains(&"validity".to_string()), "{names:?}");
+    let inc = resumed.report.incremental.unwrap();
+    let gather = (inc.stages.iter())
+        .position(|st| st.stage.to_string() == "final gather")
+        .expect("a final gather");
+    assert!(
+        inc.stages[..gather].iter().all(|st| st.computed == 0),
+        "{inc:?}"
+    );
+    assert_eq!(inc.stages[gather].computed, unfinished, "{inc:?}");
+}
+
+#[test]
+fn an_edit_of_the_light_alone_keeps_the_texel_patches_and_the_reflection_where_it_can() {
+    let scene = cornell_box(CornellLight::Point);
+    let mut s = settings();
+    s.radiosity.solver = lightbake::settings::SolverChoice::Hierarchical;
+    let (_, cache) = first_bake(&scene, &s);
+    let (lit, what) = EditCase::LampColour.apply(&scene).unwrap();
+    let inc = bake(&lit, &s, plan(Ok(Some(cache.clone())), &lit, &s, false));
+    let names = stage_names(&inc);
+    assert!(names.contains(&"patches".to_string()), "{what}: {names:?}");
+    assert!(
+        !names.contains(&"validity".to_string()),
+        "{what}: {names:?}"
+    );
+    // The reflection of the correction is kept item by item like the gathers.
+    let report = inc.report.incremental.clone().unwrap();
+    let reflection = (report.stages.iter())
+        .find(|st| st.stage.to_string() == "reflection")
+        .expect("a reflection stage");
+    assert!(
+        reflection.computed < reflection.items,
+        "{what}: the reflection computed again at {} of {} nodes",
+        reflection.computed,
+        reflection.items
+    );
+    // Geometry that moved makes them again.
+    let (moved, what) = EditCase::MeshMoved.apply(&scene).unwrap();
+    let inc = bake(&moved, &s, plan(Ok(Some(cache.clone())), &moved, &s, false));
+    let names = stage_names(&inc);
+    assert!(names.contains(&"validity".to_string()), "{what}: {names:?}");
+    assert!(!names.contains(&"patches".to_string()), "{what}: {names:?}");
+    // A cache whose kept patches were tampered with (their hash no longer matches) makes
+    // them again too, rather than reading them.
+    let mut tampered = cache.clone();
+    // A byte of the middle patch's position (after the 12-byte header, 84 bytes a patch,
+    // its instance, page and texel first).
+    let count = tampered.values.patch_keys.len();
+    let at = 12 + 84 * (count / 2) + 16 + 2;
+    tampered.values.patches[at] ^= 0x40;
+    let inc = bake(&lit, &s, plan(Ok(Some(tampered)), &lit, &s, false));
+    let names = stage_names(&inc);
+    assert!(
+        names.contains(&"validity".to_string()),
+        "tampered: {names:?}"
+    );
 }

@@ -21,6 +21,7 @@
 //! ```
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use super::handle::BakeHandle;
 use super::preview::PreviewSlot;
@@ -46,6 +47,8 @@ pub struct BakeBuilder {
     following: Option<Plan>,
     /// Where a bake that keeps a cache hands its state after each split stage.
     checkpoint: Option<Sink>,
+    /// Time between two checkpoints within a split stage.
+    checkpoint_interval: Duration,
 }
 
 /// A [`Checkpoint`] in the builder (shown as its presence).
@@ -78,6 +81,7 @@ impl BakeBuilder {
             previews: Arc::new(PreviewSlot::default()),
             following: None,
             checkpoint: None,
+            checkpoint_interval: Duration::from_secs(2),
         }
     }
 
@@ -114,8 +118,20 @@ impl BakeBuilder {
     /// that stopped there. A bake of the same input that follows it keeps the stages it
     /// finished: the `bake` command writes it to `OUT/lightbake.partial` so that a killed
     /// bake run again resumes.
+    ///
+    /// A long split stage hands over its state too: its items are computed in 16 blocks, and
+    /// the finished ones are kept in a checkpoint once [`Self::checkpoint_interval`] and 19
+    /// times the last checkpoint's writing time have passed since the last (so writing them
+    /// takes at most a twentieth of the stage).
     pub fn checkpoints(mut self, sink: Checkpoint) -> Self {
         self.checkpoint = Some(Sink(sink));
+        self
+    }
+
+    /// With [`Self::checkpoints`]: the least time between two checkpoints within a split
+    /// stage (default 2 s; zero: after every block of its items, whatever the writing takes).
+    pub fn checkpoint_interval(mut self, interval: Duration) -> Self {
+        self.checkpoint_interval = interval;
         self
     }
 
@@ -131,13 +147,14 @@ impl BakeBuilder {
             previews,
             following,
             checkpoint,
+            checkpoint_interval,
         } = self;
         run_following(
             &scene,
             &settings,
             &progress,
             &previews,
-            (following, checkpoint),
+            (following, checkpoint.map(|c| (c, checkpoint_interval))),
         )
     }
 
@@ -194,10 +211,11 @@ impl BakeBuilder {
             previews,
             following,
             checkpoint,
+            checkpoint_interval,
         } = self;
         let (watched, published) = (Arc::clone(&progress), Arc::clone(&previews));
         BakeHandle::start(progress, previews, move || {
-            let plan = (following, checkpoint);
+            let plan = (following, checkpoint.map(|c| (c, checkpoint_interval)));
             let output = run_following(&scene, &settings, &watched, &published, plan)?;
             then(output, &scene, &settings)
         })
@@ -210,7 +228,7 @@ fn run_following(
     settings: &BakeSettings,
     progress: &Progress,
     previews: &PreviewSlot,
-    (plan, checkpoint): (Option<Plan>, Option<Sink>),
+    (plan, checkpoint): (Option<Plan>, Option<(Sink, Duration)>),
 ) -> Result<BakeOutput> {
     // Light groups and a target error's rounds take every texel: no cache is kept for them
     // (the plan says why a later bake is full).
@@ -218,8 +236,10 @@ fn run_following(
     match plan {
         Some(plan) if !whole => {
             let mut run = TexelRun::following(plan);
-            if let Some(Sink(sink)) = checkpoint {
-                run = run.with_checkpoints(sink);
+            if let Some((Sink(sink), interval)) = checkpoint {
+                run = run
+                    .with_checkpoints(sink)
+                    .with_checkpoint_interval(interval);
             }
             bake_with(scene, settings, progress, previews, Scope::Subset(&run))
         }

@@ -57,6 +57,23 @@ pub(super) fn texel_patches(
             );
             Ok((p, 0, note))
         })?,
+        // A bake that follows an earlier one of the same geometry and layout takes its
+        // patches.
+        None if let Some(p) = (stages.scope().texel_run())
+            .and_then(|run| run.kept_patches(scene, layout, rays.triangles.len())) =>
+        {
+            let patches = stages.run(Stage::Patches, 1, || {
+                let note = format!(
+                    "{} texel patches, kept from the earlier bake (the geometry and its layout did not change)",
+                    p.patches.len()
+                );
+                Ok((p, 0, note))
+            })?;
+            if let Some(run) = stages.scope().texel_run() {
+                run.patches_known((scene, layout, rays), &patches, settings)?;
+            }
+            patches
+        }
         None => {
             let mut patches = stages.run(Stage::Raster, 1, || {
                 let p = Patches::build(scene, layout, rays);

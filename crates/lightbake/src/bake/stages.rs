@@ -40,11 +40,25 @@ impl WorkScope for Scope<'_> {
         items: usize,
         patch: impl Fn(usize) -> usize,
         summary: Option<&[f32]>,
-        compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+        compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])> {
         match self {
             Scope::All => Ok(compute(None)),
             Scope::Split(run) => run.split(stage, items, patch, compute),
+            Scope::Subset(run) => run.split(stage, items, patch, summary, compute),
+        }
+    }
+
+    fn kept_across_edits<T: Record>(
+        self,
+        stage: Stage,
+        items: usize,
+        patch: impl Fn(usize) -> usize,
+        summary: Option<&[f32]>,
+        compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+    ) -> Result<(Vec<T>, [u64; 2])> {
+        match self {
+            Scope::All | Scope::Split(_) => Ok(compute(None)),
             Scope::Subset(run) => run.split(stage, items, patch, summary, compute),
         }
     }

@@ -24,7 +24,7 @@ use crate::bvh::RayScene;
 use crate::error::{BakeError, Result};
 use crate::incremental::{
     BakeCache, Edits, IncrementalReport, KeptStage, Plan, SHARE, StageShare, StageValues,
-    deciding_settings, direct_bounds, patch_keys,
+    deciding_settings, direct_bounds, patch_geometry, patch_keys,
 };
 use crate::raster::Patches;
 use crate::runner::Record;
@@ -35,6 +35,26 @@ use crate::settings::BakeSettings;
 use crate::stage::Stage;
 use crate::unwrap::Layout;
 use crate::unwrap::stable::Earlier;
+
+/// Blocks a split stage's items are computed in when the bake keeps checkpoints.
+const BLOCKS: usize = 16;
+
+/// Seconds between two checkpoints within a split stage, at least.
+const CHECKPOINT_SECONDS: f64 = 2.0;
+
+/// Within a split stage, a checkpoint also waits this many times the time the last one took
+/// to write, so writing them takes at most a twentieth of the stage (a checkpoint of a
+/// furnished house holds 50–90 MB).
+const CHECKPOINT_SPACING: f64 = 19.0;
+
+/// Values as [`Record`] bytes.
+fn to_bytes<T: Record>(values: &[T]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(values.len() * T::BYTES);
+    for v in values {
+        v.put(&mut bytes);
+    }
+    bytes
+}
 
 /// Per item of a split stage, whether it is computed here, and the earlier item each of the
 /// others takes its value from.
@@ -79,6 +99,8 @@ pub struct TexelRun {
     state: Mutex<RunState>,
     /// Called with what a later bake can follow after each split stage (a resumable bake).
     checkpoint: Option<Checkpoint>,
+    /// Seconds between two checkpoints within a split stage.
+    interval: f64,
 }
 
 /// A sink for a bake's state after each split stage: the cache of a bake that stopped there,
@@ -103,6 +125,8 @@ struct RunState {
     layout: Vec<String>,
     /// The cache a checkpoint writes, without its values (known once the patches are).
     template: Option<BakeCache>,
+    /// When the last checkpoint was written, and the seconds its writing took.
+    checkpointed: Option<(std::time::Instant, f64)>,
 }
 
 impl std::fmt::Debug for TexelRun {
@@ -121,6 +145,7 @@ impl TexelRun {
             earlier,
             state: Mutex::new(RunState::default()),
             checkpoint: None,
+            interval: CHECKPOINT_SECONDS,
         }
     }
 
@@ -128,6 +153,15 @@ impl TexelRun {
     /// stopped there (see [`Checkpoint`]).
     pub fn with_checkpoints(mut self, sink: Checkpoint) -> Self {
         self.checkpoint = Some(sink);
+        self
+    }
+
+    /// With [`Self::with_checkpoints`]: a split stage under way hands its state over too,
+    /// after each of its 16 blocks once `interval` (default 2 s) and 19 times the last
+    /// checkpoint's writing time have passed since the last checkpoint; zero: after every
+    /// block, whatever the writing takes.
+    pub fn with_checkpoint_interval(mut self, interval: std::time::Duration) -> Self {
+        self.interval = interval.as_secs_f64();
         self
     }
 
@@ -266,6 +300,8 @@ impl TexelRun {
             patches_hash: hash,
             patch_keys: patch_keys(patches, layout, &ids),
             stages: Vec::new(),
+            geometry_key: patch_geometry(scene, layout),
+            patches: patches.to_bytes(),
         };
         state.computed = [0; 2];
         state.shares.clear();
@@ -318,6 +354,40 @@ impl TexelRun {
         Ok(())
     }
 
+    /// The texel patches of the earlier run, where this run follows it (an edit of its
+    /// scene or the same texels again) and its patches were made from the same geometry
+    /// and layout ([`patch_geometry`]): `scene` the unwrapped scene over `layout`, with
+    /// `triangles` ray triangles. `None` when they must be made again.
+    pub(super) fn kept_patches(
+        &self,
+        scene: &Scene,
+        layout: &Layout,
+        triangles: usize,
+    ) -> Option<Patches> {
+        // What the patches read ([`Stage::reads`]) did not change in the edit followed.
+        let follows = match &self.mode {
+            Mode::All => false,
+            Mode::Only(_) => true,
+            Mode::Follow(_) => self
+                .edit()
+                .is_some_and(|(edits, _)| !Stage::Validity.changed_by(&edits.changed())),
+        };
+        let earlier = &self.earlier;
+        if !follows
+            || earlier.patches.is_empty()
+            || earlier.geometry_key != patch_geometry(scene, layout)
+        {
+            return None;
+        }
+        let patches = Patches::from_bytes(&earlier.patches)?;
+        let fits = patches_hash(&patches) == earlier.patches_hash
+            && patches.patches.len() == earlier.patch_keys.len()
+            && patches
+                .check(layout, triangles, scene.instances.len())
+                .is_ok();
+        fits.then_some(patches)
+    }
+
     /// The bake's input `scene` (before the layout's UVs are given to it), `settings` and
     /// its layout at `density` are known: what a checkpoint writes besides the values.
     pub(super) fn layout_known(
@@ -354,38 +424,42 @@ impl TexelRun {
         items: usize,
         patch: impl Fn(usize) -> usize,
         summary: Option<&[f32]>,
-        compute: impl FnOnce(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+        compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])> {
         let index = self.lock().kept.stages.len();
         let only = self.subset::<T>(stage, index, items, &patch, summary)?;
+        let item_patch: Vec<u32> = (0..items).map(|i| patch(i) as u32).collect();
+        let kept = |bytes: Vec<u8>, finished: Vec<bool>| KeptStage {
+            stage,
+            items,
+            item_patch: item_patch.clone(),
+            summary: summary.map(<[f32]>::to_vec).unwrap_or_default(),
+            bytes,
+            finished,
+        };
         let (values, rays, computed) = match only {
-            None => {
+            None if self.checkpoint.is_none() => {
                 let (v, r) = compute(None);
                 (v, r, items as u64)
             }
-            Some((only, earlier)) => {
-                let (mut v, r) = compute(Some(&only));
-                for (i, value) in v.iter_mut().enumerate() {
-                    if let (false, Some(j)) = (only[i], earlier[i]) {
+            only => {
+                let (todo, earlier) =
+                    only.unwrap_or_else(|| (vec![true; items], vec![None; items]));
+                let mut values = vec![T::default(); items];
+                for (i, value) in values.iter_mut().enumerate() {
+                    if let (false, Some(j)) = (todo[i], earlier[i]) {
                         *value = self.earlier.stages[index].value(j as usize);
                     }
                 }
-                let computed = only.iter().filter(|&&m| m).count() as u64;
-                (v, r, computed)
+                let (rays, computed) =
+                    self.compute_in_blocks(&todo, &mut values, &compute, |values, finished| {
+                        kept(to_bytes(values), finished.to_vec())
+                    });
+                (values, rays, computed)
             }
         };
-        let mut bytes = Vec::with_capacity(items * T::BYTES);
-        for v in &values {
-            v.put(&mut bytes);
-        }
         let mut state = self.lock();
-        state.kept.stages.push(KeptStage {
-            stage,
-            items,
-            item_patch: (0..items).map(|i| patch(i) as u32).collect(),
-            summary: summary.map(<[f32]>::to_vec).unwrap_or_default(),
-            bytes,
-        });
+        state.kept.stages.push(kept(to_bytes(&values), Vec::new()));
         state.computed[0] += computed;
         state.computed[1] += items as u64;
         state.shares.push(StageShare {
@@ -398,10 +472,94 @@ impl TexelRun {
             c
         });
         drop(state);
-        if let (Some(sink), Some(cache)) = (&self.checkpoint, checkpoint) {
-            sink(&cache);
+        if let Some(cache) = checkpoint {
+            self.write_checkpoint(&cache);
         }
         Ok((values, rays))
+    }
+
+    /// Computes the items `todo` marks into `values`: at once, or (a bake that keeps
+    /// checkpoints) in [`BLOCKS`] blocks, each followed, once the checkpoint interval and
+    /// [`CHECKPOINT_SPACING`] times the last checkpoint's writing time have passed since the
+    /// stage began or the last checkpoint, by a checkpoint that holds the stage so far
+    /// (`partial(values, finished)`), so a bake killed in a long stage keeps the items it
+    /// finished. Gives the rays traced and the items computed.
+    fn compute_in_blocks<T: Record>(
+        &self,
+        todo: &[bool],
+        values: &mut [T],
+        compute: &impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
+        partial: impl Fn(&[T], &[bool]) -> KeptStage,
+    ) -> ([u64; 2], u64) {
+        let marked: Vec<usize> = (0..todo.len()).filter(|&i| todo[i]).collect();
+        let computed = marked.len() as u64;
+        let blocks = if self.checkpoint.is_some() {
+            BLOCKS.min(marked.len()).max(1)
+        } else {
+            1
+        };
+        // Block b takes every `blocks`-th marked item from the b-th on: each block spreads
+        // over the whole stage, so its items share out over the threads as the whole would.
+        let chunks: Vec<Vec<usize>> = (0..blocks)
+            .map(|b| marked.iter().copied().skip(b).step_by(blocks).collect())
+            .collect();
+        let mut finished: Vec<bool> = todo.iter().map(|&t| !t).collect();
+        let mut rays = [0u64; 2];
+        let began = std::time::Instant::now();
+        let mut mask = vec![false; todo.len()];
+        for (n, chunk) in chunks.iter().enumerate() {
+            let whole = chunks.len() == 1 && chunk.len() == todo.len();
+            for &i in chunk {
+                mask[i] = true;
+            }
+            let (v, r) = compute((!whole).then_some(mask.as_slice()));
+            for &i in chunk {
+                values[i] = v[i];
+                finished[i] = true;
+                mask[i] = false;
+            }
+            rays[0] += r[0];
+            rays[1] += r[1];
+            let due = || {
+                let (since, wait) = match self.lock().checkpointed {
+                    _ if self.interval == 0.0 => (began, 0.0),
+                    Some((at, took)) => {
+                        (at.max(began), self.interval.max(CHECKPOINT_SPACING * took))
+                    }
+                    None => (began, self.interval),
+                };
+                since.elapsed().as_secs_f64() >= wait
+            };
+            if n + 1 < chunks.len() && due() {
+                self.checkpoint_within(partial(values, &finished));
+            }
+        }
+        (rays, computed)
+    }
+
+    /// Writes a checkpoint of the stages finished so far and `stage`, the one under way.
+    fn checkpoint_within(&self, stage: KeptStage) {
+        let cache = {
+            let state = self.lock();
+            (state.template.clone()).map(|mut c| {
+                c.values = state.kept.clone();
+                c.values.stages.push(stage);
+                c
+            })
+        };
+        if let Some(cache) = cache {
+            self.write_checkpoint(&cache);
+        }
+    }
+
+    /// Hands `cache` to the checkpoint sink and notes when, and how long it took.
+    fn write_checkpoint(&self, cache: &BakeCache) {
+        if let Some(sink) = &self.checkpoint {
+            let start = std::time::Instant::now();
+            sink(cache);
+            let end = std::time::Instant::now();
+            self.lock().checkpointed = Some((end, (end - start).as_secs_f64()));
+        }
     }
 
     /// Which items of split stage `index` are computed here, and the earlier item each of
@@ -433,7 +591,10 @@ impl TexelRun {
                         )));
                     }
                 }
-                let only: Vec<bool> = (0..items).map(|i| mask[patch(i)]).collect();
+                let k = &self.earlier.stages[index];
+                let only: Vec<bool> = (0..items)
+                    .map(|i| mask[patch(i)] || !k.is_finished(i))
+                    .collect();
                 let earlier = (0..items).map(|i| Some(i as u32)).collect();
                 Ok(Some((only, earlier)))
             }
@@ -482,7 +643,8 @@ impl TexelRun {
                         }
                     }
                     earlier[i] = Some(j);
-                    only[i] = change.is_nan() || change > tolerance;
+                    only[i] =
+                        change.is_nan() || change > tolerance || !kept.is_finished(j as usize);
                 }
                 Ok(Some((only, earlier)))
             }

@@ -3,19 +3,31 @@
 //! every length against the bytes left before it allocates, so a truncated, damaged or
 //! hostile file gives an error, never a panic or an allocation it does not hold.
 
-use crate::sampling::Fnv1a;
-
 /// The file's first bytes.
 pub(super) const MAGIC: &[u8; 8] = b"LBCACHE\0";
 
 /// The payload's layout. A cache of another format version is not read.
-pub(super) const FORMAT: u32 = 2;
+pub(super) const FORMAT: u32 = 4;
 
-/// The checksum of the payload: FNV-1a, 64 bits.
+/// The checksum of the payload: FNV-1a's step (xor, then multiply by its 64-bit prime)
+/// taken a little-endian 64-bit word at a time, the last word padded with zeros, then the
+/// length. Each step is a bijection of the state, so a payload that differs in one word
+/// always differs in its checksum; a word at a time it reads a partial checkpoint's tens
+/// of megabytes about eight times faster than byte by byte.
 fn checksum(bytes: &[u8]) -> u64 {
-    let mut h = Fnv1a::default();
-    h.bytes(bytes);
-    h.finish()
+    const PRIME: u64 = 0x0100_0000_01b3;
+    let step = |h: u64, w: u64| (h ^ w).wrapping_mul(PRIME);
+    let mut chunks = bytes.chunks_exact(8);
+    let mut h = (&mut chunks).fold(0xcbf2_9ce4_8422_2325, |h, c| {
+        step(h, u64::from_le_bytes(c.try_into().expect("eight bytes")))
+    });
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        let mut last = [0u8; 8];
+        last[..rest.len()].copy_from_slice(rest);
+        h = step(h, u64::from_le_bytes(last));
+    }
+    step(h, bytes.len() as u64)
 }
 
 /// Builds a payload.
@@ -236,6 +248,28 @@ mod tests {
         assert_eq!(r.u64s().unwrap(), [u64::MAX]);
         assert!(r.bool().unwrap());
         r.end().unwrap();
+    }
+
+    #[test]
+    fn the_checksum_catches_any_flipped_bit_and_a_trailing_zero() {
+        // Known answer: the empty payload is one step with its length, 0.
+        assert_eq!(
+            checksum(&[]),
+            0xcbf2_9ce4_8422_2325u64.wrapping_mul(0x0100_0000_01b3)
+        );
+        let payload: Vec<u8> = (0..37u32).map(|i| (i * 29 % 251) as u8).collect();
+        let sum = checksum(&payload);
+        for i in 0..payload.len() {
+            for bit in 0..8 {
+                let mut damaged = payload.clone();
+                damaged[i] ^= 1 << bit;
+                assert_ne!(checksum(&damaged), sum, "byte {i} bit {bit}");
+            }
+        }
+        // Zeros the padding of the last word would hide are told apart by the length.
+        let mut longer = payload.clone();
+        longer.push(0);
+        assert_ne!(checksum(&longer), sum);
     }
 
     #[test]

@@ -9,6 +9,7 @@ use super::BakeCache;
 use crate::scene::hashes::{InstanceHashes, SceneHashes};
 use crate::scene::{Light, Scene};
 use crate::settings::BakeSettings;
+use crate::stage::Input;
 
 /// A world box: (min, max).
 pub type Aabb = (Vec3, Vec3);
@@ -39,6 +40,29 @@ impl Edits {
     /// Whether nothing changed.
     pub fn is_empty(&self) -> bool {
         self.lines.is_empty()
+    }
+
+    /// The parts of the input the edit changed: what [`Stage::changed_by`](crate::stage::Stage::changed_by) reads against
+    /// each stage's declared inputs ([`Stage::reads`](crate::stage::Stage::reads)). Geometry that moved, changed, came
+    /// or went changes the layout too (its meshes' charts are placed again).
+    pub fn changed(&self) -> Vec<Input> {
+        let mut c = Vec::new();
+        if !self.boxes.is_empty() {
+            c.extend([Input::Geometry, Input::Layout]);
+        }
+        if self.albedo > 0 {
+            c.push(Input::Albedo);
+        }
+        if !self.emitters.is_empty() {
+            c.push(Input::Emission);
+        }
+        if !self.lights.is_empty() {
+            c.push(Input::Lights);
+        }
+        if self.sky.is_some() {
+            c.push(Input::Sky);
+        }
+        c
     }
 }
 

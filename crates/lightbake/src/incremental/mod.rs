@@ -20,10 +20,22 @@
 //!   is computed exactly as a full bake of the edited scene computes it (random numbers are
 //!   keyed by texel, sample and seed).
 //!
-//! The runner seam applies this (`runner::WorkScope::split`): a pass states its items, the
-//! patch each belongs to and, where it knows it, one number summing up what the item reads;
-//! a split stage that states no summary (and is not the direct light) is computed whole, and
-//! the passes that are not split (the coarse level, the denoiser, the stitch) run whole.
+//! What each stage reads is declared beside its name ([`crate::stage::Stage::reads`]: parts
+//! of the input, earlier stages' outputs, and whether its output is kept item by item, whole,
+//! or not at all); [`Edits::changed`] names the parts an edit changed, and a stage none of
+//! whose reads changed keeps its output. The runner seam applies this
+//! (`runner::WorkScope::split`, `runner::WorkScope::kept_across_edits`): a pass states its
+//! items, the patch each belongs to and, where it knows it, one number summing up what the
+//! item reads; a split stage that states no summary (and is not the direct light) is computed
+//! whole. The texel patches are kept whole (with the hash of the geometry and layout they
+//! were made from, `patch_geometry`, checked again); the passes whose output the cache does
+//! not hold (the nodes, the coarse level, the denoiser, the stitch) run whole.
+//!
+//! A bake that keeps checkpoints ([`crate::bake::BakeBuilder::checkpoints`]) computes each
+//! split stage's items in blocks and hands over, every few seconds (at least 2 s, and 19
+//! times the last checkpoint's writing time), the stage so far: its finished items
+//! ([`KeptStage::finished`]). A bake that resumes from it computes only the
+//! unfinished ones.
 
 mod bounds;
 mod codec;
@@ -38,13 +50,13 @@ use serde::Serialize;
 pub(crate) use bounds::direct_bounds;
 use codec::{Bad, Reader, Writer};
 pub use edits::{Aabb, Edits, Emitter, deciding_settings, edits, instance_boxes};
-pub(crate) use values::patch_keys;
 pub use values::{KeptStage, StageValues};
+pub(crate) use values::{patch_geometry, patch_keys};
 
 use crate::scene::hashes::{InstanceHashes, SceneHashes};
 use crate::scene::{Light, Scene};
 use crate::settings::BakeSettings;
-use crate::stage::Stage;
+use crate::stage::{Kept, Stage};
 use crate::unwrap::{InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};
 
 /// The cache's file name in the output folder.
@@ -442,22 +454,65 @@ impl Plan {
                 "incremental: nothing changed since the cached bake: its layout and every value it kept are kept\n".into()
             }
             Plan::Edit(e) => {
+                let (edits, cache) = (&e.0, &e.1);
                 let mut s = String::from("incremental: an edit of the cached bake\n");
-                for l in &e.0.lines {
-                    s.push_str(&format!("  changed  {l}\n"));
+                for l in &edits.lines {
+                    s.push_str(&format!("  changed   {l}\n"));
                 }
-                s.push_str("  layout   kept for every mesh that did not change; changed and added meshes placed in free space\n");
-                s.push_str(&format!(
-                    "  direct   recomputed where a changed light reaches, a moved box can cast or lift a shadow, or the light can move by more than {:.0}% of the bake's estimated error\n",
-                    100.0 * SHARE
-                ));
-                s.push_str(&format!(
-                    "  gathers  recomputed where the coarse light a node gathers moved by more than {:.0}% of the bake's estimated error; the coarse level is solved again\n",
-                    100.0 * SHARE
-                ));
+                s.push_str("  layout    kept for every mesh that did not change; changed and added meshes placed in free space\n");
+                let changed = edits.changed();
+                let (mut kept, mut items, mut again) = (Vec::new(), Vec::new(), Vec::new());
+                for &stage in Stage::ALL.iter().filter(|&&st| runs(st, &cache.settings)) {
+                    let name = stage.name();
+                    match stage.reads().kept {
+                        Kept::Pinned => kept.push(name),
+                        Kept::Whole | Kept::Items if !stage.changed_by(&changed) => kept.push(name),
+                        Kept::Items => items.push(name),
+                        Kept::Whole | Kept::Again => again.push(name),
+                    }
+                }
+                let mut line = |what: &str, names: &[&str], why: String| {
+                    if !names.is_empty() {
+                        s.push_str(&format!("  {what:<9} {}: {why}\n", names.join(", ")));
+                    }
+                };
+                line("kept", &kept, "nothing they read changed (the density: the layout stays stable)".into());
+                line(
+                    "per item",
+                    &items,
+                    format!(
+                        "computed again where the edit can move what a texel or node reads by more than {:.0}% of the bake's estimated error (direct light: where a changed light reaches or a moved box can cast or lift a shadow; gathers: where the coarse light a node gathers moved)",
+                        100.0 * SHARE
+                    ),
+                );
+                line("again", &again, "run again whole (what they read changed, or their output is not kept)".into());
                 s
             }
         }
+    }
+}
+
+/// Whether a bake with `settings` runs `stage` in one process (as far as the settings alone
+/// say): the plan's own stages and those of the other methods, solvers or a split bake are
+/// left out of an incremental plan's list.
+fn runs(stage: Stage, settings: &BakeSettings) -> bool {
+    use crate::settings::{Method, SolverChoice};
+    let matrix = !matches!(
+        settings.radiosity.solver,
+        SolverChoice::Auto | SolverChoice::Hierarchical
+    );
+    match stage {
+        Stage::Plan | Stage::Indirect | Stage::Patches | Stage::Calibrate | Stage::Write => false,
+        Stage::Vpl => settings.method != Method::Radiosity,
+        Stage::Transport | Stage::Solve => matrix,
+        Stage::CoarseSolve
+        | Stage::GatherPilot
+        | Stage::FinalGather
+        | Stage::Correction
+        | Stage::Reflection => !matrix && settings.method == Method::Radiosity,
+        Stage::Nodes | Stage::ErrorEstimate => settings.method == Method::Radiosity,
+        Stage::Volume => settings.volume.enabled,
+        _ => true,
     }
 }
 

@@ -9,7 +9,8 @@
 use super::codec::{Bad, Reader, Writer};
 use crate::raster::{Patch, Patches};
 use crate::runner::Record;
-use crate::scene::hashes::Hasher;
+use crate::scene::Scene;
+use crate::scene::hashes::{Hasher, mesh_geometry};
 use crate::stage::Stage;
 use crate::unwrap::Layout;
 
@@ -26,12 +27,28 @@ pub struct KeptStage {
     pub summary: Vec<f32>,
     /// The values, [`Record::BYTES`] bytes each.
     pub bytes: Vec<u8>,
+    /// Per item, whether its value was computed: empty when every item was. Only the last
+    /// stage of a bake that stopped during it ([`super::PARTIAL_FILE`]) has unfinished items.
+    pub finished: Vec<bool>,
 }
 
 impl KeptStage {
     /// Item `i`'s value.
     pub fn value<T: Record>(&self, i: usize) -> T {
         T::get(&self.bytes[i * T::BYTES..(i + 1) * T::BYTES])
+    }
+
+    /// Whether item `i` has its value (not an unfinished item of a stage a bake stopped in).
+    pub fn is_finished(&self, i: usize) -> bool {
+        self.finished.get(i).copied().unwrap_or(true)
+    }
+
+    /// The share of the items that have their values (1 for a finished stage).
+    pub fn finished_share(&self) -> f64 {
+        if self.finished.is_empty() || self.items == 0 {
+            return 1.0;
+        }
+        self.finished.iter().filter(|&&f| f).count() as f64 / self.items as f64
     }
 
     /// The item of each patch (of `patches` patches), if it has one.
@@ -59,6 +76,12 @@ pub struct StageValues {
     pub patch_keys: Vec<u64>,
     /// The split stages, in order.
     pub stages: Vec<KeptStage>,
+    /// What the texel patches are made from (`patch_geometry` over
+    /// the scene and the layout): a later bake whose own is the same takes `patches` as
+    /// they are, without the rasteriser and the validity pass.
+    pub geometry_key: u64,
+    /// The texel patches as bytes (as the split bake writes them; empty when not kept).
+    pub patches: Vec<u8>,
 }
 
 impl StageValues {
@@ -78,7 +101,11 @@ impl StageValues {
             w.u32s(&s.item_patch);
             w.f32s(&s.summary);
             w.bytes(&s.bytes);
+            let finished: Vec<u8> = s.finished.iter().map(|&f| u8::from(f)).collect();
+            w.bytes(&finished);
         }
+        w.u64(self.geometry_key);
+        w.bytes(&self.patches);
     }
 
     pub(super) fn read(r: &mut Reader<'_>) -> Result<Self, Bad> {
@@ -96,7 +123,9 @@ impl StageValues {
             let item_patch = r.u32s()?;
             let summary = r.f32s()?;
             let bytes = r.bytes()?.to_vec();
+            let finished: Vec<bool> = r.bytes()?.iter().map(|&b| b != 0).collect();
             let fits = item_patch.len() == items
+                && (finished.is_empty() || finished.len() == items)
                 && (summary.is_empty() || summary.len() == items)
                 && items > 0
                 && bytes.len() % items == 0
@@ -112,13 +141,18 @@ impl StageValues {
                 item_patch,
                 summary,
                 bytes,
+                finished,
             });
         }
+        let geometry_key = r.u64()?;
+        let patches = r.bytes()?.to_vec();
         Ok(Self {
             settings_hash,
             patches_hash,
             patch_keys,
             stages,
+            geometry_key,
+            patches,
         })
     }
 }
@@ -147,4 +181,51 @@ pub(crate) fn patch_keys(patches: &Patches, layout: &Layout, identities: &[u64])
             patch_key(identities.get(i).copied().unwrap_or(0), origin, p)
         })
         .collect()
+}
+
+/// The hash of what a bake's texel patches are made from: every instance's mesh geometry
+/// ([`mesh_geometry`], with its `TEXCOORD_1`), transform, `bake` flag and two-sidedness, in
+/// order, and `layout` (each page's size, each instance's rectangle and each mesh's unwrap).
+/// Two bakes with the same key rasterise the same patches and move them out of geometry alike.
+pub(crate) fn patch_geometry(scene: &Scene, layout: &Layout) -> u64 {
+    let mut h = Hasher::default();
+    let meshes: Vec<u64> = scene.meshes.iter().map(mesh_geometry).collect();
+    h.u64(scene.instances.len() as u64);
+    for inst in &scene.instances {
+        h.u64(meshes[inst.mesh]);
+        h.f32s(&inst.transform.to_cols_array());
+        h.u32(u32::from(inst.bake));
+        h.u32(u32::from(scene.material_of(inst.mesh).double_sided));
+    }
+    h.u64(layout.pages.len() as u64);
+    for p in &layout.pages {
+        h.u32(p.width).u32(p.height);
+    }
+    for r in &layout.instances {
+        match r {
+            Some(r) => h
+                .u32(1)
+                .u32(r.page)
+                .u32(r.x)
+                .u32(r.y)
+                .u32(r.width)
+                .u32(r.height),
+            None => h.u32(0),
+        };
+    }
+    for m in &layout.meshes {
+        let Some(u) = m else {
+            h.u32(0);
+            continue;
+        };
+        h.u32(1).u32(u.width).u32(u.height);
+        for v in &u.uv1 {
+            h.f32(v.x).f32(v.y);
+        }
+        h.u64(u.indices.len() as u64);
+        for &i in &u.indices {
+            h.u32(i);
+        }
+    }
+    h.finish()
 }

@@ -258,21 +258,41 @@ fn correction_stages<'p>(
         stage: Stage::Reflection,
         round,
     };
+    // A bake that follows an edit keeps a node's reflection where the coarse light it
+    // gathers (`summary`, what the correction follows too) barely moved.
+    let scope = stages.scope();
     let (reflection, visibility) = stages.run(run, near_count, || {
-        let (d, _, traced) = hierarchical::final_gather(
-            ctx,
-            mapper,
-            nodes,
-            &reflected,
-            &per_node,
-            Gather::Reflection,
-            Some(&near),
-            progress,
-        );
+        let (values, traced) = scope.kept_across_edits(
+            Stage::Reflection,
+            nodes.len(),
+            |i| nodes.patch[i] as usize,
+            Some(summary),
+            |only| {
+                let marked: Option<Vec<bool>> =
+                    only.map(|o| o.iter().zip(&near).map(|(&o, &n)| o && n).collect());
+                let (d, se, traced) = hierarchical::final_gather(
+                    ctx,
+                    mapper,
+                    nodes,
+                    &reflected,
+                    &per_node,
+                    Gather::Reflection,
+                    Some(marked.as_deref().unwrap_or(&near)),
+                    progress,
+                );
+                let values = d.into_iter().zip(se).collect();
+                (values, [traced.closest, traced.visibility])
+            },
+        )?;
+        let traced = GatherRays {
+            closest: traced[0],
+            visibility: traced[1],
+        };
         let note = format!(
             "{near_count} nodes near geometry, {}",
             gather_note(format!("{rays} rays/node"), traced)
         );
+        let d: Vec<Vec3> = values.into_iter().map(|(d, _): (Vec3, f32)| d).collect();
         Ok((
             (d, traced.visibility),
             traced.closest + traced.visibility,
