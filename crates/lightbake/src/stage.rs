@@ -97,11 +97,12 @@ stages! {
 /// ([`crate::incremental::Edits::changed`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Input {
-    /// The meshes' geometry and the instances' placement: what rays hit.
+    /// The meshes' geometry and the instances' placement: what rays hit, and from which side
+    /// (a material's two-sidedness).
     Geometry,
     /// The lightmap layout: pages, each instance's rectangle, each mesh's charts.
     Layout,
-    /// What surfaces reflect: base colour, its texture, metalness, two-sidedness.
+    /// What surfaces reflect: base colour, its texture, metalness.
     Albedo,
     /// What surfaces emit.
     Emission,

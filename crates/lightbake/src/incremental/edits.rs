@@ -144,6 +144,7 @@ pub fn edits(cache: &BakeCache, scene: &Scene, settings: &BakeSettings) -> Resul
     if kept == 0 && !old.instances.is_empty() && !hashes.instances.is_empty() {
         return Err("no instance of the cached bake is in the scene: it is another scene".into());
     }
+    let mut in_place = Vec::new();
     let (mut moved, mut added, mut removed, mut reshaped, mut painted, mut lit) = (
         Vec::new(),
         Vec::new(),
@@ -166,10 +167,14 @@ pub fn edits(cache: &BakeCache, scene: &Scene, settings: &BakeSettings) -> Resul
         let before = cache.boxes[j];
         if o.placement != h.placement {
             edits.boxes.extend([before.0, boxes[i].0]);
-            if o.geometry == h.geometry {
-                moved.push(name(scene, i));
-            } else {
+            if o.geometry != h.geometry {
                 reshaped.push(name(scene, i));
+            } else if before.0 == boxes[i].0 {
+                // Where it was, of the same geometry: its two-sidedness, its `bake` flag or
+                // its density scale changed.
+                in_place.push(name(scene, i));
+            } else {
+                moved.push(name(scene, i));
             }
             if before.1 > 0.0 || boxes[i].1 > 0.0 {
                 edits.emitters.extend([before, boxes[i]]);
@@ -210,6 +215,7 @@ pub fn edits(cache: &BakeCache, scene: &Scene, settings: &BakeSettings) -> Resul
     line("added", &added);
     line("removed", &removed);
     line("other geometry", &reshaped);
+    line("sides, bake flag or density scale changed", &in_place);
     line("albedo changed", &painted);
     line("emission changed", &lit);
     lights(cache, scene, &hashes, &mut edits);

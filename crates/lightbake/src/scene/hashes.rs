@@ -105,17 +105,19 @@ pub fn identities<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<u64> {
 }
 
 /// What an instance is, in hashes: its place in the scene (mesh geometry, transform, whether
-/// it is baked, its density scale), its surface's albedo (base colour, metallic, texture,
-/// UV sets the texture is read by) and its emission.
+/// it is baked, its density scale, whether rays see its back faces), its surface's albedo
+/// (base colour, metallic, texture, UV sets the texture is read by) and its emission.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct InstanceHashes {
     /// Name and occurrence (see the module docs).
     pub identity: u64,
     /// The mesh's geometry ([`mesh_geometry`]).
     pub geometry: u64,
-    /// Geometry, transform, `bake` and `texel_density_scale`.
+    /// Geometry, transform, `bake`, `texel_density_scale` and the material's two-sidedness
+    /// (which faces block and take light: what the validity pass, the shadow rays and the
+    /// gathers' hits read).
     pub placement: u64,
-    /// What the surface reflects: base colour factor and texture, metallic, two-sidedness.
+    /// What the surface reflects: base colour factor and texture, metallic.
     pub albedo: u64,
     /// What the surface emits: emissive factor and texture.
     pub emission: u64,
@@ -179,12 +181,13 @@ fn instance_hashes(
     let mut placement = Hasher::default();
     placement.u64(geometry);
     placement.f32s(&inst.transform.to_cols_array());
-    placement
-        .u32(u32::from(inst.bake))
-        .f32(inst.texel_density_scale);
     let material = scene.meshes[inst.mesh]
         .material
         .map(|m| &scene.materials[m]);
+    placement
+        .u32(u32::from(inst.bake))
+        .f32(inst.texel_density_scale)
+        .u32(u32::from(material.is_some_and(|m| m.double_sided)));
     let texture = |t: Option<super::TextureRef>| {
         t.map_or(0, |t| textures[t.texture] ^ u64::from(t.tex_coord))
     };
@@ -194,7 +197,7 @@ fn instance_hashes(
         albedo
             .f32s(&m.base_color.to_array())
             .u64(texture(m.base_color_texture));
-        albedo.f32(m.metallic).u32(u32::from(m.double_sided));
+        albedo.f32(m.metallic);
         emission.vec3(m.emissive).u64(texture(m.emissive_texture));
     }
     InstanceHashes {
@@ -252,6 +255,7 @@ mod tests {
 
         let mut paint = scene;
         let m = paint.meshes[paint.instances[2].mesh].material.unwrap();
+        let scene_albedo = paint.materials[m].base_color;
         paint.materials[m].base_color *= 0.5;
         let h = SceneHashes::of(&paint);
         let changed: Vec<usize> = (0..h.instances.len())
@@ -263,5 +267,15 @@ mod tests {
                 .iter()
                 .all(|&i| h.instances[i].placement == base.instances[i].placement)
         );
+
+        // Two-sidedness decides which faces block light: the instance's placement, not its
+        // albedo.
+        let mut sides = paint.clone();
+        sides.materials[m].base_color = scene_albedo;
+        sides.materials[m].double_sided = !sides.materials[m].double_sided;
+        let h = SceneHashes::of(&sides);
+        assert_ne!(h.instances[2].placement, base.instances[2].placement);
+        assert_eq!(h.instances[2].albedo, base.instances[2].albedo);
+        assert_eq!(h.instances[2].geometry, base.instances[2].geometry);
     }
 }
