@@ -87,6 +87,16 @@ pub trait WorkScope: Copy {
         compute: impl Fn(Option<&[bool]>) -> (Vec<T>, [u64; 2]),
     ) -> Result<(Vec<T>, [u64; 2])>;
 
+    /// The bytes that whole stage `stage` of the earlier bake this one follows kept under
+    /// `key` ([`WorkScope::keep_state`]), when that bake had the same texel patches and
+    /// settings; `None` otherwise (and in a bake that follows none).
+    fn earlier_state(self, stage: Stage, key: u64) -> Option<Vec<u8>>;
+
+    /// Keeps `bytes()` as whole stage `stage`'s state under `key` (the pass's hash of what
+    /// they were made from) for a later bake; called only where a later bake can follow this
+    /// one.
+    fn keep_state(self, stage: Stage, key: u64, bytes: impl FnOnce() -> Vec<u8>);
+
     /// Ends this process here when the rest of the bake is another process's (nothing for a
     /// bake in one process).
     ///

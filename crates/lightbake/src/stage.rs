@@ -120,6 +120,12 @@ pub enum Kept {
     Items,
     /// Kept whole from the cache when nothing it reads changed, else run again whole.
     Whole,
+    /// Its structure kept from the cache when the geometry and the layout did not change and
+    /// brought up to date with what did (the coarse level: its cut and matrix kept, its
+    /// first bounce updated where the reflected direct light changed; the nodes: their basis
+    /// areas kept, their albedo made again; the contact fit: its samples kept, its fit made
+    /// again); else run again whole.
+    Updated,
     /// Kept from the cache whatever the edit (the texel density: the layout stays stable;
     /// `--full` decides it again).
     Pinned,
@@ -155,10 +161,10 @@ impl Stage {
             Stage::Validity => (&[Geometry, Layout], &[Stage::Raster], Kept::Whole),
             Stage::Direct => (LIGHT, &[Stage::Validity], Kept::Items),
             Stage::Vpl => (ALL, &[Stage::Validity], Kept::Again),
-            Stage::Nodes => (&[Albedo], &[Stage::Validity], Kept::Again),
+            Stage::Nodes => (&[Albedo], &[Stage::Validity], Kept::Updated),
             Stage::Transport => (&[Geometry], &[Stage::Nodes], Kept::Again),
             Stage::Solve => (&[], &[Stage::Transport, Stage::Direct], Kept::Again),
-            Stage::CoarseSolve => (&[Geometry], &[Stage::Nodes, Stage::Direct], Kept::Again),
+            Stage::CoarseSolve => (&[Geometry], &[Stage::Nodes, Stage::Direct], Kept::Updated),
             Stage::GatherPilot => (
                 &[Geometry],
                 &[Stage::Nodes, Stage::Direct, Stage::CoarseSolve],
@@ -186,7 +192,7 @@ impl Stage {
                 Kept::Again,
             ),
             Stage::GridError => (LIGHT, &[Stage::Direct], Kept::Again),
-            Stage::ContactFit => (&[Geometry], &[Stage::Denoise], Kept::Again),
+            Stage::ContactFit => (&[Geometry], &[Stage::Denoise], Kept::Updated),
             Stage::Dilate => (&[Layout], &[Stage::ContactFit], Kept::Again),
             Stage::Stitch => (&[Layout], &[Stage::Dilate], Kept::Again),
             Stage::Volume => (&[Geometry], &[Stage::Stitch], Kept::Again),

@@ -14,7 +14,9 @@ use lightbake::Stage;
 use lightbake::analysis::study::relative_rms_error;
 use lightbake::context::Prepared;
 use lightbake::progress::Progress;
-use lightbake::radiosity::hierarchical::{Coarse, coarse_solve_fields};
+use lightbake::radiosity::coarse;
+use lightbake::radiosity::coarse_kept::{self, KeptCoarse};
+use lightbake::radiosity::hierarchical::{Coarse, HierarchyOptions, coarse_solve_fields};
 use lightbake::radiosity::{HitMapper, Nodes, hierarchy_options};
 use lightbake::scene::Scene;
 use lightbake::scene::testscenes::{CornellLight, cornell_box, sunlit_room};
@@ -196,7 +198,7 @@ fn fields_share_one_cut_refined_until_each_ones_detail_is_within_the_tolerance()
         .collect();
     let sum: Vec<Vec3> = even.iter().zip(&end).map(|(a, b)| *a + *b).collect();
     let solve = |fields: &[&[Vec3]]| {
-        coarse_solve_fields(&ctx, &mapper, &nodes, fields, &options, &Progress::new())
+        coarse_solve_fields(&ctx, &mapper, &nodes, fields, &options, &Progress::new()).0
     };
     let shared = solve(&[&end, &even, &sum]);
     let alone: Vec<Coarse> = [&end, &even]
@@ -389,4 +391,148 @@ fn adaptive_gather_has_less_noise_than_even_rays() {
         adaptive < 0.95 * even,
         "shared out by noise {adaptive:.4}, even {even:.4}"
     );
+}
+
+/// The coarse level a bake keeps for a later one (`lightbake::radiosity::coarse_kept`),
+/// updated by shooting the change of the reflected direct light from the nodes where it
+/// changed: with nothing changed it gives the kept level's bits; with one end of the room
+/// brighter, the change of its first bounce is the change that gathering again over the same
+/// cut (with the kept build's rays) gives, within the shot rays' noise, and carries the
+/// same power.
+#[test]
+fn a_kept_coarse_level_updated_by_shooting_agrees_with_gathering_again() {
+    let scene = cornell_box(CornellLight::Point);
+    let s = settings(24.0, SolverChoice::Hierarchical);
+    let prep = Prepared::new(&scene, &s).unwrap_or_else(|e| panic!("{e}"));
+    let ctx = prep.ctx();
+    let nodes = Nodes::new(&ctx, s.radiosity.basis);
+    let mapper = HitMapper::new(ctx, &nodes, s.radiosity.basis);
+    let options = hierarchy_options(&ctx, &nodes, u64::MAX);
+    let patches = &prep.patches.patches;
+    let (lo, hi) = (patches.iter()).fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+        (lo.min(p.position.x), hi.max(p.position.x))
+    });
+    let before = vec![Vec3::splat(100.0); patches.len()];
+    let after: Vec<Vec3> = (patches.iter())
+        .map(|p| {
+            if p.position.x < lo + 0.2 * (hi - lo) {
+                Vec3::new(160.0, 140.0, 120.0)
+            } else {
+                Vec3::splat(100.0)
+            }
+        })
+        .collect();
+    let progress = Progress::new();
+    let (levels, rows) =
+        coarse_solve_fields(&ctx, &mapper, &nodes, &[&before], &options, &progress);
+    let source = coarse_kept::source(&nodes, &before);
+    let kept = KeptCoarse::new(&levels[0], rows, source).expect("one field");
+    // The kept level read back from its bytes is the same.
+    let read = KeptCoarse::read(&kept.to_bytes(), &nodes).expect("its own bytes");
+    assert!(
+        read == kept,
+        "the kept coarse level changed through its bytes"
+    );
+    let mut damaged = kept.to_bytes();
+    damaged.truncate(damaged.len() - 3);
+    assert!(KeptCoarse::read(&damaged, &nodes).is_err());
+    // Nothing changed: the kept level's bits.
+    let bits = |v: &[Vec3]| -> Vec<u32> {
+        (v.iter())
+            .flat_map(|x| x.to_array())
+            .map(f32::to_bits)
+            .collect()
+    };
+    let (same, _) = coarse_kept::update(
+        &ctx,
+        &mapper,
+        &nodes,
+        &before,
+        kept.clone(),
+        &options,
+        &progress,
+    )
+    .expect("nothing to shoot");
+    assert_eq!(same.report.rays, 0);
+    assert_eq!(
+        bits(&same.solution.indirect),
+        bits(&levels[0].solution.indirect)
+    );
+    // Where most of the light went, the level is built again, with the reason.
+    let dark = vec![Vec3::ZERO; patches.len()];
+    let why = coarse_kept::update(
+        &ctx,
+        &mapper,
+        &nodes,
+        &dark,
+        kept.clone(),
+        &options,
+        &progress,
+    )
+    .err()
+    .expect("no shot change for a room gone dark");
+    assert!(why.contains("power"), "{why}");
+    // One end brighter: the change shot, against the change gathered with the same rays
+    // before and after, at the build's rays per cell and at four times as many.
+    let change = |cell_rays: u32| {
+        let options = HierarchyOptions {
+            cell_rays,
+            ..options
+        };
+        // (As many rays as it takes: the share of the kept level's rays is not tested here.)
+        let kept = KeptCoarse {
+            rays: u64::MAX / 4,
+            ..kept.clone()
+        };
+        let (_, updated) = coarse_kept::update(
+            &ctx,
+            &mapper,
+            &nodes,
+            &after,
+            kept.clone(),
+            &options,
+            &progress,
+        )
+        .expect("a small change to shoot");
+        let build = |direct: &[Vec3]| {
+            let rows = coarse::build(
+                &ctx,
+                &mapper,
+                &nodes,
+                &kept.clusters,
+                cell_rays,
+                &[direct],
+                &progress,
+            );
+            rows.first_bounce.into_iter().next().expect("one field")
+        };
+        let (b0, b1) = (build(&before), build(&after));
+        let area = &kept.clusters.area;
+        let (mut diff, mut norm, mut shot_power, mut gathered_power) = (0.0f64, 0.0, 0.0, 0.0);
+        for c in 0..area.len() {
+            let a = f64::from(area[c]);
+            let shot = updated.first_bounce[c] - kept.first_bounce[c];
+            let again = b1[c] - b0[c];
+            diff += a * f64::from((shot - again).length_squared());
+            norm += a * f64::from(again.length_squared());
+            shot_power += a * f64::from(shot.element_sum());
+            gathered_power += a * f64::from(again.element_sum());
+        }
+        let (relative, power) = ((diff / norm).sqrt(), shot_power / gathered_power);
+        println!(
+            "{} cells, {cell_rays} rays per cell: the change shot against gathered {:.2}% RMS, power {power:.4}",
+            area.len(),
+            100.0 * relative
+        );
+        (relative, power)
+    };
+    let (coarse_rays, power) = change(options.cell_rays);
+    assert!(coarse_rays < 0.3, "{coarse_rays}");
+    assert!((power - 1.0).abs() < 0.03, "{power}");
+    let (fine_rays, power) = change(4 * options.cell_rays);
+    assert!(
+        fine_rays < 0.7 * coarse_rays,
+        "{fine_rays} against {coarse_rays}"
+    );
+    assert!((power - 1.0).abs() < 0.03, "{power}");
 }

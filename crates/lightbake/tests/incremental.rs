@@ -373,3 +373,82 @@ fn an_edit_of_the_light_alone_keeps_the_texel_patches_and_the_reflection_where_i
         "tampered: {names:?}"
     );
 }
+
+/// The note of `stage` in `out`'s report.
+fn note(out: &BakeOutput, stage: &str) -> String {
+    (out.report.stages.iter())
+        .find(|st| st.run.stage.to_string() == stage)
+        .map(|st| st.note.clone())
+        .unwrap_or_else(|| panic!("no '{stage}' stage"))
+}
+
+#[test]
+fn an_edit_of_the_light_keeps_what_reads_only_the_geometry_and_updates_the_coarse_level() {
+    let scene = cornell_box(CornellLight::Point);
+    let mut s = settings();
+    s.radiosity.solver = lightbake::settings::SolverChoice::Hierarchical;
+    let (_, cache) = first_bake(&scene, &s);
+    let kept = ["nodes", "coarse solve", "contact fit"];
+    for stage in kept {
+        assert!(
+            (cache.values.states.iter()).any(|st| st.stage.to_string() == stage),
+            "the cache keeps no '{stage}' state"
+        );
+    }
+    let (moved_lamp, what) = EditCase::LampMoved.apply(&scene).unwrap();
+    let inc = bake(
+        &moved_lamp,
+        &s,
+        plan(Ok(Some(cache.clone())), &moved_lamp, &s, false),
+    );
+    assert!(
+        note(&inc, "nodes").contains("basis areas kept"),
+        "{what}: {}",
+        note(&inc, "nodes")
+    );
+    // The small box's lamp moved changes the light at most nodes: the coarse level is built
+    // again, and says why.
+    assert!(
+        note(&inc, "coarse solve").contains("not kept: the light changed at"),
+        "{what}: {}",
+        note(&inc, "coarse solve")
+    );
+    assert!(
+        note(&inc, "contact fit").contains("kept from the earlier bake"),
+        "{what}: {}",
+        note(&inc, "contact fit")
+    );
+    // A wall's albedo changes the reflected light at that wall's nodes alone: the coarse
+    // level's cut and matrix are kept, its first bounce updated.
+    let (tinted, what) = EditCase::Albedo.apply(&scene).unwrap();
+    let inc = bake(
+        &tinted,
+        &s,
+        plan(Ok(Some(cache.clone())), &tinted, &s, false),
+    );
+    assert!(
+        note(&inc, "coarse solve").contains("the earlier bake's cut kept"),
+        "{what}: {}",
+        note(&inc, "coarse solve")
+    );
+    // A moved mesh makes all three again.
+    let (moved, what) = EditCase::MeshMoved.apply(&scene).unwrap();
+    let inc = bake(&moved, &s, plan(Ok(Some(cache.clone())), &moved, &s, false));
+    assert!(!note(&inc, "nodes").contains("kept"), "{what}");
+    assert!(!note(&inc, "coarse solve").contains("kept"), "{what}");
+    assert!(!note(&inc, "contact fit").contains("kept"), "{what}");
+    // Kept bytes that no longer match their checksum are not taken: the stage runs again.
+    let mut tampered = cache.clone();
+    for st in &mut tampered.values.states {
+        let middle = st.bytes.len() / 2;
+        st.bytes[middle] ^= 0x10;
+    }
+    let inc = bake(&tinted, &s, plan(Ok(Some(tampered)), &tinted, &s, false));
+    for stage in kept {
+        assert!(
+            !note(&inc, stage).contains("kept"),
+            "tampered: {}",
+            note(&inc, stage)
+        );
+    }
+}

@@ -14,7 +14,7 @@ use crate::bvh::RayScene;
 use crate::bvh::workload::{RayRates, calibrate};
 use crate::context::BakeContext;
 use crate::error::Result;
-use crate::lightmap::contacts::{ContactStats, contact_fit};
+use crate::lightmap::contacts::{self, ContactStats};
 use crate::lightmap::denoise::{denoise, denoise_parts, noise_scale};
 use crate::lightmap::seams::find_seams;
 use crate::lightmap::stitch::{StitchStats, stitch};
@@ -218,19 +218,8 @@ pub(super) fn contact_fit_pages(
     assembly: &mut Assembly,
     stages: &mut Stages<'_>,
 ) -> Result<ContactStats> {
-    let (scene, layout, patches, rays) = (ctx.scene, ctx.layout, ctx.patches, ctx.rays);
-    let st = stages.run(Stage::ContactFit, 1, || {
-        let st = contact_fit(assembly, scene, layout, patches, rays);
-        let note = if st.texels == 0 {
-            "no texel next to geometry shows light of the wrong side".to_string()
-        } else {
-            format!(
-                "{} texels next to geometry ({} samples cut), {} values fitted ({} capped), {} CG iterations",
-                st.texels, st.cut_samples, st.unknowns, st.capped, st.iterations
-            )
-        };
-        Ok((st, st.rays, note))
-    })?;
+    let (scene, patches) = (ctx.scene, ctx.patches);
+    let st = contacts::fit_stage(ctx, assembly, stages)?;
     stages.annotate(RayKind::Shadow, None);
     finite::pages("contact fit", scene, patches, &mut assembly.pages)?;
     Ok(st)

@@ -490,17 +490,9 @@ fn radiosity(
     radiosity_over(ctx, &nodes, direct, share, stages, warnings)
 }
 
-/// The radiosity nodes, as a stage.
+/// The radiosity nodes, as a stage ([`radiosity::basis::nodes_stage`]).
 pub(super) fn radiosity_nodes(ctx: &BakeContext<'_>, stages: &mut Stages<'_>) -> Result<Nodes> {
-    stages.run(Stage::Nodes, 1, || {
-        let nodes = Nodes::new(ctx, ctx.settings.radiosity.basis);
-        let note = format!(
-            "{} nodes, max albedo {:.3}",
-            nodes.len(),
-            nodes.max_albedo()
-        );
-        Ok((nodes, 0, note))
-    })
+    radiosity::basis::nodes_stage(ctx, stages)
 }
 
 /// Rounds of transport, solve and error estimate over `nodes` towards the stage's share of a

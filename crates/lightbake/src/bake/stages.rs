@@ -63,6 +63,19 @@ impl WorkScope for Scope<'_> {
         }
     }
 
+    fn earlier_state(self, stage: Stage, key: u64) -> Option<Vec<u8>> {
+        match self {
+            Scope::All | Scope::Split(_) => None,
+            Scope::Subset(run) => run.earlier_state(stage, key),
+        }
+    }
+
+    fn keep_state(self, stage: Stage, key: u64, bytes: impl FnOnce() -> Vec<u8>) {
+        if let Scope::Subset(run) = self {
+            run.keep_state(stage, key, bytes);
+        }
+    }
+
     /// See [`ShardRun::shard_stops`].
     fn stop_after_split(self) -> Result<()> {
         match self {

@@ -23,8 +23,8 @@ use super::shard::patches_hash;
 use crate::bvh::RayScene;
 use crate::error::{BakeError, Result};
 use crate::incremental::{
-    BakeCache, Edits, IncrementalReport, KeptStage, Plan, SHARE, StageShare, StageValues,
-    deciding_settings, direct_bounds, patch_geometry, patch_keys,
+    BakeCache, Edits, IncrementalReport, KeptStage, KeptState, Plan, SHARE, StageShare,
+    StageValues, deciding_settings, direct_bounds, patch_geometry, patch_keys,
 };
 use crate::raster::Patches;
 use crate::runner::Record;
@@ -302,6 +302,7 @@ impl TexelRun {
             stages: Vec::new(),
             geometry_key: patch_geometry(scene, layout),
             patches: patches.to_bytes(),
+            states: Vec::new(),
         };
         state.computed = [0; 2];
         state.shares.clear();
@@ -386,6 +387,26 @@ impl TexelRun {
                 .check(layout, triangles, scene.instances.len())
                 .is_ok();
         fits.then_some(patches)
+    }
+
+    /// What whole stage `stage` of the earlier run kept under `key`, when the earlier run had
+    /// this run's texel patches and settings and the bytes still match their checksum.
+    pub(super) fn earlier_state(&self, stage: Stage, key: u64) -> Option<Vec<u8>> {
+        let state = self.lock();
+        let same = !state.kept.patch_keys.is_empty()
+            && self.earlier.patches_hash == state.kept.patches_hash
+            && self.earlier.settings_hash == state.kept.settings_hash;
+        (self.earlier.states.iter())
+            .find(|s| same && s.stage == stage && s.key == key && s.intact())
+            .map(|s| s.bytes.clone())
+    }
+
+    /// Keeps `bytes()` as whole stage `stage`'s state under `key` with this run's values.
+    pub(super) fn keep_state(&self, stage: Stage, key: u64, bytes: impl FnOnce() -> Vec<u8>) {
+        let bytes = bytes();
+        let mut state = self.lock();
+        state.kept.states.retain(|s| s.stage != stage);
+        state.kept.states.push(KeptState::new(stage, key, bytes));
     }
 
     /// The bake's input `scene` (before the layout's UVs are given to it), `settings` and

@@ -7,14 +7,14 @@
 pub(super) const MAGIC: &[u8; 8] = b"LBCACHE\0";
 
 /// The payload's layout. A cache of another format version is not read.
-pub(super) const FORMAT: u32 = 4;
+pub(super) const FORMAT: u32 = 5;
 
 /// The checksum of the payload: FNV-1a's step (xor, then multiply by its 64-bit prime)
 /// taken a little-endian 64-bit word at a time, the last word padded with zeros, then the
 /// length. Each step is a bijection of the state, so a payload that differs in one word
 /// always differs in its checksum; a word at a time it reads a partial checkpoint's tens
 /// of megabytes about eight times faster than byte by byte.
-fn checksum(bytes: &[u8]) -> u64 {
+pub(crate) fn checksum(bytes: &[u8]) -> u64 {
     const PRIME: u64 = 0x0100_0000_01b3;
     let step = |h: u64, w: u64| (h ^ w).wrapping_mul(PRIME);
     let mut chunks = bytes.chunks_exact(8);
@@ -32,59 +32,64 @@ fn checksum(bytes: &[u8]) -> u64 {
 
 /// Builds a payload.
 #[derive(Default)]
-pub(super) struct Writer {
+pub(crate) struct Writer {
     out: Vec<u8>,
 }
 
 impl Writer {
-    pub(super) fn u32(&mut self, v: u32) {
+    pub(crate) fn u32(&mut self, v: u32) {
         self.out.extend_from_slice(&v.to_le_bytes());
     }
 
-    pub(super) fn u64(&mut self, v: u64) {
+    pub(crate) fn u64(&mut self, v: u64) {
         self.out.extend_from_slice(&v.to_le_bytes());
     }
 
-    pub(super) fn f32(&mut self, v: f32) {
+    pub(crate) fn f32(&mut self, v: f32) {
         self.out.extend_from_slice(&v.to_le_bytes());
     }
 
-    pub(super) fn bool(&mut self, v: bool) {
+    pub(crate) fn bool(&mut self, v: bool) {
         self.out.push(u8::from(v));
     }
 
-    pub(super) fn len(&mut self, n: usize) {
+    pub(crate) fn len(&mut self, n: usize) {
         self.u64(n as u64);
     }
 
-    pub(super) fn bytes(&mut self, b: &[u8]) {
+    pub(crate) fn bytes(&mut self, b: &[u8]) {
         self.len(b.len());
         self.out.extend_from_slice(b);
     }
 
-    pub(super) fn str(&mut self, s: &str) {
+    pub(crate) fn str(&mut self, s: &str) {
         self.bytes(s.as_bytes());
     }
 
-    pub(super) fn u32s(&mut self, v: &[u32]) {
+    pub(crate) fn u32s(&mut self, v: &[u32]) {
         self.len(v.len());
         for x in v {
             self.u32(*x);
         }
     }
 
-    pub(super) fn u64s(&mut self, v: &[u64]) {
+    pub(crate) fn u64s(&mut self, v: &[u64]) {
         self.len(v.len());
         for x in v {
             self.u64(*x);
         }
     }
 
-    pub(super) fn f32s(&mut self, v: &[f32]) {
+    pub(crate) fn f32s(&mut self, v: &[f32]) {
         self.len(v.len());
         for x in v {
             self.f32(*x);
         }
+    }
+
+    /// The payload alone (a part that another payload holds as [`Self::bytes`]).
+    pub(crate) fn into_bytes(self) -> Vec<u8> {
+        self.out
     }
 
     /// The file: header and payload. `version` is the baker's.
@@ -102,15 +107,21 @@ impl Writer {
 }
 
 /// Why a cache file could not be read.
-pub(super) type Bad = String;
+pub(crate) type Bad = String;
 
 /// Reads a payload, checking every length against the bytes left.
 #[derive(Debug)]
-pub(super) struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     rest: &'a [u8],
 }
 
 impl<'a> Reader<'a> {
+    /// A reader of a payload without a header: a part that another, checksummed payload
+    /// held as bytes.
+    pub(crate) fn part(bytes: &'a [u8]) -> Self {
+        Reader { rest: bytes }
+    }
+
     /// The payload of `file` when its header is this format's, `version` is the baker's that
     /// wrote it, and the checksum holds.
     pub(super) fn open(file: &'a [u8], version: &str) -> Result<Self, Bad> {
@@ -152,23 +163,23 @@ impl<'a> Reader<'a> {
         Ok(head)
     }
 
-    pub(super) fn u32(&mut self) -> Result<u32, Bad> {
+    pub(crate) fn u32(&mut self) -> Result<u32, Bad> {
         let b = self.take(4)?;
         Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
     }
 
-    pub(super) fn u64(&mut self) -> Result<u64, Bad> {
+    pub(crate) fn u64(&mut self) -> Result<u64, Bad> {
         let b = self.take(8)?;
         let mut a = [0; 8];
         a.copy_from_slice(b);
         Ok(u64::from_le_bytes(a))
     }
 
-    pub(super) fn f32(&mut self) -> Result<f32, Bad> {
+    pub(crate) fn f32(&mut self) -> Result<f32, Bad> {
         Ok(f32::from_bits(self.u32()?))
     }
 
-    pub(super) fn bool(&mut self) -> Result<bool, Bad> {
+    pub(crate) fn bool(&mut self) -> Result<bool, Bad> {
         match self.take(1)?[0] {
             0 => Ok(false),
             1 => Ok(true),
@@ -178,7 +189,7 @@ impl<'a> Reader<'a> {
 
     /// A count of elements of `size` bytes each, refused when they would not fit the bytes
     /// left.
-    pub(super) fn len(&mut self, size: usize) -> Result<usize, Bad> {
+    pub(crate) fn len(&mut self, size: usize) -> Result<usize, Bad> {
         let n = self.u64()?;
         let fits = (n as u128) * (size.max(1) as u128) <= self.rest.len() as u128;
         if !fits {
@@ -190,32 +201,32 @@ impl<'a> Reader<'a> {
         Ok(n as usize)
     }
 
-    pub(super) fn bytes(&mut self) -> Result<&'a [u8], Bad> {
+    pub(crate) fn bytes(&mut self) -> Result<&'a [u8], Bad> {
         let n = self.len(1)?;
         self.take(n)
     }
 
-    pub(super) fn str(&mut self) -> Result<String, Bad> {
+    pub(crate) fn str(&mut self) -> Result<String, Bad> {
         String::from_utf8(self.bytes()?.to_vec()).map_err(|_| "a name is not UTF-8".into())
     }
 
-    pub(super) fn u32s(&mut self) -> Result<Vec<u32>, Bad> {
+    pub(crate) fn u32s(&mut self) -> Result<Vec<u32>, Bad> {
         let n = self.len(4)?;
         (0..n).map(|_| self.u32()).collect()
     }
 
-    pub(super) fn u64s(&mut self) -> Result<Vec<u64>, Bad> {
+    pub(crate) fn u64s(&mut self) -> Result<Vec<u64>, Bad> {
         let n = self.len(8)?;
         (0..n).map(|_| self.u64()).collect()
     }
 
-    pub(super) fn f32s(&mut self) -> Result<Vec<f32>, Bad> {
+    pub(crate) fn f32s(&mut self) -> Result<Vec<f32>, Bad> {
         let n = self.len(4)?;
         (0..n).map(|_| self.f32()).collect()
     }
 
     /// Ends the payload: every byte read.
-    pub(super) fn end(self) -> Result<(), Bad> {
+    pub(crate) fn end(self) -> Result<(), Bad> {
         if self.rest.is_empty() {
             Ok(())
         } else {

@@ -28,8 +28,14 @@
 //! items, the patch each belongs to and, where it knows it, one number summing up what the
 //! item reads; a split stage that states no summary (and is not the direct light) is computed
 //! whole. The texel patches are kept whole (with the hash of the geometry and layout they
-//! were made from, `patch_geometry`, checked again); the passes whose output the cache does
-//! not hold (the nodes, the coarse level, the denoiser, the stitch) run whole.
+//! were made from, `patch_geometry`, checked again). Three whole stages keep what reads only
+//! the geometry and layout as a [`KeptState`] (`runner::WorkScope::keep_state`: bytes under
+//! the pass's own key, with their checksum) and bring the rest up to date: the nodes their
+//! basis areas (their albedo made again), the coarse level its cut and matrix (its first
+//! bounce updated by shooting from the nodes whose reflected direct light changed:
+//! `radiosity::coarse_kept`), the contact fit its samples (its fit made again). The passes
+//! whose output the cache does not hold (the denoiser, the grid error, the stitch) run
+//! whole.
 //!
 //! A bake that keeps checkpoints ([`crate::bake::BakeBuilder::checkpoints`]) computes each
 //! split stage's items in blocks and hands over, every few seconds (at least 2 s, and 19
@@ -38,7 +44,7 @@
 //! unfinished ones.
 
 mod bounds;
-mod codec;
+pub(crate) mod codec;
 mod edits;
 mod values;
 
@@ -50,13 +56,13 @@ use serde::Serialize;
 pub(crate) use bounds::direct_bounds;
 use codec::{Bad, Reader, Writer};
 pub use edits::{Aabb, Edits, Emitter, deciding_settings, edits, instance_boxes};
-pub use values::{KeptStage, StageValues};
+pub use values::{KeptStage, KeptState, StageValues};
 pub(crate) use values::{patch_geometry, patch_keys};
 
 use crate::scene::hashes::{InstanceHashes, SceneHashes};
 use crate::scene::{Light, Scene};
 use crate::settings::BakeSettings;
-use crate::stage::{Kept, Stage};
+use crate::stage::{Input, Kept, Stage};
 use crate::unwrap::{InstanceRect, Layout, MeshUnwrap, PageSize, UvOrigin};
 
 /// The cache's file name in the output folder.
@@ -462,13 +468,19 @@ impl Plan {
                 s.push_str("  layout    kept for every mesh that did not change; changed and added meshes placed in free space\n");
                 let changed = edits.changed();
                 let (mut kept, mut items, mut again) = (Vec::new(), Vec::new(), Vec::new());
+                let mut updated = Vec::new();
+                let structure = [Input::Geometry, Input::Layout];
+                let moved = structure.iter().any(|i| changed.contains(i));
                 for &stage in Stage::ALL.iter().filter(|&&st| runs(st, &cache.settings)) {
                     let name = stage.name();
                     match stage.reads().kept {
                         Kept::Pinned => kept.push(name),
-                        Kept::Whole | Kept::Items if !stage.changed_by(&changed) => kept.push(name),
+                        Kept::Whole | Kept::Items | Kept::Updated if !stage.changed_by(&changed) => {
+                            kept.push(name)
+                        }
                         Kept::Items => items.push(name),
-                        Kept::Whole | Kept::Again => again.push(name),
+                        Kept::Updated if !moved => updated.push(name),
+                        Kept::Whole | Kept::Again | Kept::Updated => again.push(name),
                     }
                 }
                 let mut line = |what: &str, names: &[&str], why: String| {
@@ -484,6 +496,11 @@ impl Plan {
                         "computed again where the edit can move what a texel or node reads by more than {:.0}% of the bake's estimated error (direct light: where a changed light reaches or a moved box can cast or lift a shadow; gathers: where the coarse light a node gathers moved)",
                         100.0 * SHARE
                     ),
+                );
+                line(
+                    "updated",
+                    &updated,
+                    "what reads only the geometry and layout kept and the rest brought up to date (the nodes: their basis areas kept, their albedo made again; the coarse level: its cut and matrix kept, its first bounce updated by shooting from the nodes whose reflected direct light changed; the contact fit: its samples kept, its fit made again)".into(),
                 );
                 line("again", &again, "run again whole (what they read changed, or their output is not kept)".into());
                 s

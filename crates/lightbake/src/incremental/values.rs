@@ -63,6 +63,40 @@ impl KeptStage {
     }
 }
 
+/// What a whole stage (not split into items) left for a later bake: bytes its pass wrote and
+/// reads back itself, under a key of what they were made from (the pass's own hash; a later
+/// bake takes them only when its key is the same). The coarse level of the hierarchical
+/// solve keeps its cut, matrix and first bounce this way.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeptState {
+    /// The stage.
+    pub stage: Stage,
+    /// What the bytes were made from, hashed by the pass.
+    pub key: u64,
+    /// The pass's bytes.
+    pub bytes: Vec<u8>,
+    /// Their checksum when they were kept: bytes that no longer match it are not taken.
+    pub sum: u64,
+}
+
+impl KeptState {
+    /// `bytes` kept for `stage` under `key`, with their checksum.
+    pub fn new(stage: Stage, key: u64, bytes: Vec<u8>) -> Self {
+        let sum = super::codec::checksum(&bytes);
+        Self {
+            stage,
+            key,
+            bytes,
+            sum,
+        }
+    }
+
+    /// Whether the bytes still match their checksum.
+    pub fn intact(&self) -> bool {
+        super::codec::checksum(&self.bytes) == self.sum
+    }
+}
+
 /// The values of a bake's split stages (direct light, the gather's pilot, final gather,
 /// correction, reflection), in the order the bake computed them, with the keys of the texel
 /// patches they belong to and hashes of the patches and of the settings that computed them.
@@ -82,6 +116,8 @@ pub struct StageValues {
     pub geometry_key: u64,
     /// The texel patches as bytes (as the split bake writes them; empty when not kept).
     pub patches: Vec<u8>,
+    /// What whole stages kept (at most one per stage).
+    pub states: Vec<KeptState>,
 }
 
 impl StageValues {
@@ -106,6 +142,13 @@ impl StageValues {
         }
         w.u64(self.geometry_key);
         w.bytes(&self.patches);
+        w.len(self.states.len());
+        for s in &self.states {
+            w.str(s.stage.name());
+            w.u64(s.key);
+            w.bytes(&s.bytes);
+            w.u64(s.sum);
+        }
     }
 
     pub(super) fn read(r: &mut Reader<'_>) -> Result<Self, Bad> {
@@ -146,6 +189,23 @@ impl StageValues {
         }
         let geometry_key = r.u64()?;
         let patches = r.bytes()?.to_vec();
+        let n = r.len(32)?;
+        let mut states = Vec::with_capacity(n);
+        for _ in 0..n {
+            let name = r.str()?;
+            let stage: Stage = name
+                .parse()
+                .map_err(|_| format!("it names a stage '{name}'"))?;
+            let key = r.u64()?;
+            let bytes = r.bytes()?.to_vec();
+            let sum = r.u64()?;
+            states.push(KeptState {
+                stage,
+                key,
+                bytes,
+                sum,
+            });
+        }
         Ok(Self {
             settings_hash,
             patches_hash,
@@ -153,6 +213,7 @@ impl StageValues {
             stages,
             geometry_key,
             patches,
+            states,
         })
     }
 }

@@ -41,10 +41,17 @@ use serde::Serialize;
 use super::least_squares::{LeastSquares, Unknowns, relative_weight};
 use super::{Assembly, bilinear_taps};
 use crate::bvh::RayScene;
+use crate::context::BakeContext;
+use crate::error::Result;
+use crate::incremental::codec::{Reader, Writer};
+use crate::incremental::patch_geometry;
 use crate::raster::footprint::gap_probe;
 use crate::raster::{Patch, Patches, Surface, SurfacePoint};
+use crate::runner::{StageRunner, WorkScope};
 use crate::sampling::sobol_02;
 use crate::scene::Scene;
+use crate::scene::hashes::Hasher;
+use crate::stage::Stage;
 use crate::unwrap::Layout;
 
 /// Footprint samples per texel.
@@ -108,17 +115,75 @@ impl Row {
     }
 }
 
-/// Runs the contact fit on the assembled pages (after hidden texels are filled, before the
-/// padding is dilated: the padding texels it solves for are set, the rest dilated after;
-/// see the module docs). `scene` is the unwrapped scene.
-pub fn contact_fit(
+/// The contact fit's samples: what it reads of the geometry (fixed numbers, so the same for
+/// the same geometry, layout and texel patches), made once and kept across edits of the
+/// light ([`ContactRows::to_bytes`]).
+#[derive(Clone, Default)]
+pub struct ContactRows {
+    rows: Vec<Row>,
+    /// The samples' counters (texels, moved out, cut samples, rays traced).
+    stats: ContactStats,
+}
+
+/// The contact fit as stage `contact fit` on `assembly`: its samples read only the geometry
+/// and layout, so they are taken from the earlier bake this one follows when it kept them
+/// under the same [`samples_key`] ([`WorkScope::earlier_state`]), and kept for a later bake.
+///
+/// # Errors
+/// A cancel seen when the stage ends.
+pub fn fit_stage<'p>(
+    ctx: &BakeContext<'_>,
     assembly: &mut Assembly,
-    scene: &Scene,
-    layout: &Layout,
-    patches: &Patches,
-    rays: &RayScene,
-) -> ContactStats {
-    let surface = Surface::new(scene, layout, rays);
+    stages: &mut impl StageRunner<'p>,
+) -> Result<ContactStats> {
+    let (scene, layout, patches, rays) = (ctx.scene, ctx.layout, ctx.patches, ctx.rays);
+    let scope = stages.scope();
+    let key = samples_key(scene, layout, patches);
+    let earlier = scope.earlier_state(Stage::ContactFit, key);
+    let (st, samples) = stages.run(Stage::ContactFit, 1, || {
+        let kept = earlier.and_then(|b| ContactRows::read(&b, layout));
+        let was_kept = kept.is_some();
+        let samples = kept.unwrap_or_else(|| ContactRows::new(scene, layout, patches, rays));
+        let mut st = fit(assembly, &samples);
+        if was_kept {
+            // Nothing traced here.
+            st.rays = 0;
+        }
+        let note = if st.texels == 0 {
+            "no texel next to geometry shows light of the wrong side".to_string()
+        } else {
+            format!(
+                "{} texels next to geometry ({} samples cut{}), {} values fitted ({} capped), {} CG iterations",
+                st.texels,
+                st.cut_samples,
+                if was_kept { ", kept from the earlier bake" } else { "" },
+                st.unknowns,
+                st.capped,
+                st.iterations
+            )
+        };
+        Ok(((st, samples), st.rays, note))
+    })?;
+    scope.keep_state(Stage::ContactFit, key, || samples.to_bytes());
+    Ok(st)
+}
+
+/// What the contact fit's samples are made from, hashed: the geometry and layout of the
+/// texel patches ([`crate::incremental::patch_geometry`]) and their count. Samples are kept
+/// across bakes only under the same key (and the same texel patches and settings).
+pub fn samples_key(scene: &Scene, layout: &Layout, patches: &Patches) -> u64 {
+    let mut h = Hasher::default();
+    h.u64(patch_geometry(scene, layout))
+        .u64(patches.patches.len() as u64)
+        .u32(SAMPLES)
+        .u32(FIT_SEED);
+    h.finish()
+}
+
+impl ContactRows {
+    /// The samples of the texels near geometry that read a free texel (see the module docs).
+    pub fn new(scene: &Scene, layout: &Layout, patches: &Patches, rays: &RayScene) -> Self {
+        let surface = Surface::new(scene, layout, rays);
     // 1. The texels with no light of their own: hidden ones, and those moved out of geometry
     // none of whose footprint is open to them (their light is from beside their texel).
     let moved_out: Vec<(Vec<bool>, u64)> = patches
@@ -181,7 +246,72 @@ pub fn contact_fit(
         stats.cut_samples += r.len();
         rows.extend(r);
     }
-    drop(free);
+        ContactRows { rows, stats }
+    }
+
+    /// As bytes, for a later bake ([`Self::read`]).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut w = Writer::default();
+        let st = &self.stats;
+        for v in [st.texels, st.moved_out, st.cut_samples] {
+            w.len(v);
+        }
+        w.u64(st.rays);
+        w.len(self.rows.len());
+        for r in &self.rows {
+            w.u32(r.page);
+            for t in &r.taps {
+                w.u32(t.texel);
+                w.f32(t.weight);
+                w.u32(u32::from(t.visible) | u32::from(t.free) << 1);
+            }
+        }
+        w.into_bytes()
+    }
+
+    /// [`Self::to_bytes`] read back over `layout` (with the rays they took when they were
+    /// made); `None` when a row names a page or texel the layout does not have, or the bytes
+    /// do not fit.
+    pub fn read(bytes: &[u8], layout: &Layout) -> Option<Self> {
+        let mut r = Reader::part(bytes);
+        let stats = ContactStats {
+            texels: r.u64().ok()? as usize,
+            moved_out: r.u64().ok()? as usize,
+            cut_samples: r.u64().ok()? as usize,
+            rays: r.u64().ok()?,
+            ..ContactStats::default()
+        };
+        let n = r.len(4 + 4 * 12).ok()?;
+        let mut rows = Vec::with_capacity(n);
+        for _ in 0..n {
+            let page = r.u32().ok()?;
+            let size = layout.pages.get(page as usize)?;
+            let texels = u64::from(size.width) * u64::from(size.height);
+            let mut taps = [Tap::default(); 4];
+            for t in &mut taps {
+                let (texel, weight, flags) = (r.u32().ok()?, r.f32().ok()?, r.u32().ok()?);
+                if u64::from(texel) >= texels || !weight.is_finite() || flags > 3 {
+                    return None;
+                }
+                *t = Tap {
+                    texel,
+                    weight,
+                    visible: flags & 1 != 0,
+                    free: flags & 2 != 0,
+                };
+            }
+            rows.push(Row { page, taps });
+        }
+        r.end().ok()?;
+        (stats.cut_samples == rows.len()).then_some(ContactRows { rows, stats })
+    }
+}
+
+/// The contact fit over `samples` on the assembled pages (after hidden texels are filled,
+/// before the padding is dilated: the padding texels it solves for are set, the rest dilated
+/// after; see the module docs).
+pub fn fit(assembly: &mut Assembly, samples: &ContactRows) -> ContactStats {
+    let (rows, mut stats) = (&samples.rows, samples.stats);
     if rows.is_empty() {
         return stats;
     }
@@ -201,7 +331,7 @@ pub fn contact_fit(
     let mut taps = Vec::with_capacity(4);
     // The brightest target each unknown's samples ask for (per channel).
     let mut ceiling = vec![Vec3::ZERO; unknowns.len()];
-    for r in &rows {
+    for r in rows {
         let value = |t: &Tap| assembly.pages[r.page as usize].texels[t.texel as usize];
         let (mut g, mut wv, mut held) = (Vec3::ZERO, 0.0f32, Vec3::ZERO);
         taps.clear();

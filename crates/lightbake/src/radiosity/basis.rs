@@ -9,9 +9,15 @@ use super::hit_mapper::HitMapper;
 use super::nodes::Nodes;
 use super::support::SUPPORT_MARGIN;
 use crate::context::BakeContext;
+use crate::error::Result;
+use crate::incremental::codec::{Reader, Writer};
+use crate::incremental::patch_geometry;
 use crate::raster::Patch;
+use crate::runner::{StageRunner, WorkScope};
 use crate::sampling::sobol_02;
+use crate::scene::hashes::Hasher;
 use crate::settings::Basis;
+use crate::stage::Stage;
 use crate::unwrap::InstanceRect;
 
 /// One chunk of [`basis_areas`]' work: (node, area share) entries, and the sliver nodes.
@@ -30,16 +36,85 @@ impl Nodes {
     /// One node per valid patch, with its albedo, the area of its basis function
     /// ([`basis_areas`]) and where geometry cuts its support (`HitMapper::split_flags`).
     pub fn new(ctx: &BakeContext<'_>, basis: Basis) -> Self {
+        Self::keeping(ctx, basis, None).0
+    }
+
+    /// [`Self::new`], with the basis areas and sliver flags (which read only the geometry and
+    /// its layout) taken from `kept` ([`Self::geometry_bytes`] of an earlier bake's nodes
+    /// under the same [`Self::geometry_key`]) when they fit these nodes; the albedo and the
+    /// split flags are made again. Gives the nodes and whether `kept` was taken.
+    pub fn keeping(ctx: &BakeContext<'_>, basis: Basis, kept: Option<&[u8]>) -> (Self, bool) {
         let mut nodes = Nodes::unknowns(ctx);
         let mapper = HitMapper::new(*ctx, &nodes, basis);
         let split = mapper.split_flags();
-        let (area, sliver) = basis_areas(ctx, &nodes, &mapper);
+        let taken = kept.and_then(|b| read_geometry(b, nodes.len()));
+        let was_kept = taken.is_some();
+        let (area, sliver) = taken.unwrap_or_else(|| basis_areas(ctx, &nodes, &mapper));
         drop(mapper);
         nodes.area = area;
         nodes.split = split;
         nodes.sliver = sliver;
-        nodes
+        (nodes, was_kept)
     }
+
+    /// What the nodes' basis areas and sliver flags are made from, hashed: the geometry and
+    /// layout of the texel patches, the basis and the seed.
+    pub fn geometry_key(ctx: &BakeContext<'_>, basis: Basis) -> u64 {
+        let mut h = Hasher::default();
+        h.u64(patch_geometry(ctx.scene, ctx.layout))
+            .u32(u32::from(basis == Basis::Linear))
+            .u32(ctx.settings.seed)
+            .u64(ctx.patches.patches.len() as u64);
+        h.finish()
+    }
+
+    /// The basis areas and sliver flags as bytes, for a later bake ([`Self::keeping`]).
+    pub fn geometry_bytes(&self) -> Vec<u8> {
+        let mut w = Writer::default();
+        w.f32s(&self.area);
+        let sliver: Vec<u8> = self.sliver.iter().map(|&s| u8::from(s)).collect();
+        w.bytes(&sliver);
+        w.into_bytes()
+    }
+}
+
+/// The nodes as stage `nodes`: their basis areas and sliver flags taken from the earlier bake
+/// this one follows when it kept them under the same [`Nodes::geometry_key`]
+/// ([`WorkScope::earlier_state`]), and kept for a later bake.
+///
+/// # Errors
+/// A cancel seen when the stage ends.
+pub fn nodes_stage<'p>(ctx: &BakeContext<'_>, stages: &mut impl StageRunner<'p>) -> Result<Nodes> {
+    let basis = ctx.settings.radiosity.basis;
+    let key = Nodes::geometry_key(ctx, basis);
+    let scope = stages.scope();
+    let earlier = scope.earlier_state(Stage::Nodes, key);
+    let nodes = stages.run(Stage::Nodes, 1, || {
+        let (nodes, kept) = Nodes::keeping(ctx, basis, earlier.as_deref());
+        let note = format!(
+            "{} nodes, max albedo {:.3}{}",
+            nodes.len(),
+            nodes.max_albedo(),
+            if kept {
+                "; basis areas kept from the earlier bake (the geometry and its layout did not change)"
+            } else {
+                ""
+            }
+        );
+        Ok((nodes, 0, note))
+    })?;
+    scope.keep_state(Stage::Nodes, key, || nodes.geometry_bytes());
+    Ok(nodes)
+}
+
+/// [`Nodes::geometry_bytes`] read back for `n` nodes; `None` when they do not fit.
+fn read_geometry(bytes: &[u8], n: usize) -> Option<(Vec<f32>, Vec<bool>)> {
+    let mut r = Reader::part(bytes);
+    let area = r.f32s().ok()?;
+    let sliver: Vec<bool> = r.bytes().ok()?.iter().map(|&b| b != 0).collect();
+    r.end().ok()?;
+    let fits = area.len() == n && sliver.len() == n && area.iter().all(|a| a.is_finite());
+    fits.then_some((area, sliver))
 }
 
 /// ∫φᵢ dA of every node: each texel's open area (see [`crate::raster::Patches::open_point`];

@@ -221,34 +221,45 @@ impl Clusters {
             of_node[i as usize] = (cells.len() - 1) as u32;
         }
         start.push(order.len() as u32);
-        let mut area = vec![0.0f32; cells.len()];
-        let mut weighted = vec![Vec3::ZERO; cells.len()];
-        for (i, &c) in of_node.iter().enumerate() {
+        let mut out = Self {
+            cells,
+            of_node,
+            start,
+            members: order,
+            area: Vec::new(),
+            albedo: Vec::new(),
+        };
+        out.aggregate(nodes);
+        out
+    }
+
+    /// Sets each cell's area (Σ of its nodes' basis areas) and albedo (their area-weighted
+    /// mean; the plain mean of a cell of zero-area nodes) from `nodes`: a cut kept across an
+    /// edit of the albedo takes the nodes' new albedo this way.
+    pub fn aggregate(&mut self, nodes: &Nodes) {
+        let cells = self.cells.len();
+        let mut area = vec![0.0f32; cells];
+        let mut weighted = vec![Vec3::ZERO; cells];
+        for (i, &c) in self.of_node.iter().enumerate() {
             area[c as usize] += nodes.area[i];
             weighted[c as usize] += nodes.albedo[i] * nodes.area[i];
         }
         let albedo = weighted
             .iter()
             .zip(&area)
-            .zip(start.windows(2))
+            .zip(self.start.windows(2))
             .map(|((&w, &a), range)| {
                 if a > 0.0 {
                     w / a
                 } else {
                     // Zero-area nodes only: their plain mean.
-                    let m = &order[range[0] as usize..range[1] as usize];
+                    let m = &self.members[range[0] as usize..range[1] as usize];
                     m.iter().map(|&i| nodes.albedo[i as usize]).sum::<Vec3>() / m.len() as f32
                 }
             })
             .collect();
-        Self {
-            cells,
-            of_node,
-            start,
-            members: order,
-            area,
-            albedo,
-        }
+        self.area = area;
+        self.albedo = albedo;
     }
 
     /// Number of cells.

@@ -134,9 +134,9 @@ pub fn planned_bytes(nodes: usize, page_texels: u64, triangles: usize) -> u64 {
 const MAX_ROUNDS: u32 = 4;
 
 /// One field's coarse solve over the current cut.
-struct FieldSolve {
-    solution: Solution,
-    ambient: Vec3,
+pub(super) struct FieldSolve {
+    pub(super) solution: Solution,
+    pub(super) ambient: Vec3,
     /// The fine exitance the oracle reads.
     b: Vec<Vec3>,
     /// RMS luminance of H_d + C, lux.
@@ -150,7 +150,8 @@ struct FieldSolve {
 /// fields, each over its own target (so a dim field's detail counts as much as a bright
 /// one's), and refinement goes on until every field's missed detail is within the tolerance.
 /// With one field, its own refinement (see the module docs). Gives each field's level, its
-/// cut the same; each report's rays are the shared rays.
+/// cut the same (each report's rays are the shared rays), and the last round's matrix and
+/// first bounce (what a later bake keeps: [`super::coarse_kept`]).
 pub fn coarse_solve_fields(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -158,7 +159,7 @@ pub fn coarse_solve_fields(
     directs: &[&[Vec3]],
     options: &HierarchyOptions,
     progress: &Progress,
-) -> Vec<Coarse> {
+) -> (Vec<Coarse>, coarse::CoarseRows) {
     let total_area: f64 = nodes.area.iter().map(|&a| a as f64).sum();
     let links = Links::new(ctx, nodes);
     let mut clusters = Clusters::at_level(nodes, ctx.patches, &links, options.top_level);
@@ -239,14 +240,16 @@ pub fn coarse_solve_fields(
         });
         if let Some(stop_reason) = stop {
             let last = solved.len().saturating_sub(1);
-            return (solved.into_iter().zip(remaining).enumerate())
+            let matrix_entries = matrix.nnz();
+            let matrix_bytes = matrix.bytes();
+            let levels = (solved.into_iter().zip(remaining).enumerate())
                 .map(|(f, (field, remaining))| {
                     let report = CoarseReport {
                         cells: clusters.len(),
                         cells_per_level: clusters.levels(),
                         rounds: round,
-                        matrix_entries: matrix.nnz(),
-                        matrix_bytes: matrix.bytes(),
+                        matrix_entries,
+                        matrix_bytes,
                         missed_detail: relative(remaining, field.value_rms),
                         stop_reason: stop_reason.clone(),
                         solver: field.solution.solver,
@@ -266,6 +269,11 @@ pub fn coarse_solve_fields(
                     }
                 })
                 .collect();
+            let rows = coarse::CoarseRows {
+                matrix,
+                first_bounce,
+            };
+            return (levels, rows);
         }
         let mut split = vec![false; clusters.len()];
         for c in picked {
@@ -277,7 +285,7 @@ pub fn coarse_solve_fields(
 
 /// The coarse system of one field over `matrix` (its first bounce `first_bounce` per cell),
 /// solved: C = E₁ + F·(ρ∘C), and what the oracle reads of it.
-fn field_solve(
+pub(super) fn field_solve(
     nodes: &Nodes,
     direct: &[Vec3],
     clusters: &Clusters,

@@ -20,6 +20,7 @@ use std::ops::Range;
 
 use glam::Vec3;
 
+use super::coarse_kept::{self, KeptCoarse};
 use super::error_estimate::HierarchicalFields;
 use super::gather_cache::{self, CacheOptions};
 use super::hierarchical::{self, Coarse, CoarseReport, Gather, GatherRays};
@@ -156,6 +157,14 @@ pub(super) fn coarse_stage_fields<'p>(
     let progress = stages.progress();
     // The plan admitted the coarse matrix at its per-node cap.
     let options = hierarchy_options(ctx, nodes, u64::MAX);
+    // One field's coarse level is kept for a later bake, and taken from an earlier one over
+    // the same nodes ([`coarse_kept`]).
+    let scope = stages.scope();
+    let key = (directs.len() == 1).then(|| coarse_kept::key(ctx, nodes, &options));
+    let earlier = key
+        .and_then(|k| scope.earlier_state(Stage::CoarseSolve, k))
+        .and_then(|b| KeptCoarse::read(&b, nodes).ok());
+    let mut keep = None;
     let coarse = stages.run(
         StageRun {
             stage: Stage::CoarseSolve,
@@ -163,8 +172,28 @@ pub(super) fn coarse_stage_fields<'p>(
         },
         0,
         || {
-            let c =
-                hierarchical::coarse_solve_fields(ctx, mapper, nodes, directs, &options, progress);
+            let updated = (earlier.zip(directs.first())).map(|(kept, direct)| {
+                coarse_kept::update(ctx, mapper, nodes, direct, kept, &options, progress)
+            });
+            let mut not_kept = String::new();
+            let c = match updated {
+                Some(Ok((c, kept))) => {
+                    keep = Some(kept);
+                    vec![c]
+                }
+                other => {
+                    if let Some(Err(why)) = other {
+                        not_kept = format!("; the earlier bake's coarse level not kept: {why}");
+                    }
+                    let (c, rows) = hierarchical::coarse_solve_fields(
+                        ctx, mapper, nodes, directs, &options, progress,
+                    );
+                    if let (Some(first), Some(direct), Some(_)) = (c.first(), directs.first(), key) {
+                        keep = KeptCoarse::new(first, rows, coarse_kept::source(nodes, direct));
+                    }
+                    c
+                }
+            };
             let Some(r) = c.first().map(|c| &c.report) else {
                 return Ok((c, 0, String::new()));
             };
@@ -188,11 +217,14 @@ pub(super) fn coarse_stage_fields<'p>(
                 missed.join(" / "),
                 r.stop_reason,
                 solves.join(" / ")
-            );
+            ) + &not_kept;
             let rays = r.rays;
             Ok((c, rays, note))
         },
     )?;
+    if let (Some(kept), Some(key)) = (keep, key) {
+        scope.keep_state(Stage::CoarseSolve, key, || kept.to_bytes());
+    }
     if stages.previewing() {
         let patches = ctx.patches.patches.len();
         let mut sum = vec![Vec3::ZERO; patches];

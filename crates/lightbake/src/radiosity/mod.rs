@@ -37,6 +37,7 @@
 pub mod basis;
 pub mod clusters;
 pub mod coarse;
+pub mod coarse_kept;
 pub mod error_estimate;
 pub mod exitance_grid;
 pub mod gather_cache;

@@ -101,6 +101,39 @@ impl Transport {
         t
     }
 
+    /// Its storage: (row pointers, columns, weights, escaped fractions), as
+    /// [`Self::from_parts`] takes them.
+    pub(crate) fn parts(&self) -> (&[u64], &[u32], &[f32], &[f32]) {
+        (&self.row_ptr, &self.cols, &self.vals, &self.escaped)
+    }
+
+    /// A matrix of `n` rows from its storage ([`Self::parts`]); `None` when the parts do not
+    /// fit together (row pointers from 0, non-decreasing, ending at the entries; a column
+    /// below `n` per entry; an escaped fraction per row).
+    pub(crate) fn from_parts(
+        n: usize,
+        (row_ptr, cols, vals, escaped): (Vec<u64>, Vec<u32>, Vec<f32>, Vec<f32>),
+        rays: u64,
+        basis: Basis,
+    ) -> Option<Self> {
+        let fits = row_ptr.len() == n + 1
+            && row_ptr.first() == Some(&0)
+            && row_ptr.windows(2).all(|w| w[0] <= w[1])
+            && row_ptr.last() == Some(&(cols.len() as u64))
+            && vals.len() == cols.len()
+            && escaped.len() == n
+            && cols.iter().all(|&c| (c as usize) < n);
+        fits.then_some(Transport {
+            n,
+            row_ptr,
+            cols,
+            vals,
+            escaped,
+            rays,
+            basis,
+        })
+    }
+
     /// Stored entries.
     pub fn nnz(&self) -> usize {
         self.cols.len()
