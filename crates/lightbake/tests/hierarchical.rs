@@ -472,6 +472,31 @@ fn a_kept_coarse_level_updated_by_shooting_agrees_with_gathering_again() {
     .err()
     .expect("no shot change for a room gone dark");
     assert!(why.contains("power"), "{why}");
+    // Shots add up (each adds its own noise): changed back and forth, the level is built
+    // again once the changes shot since it was built carry a quarter of the light's power.
+    let mut chained = kept.clone();
+    let mut shots = 0;
+    let why = loop {
+        let target = if shots % 2 == 0 { &after } else { &before };
+        match coarse_kept::update(
+            &ctx,
+            &mapper,
+            &nodes,
+            target,
+            chained.clone(),
+            &options,
+            &progress,
+        ) {
+            Ok((_, next)) => {
+                chained = next;
+                shots += 1;
+            }
+            Err(why) => break why,
+        }
+        assert!(shots < 20, "{shots} shots and never built again");
+    };
+    println!("built again after {shots} shots: {why}");
+    assert!(shots >= 2 && why.contains("shot since"), "{shots}: {why}");
     // One end brighter: the change shot, against the change gathered with the same rays
     // before and after, at the build's rays per cell and at four times as many.
     let change = |cell_rays: u32| {

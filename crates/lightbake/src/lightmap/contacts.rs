@@ -184,68 +184,68 @@ impl ContactRows {
     /// The samples of the texels near geometry that read a free texel (see the module docs).
     pub fn new(scene: &Scene, layout: &Layout, patches: &Patches, rays: &RayScene) -> Self {
         let surface = Surface::new(scene, layout, rays);
-    // 1. The texels with no light of their own: hidden ones, and those moved out of geometry
-    // none of whose footprint is open to them (their light is from beside their texel).
-    let moved_out: Vec<(Vec<bool>, u64)> = patches
-        .patches
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let mut used = 0;
-            let free = chunk
-                .iter()
-                .map(|p| {
-                    if !p.is_valid() {
-                        return true;
+        // 1. The texels with no light of their own: hidden ones, and those moved out of geometry
+        // none of whose footprint is open to them (their light is from beside their texel).
+        let moved_out: Vec<(Vec<bool>, u64)> = patches
+            .patches
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut used = 0;
+                let free = chunk
+                    .iter()
+                    .map(|p| {
+                        if !p.is_valid() {
+                            return true;
+                        }
+                        p.flags & Patch::MOVED != 0
+                            && !own_footprint(p, (layout, patches, &surface, rays), &mut used)
+                                .any(|sp| patches.sees(p, &sp, rays))
+                    })
+                    .collect();
+                (free, used)
+            })
+            .collect();
+        let mut stats = ContactStats::default();
+        let mut free = Vec::with_capacity(patches.patches.len());
+        for (f, used) in moved_out {
+            stats.rays += used;
+            free.extend(f);
+        }
+        stats.moved_out = patches
+            .patches
+            .iter()
+            .zip(&free)
+            .filter(|(p, f)| **f && p.is_valid())
+            .count();
+        // 2. Samples of the footprints of texels near geometry that read a free texel (only those
+        // kept, chunk by chunk: most samples read none).
+        let per_chunk: Vec<(Vec<Row>, usize, u64)> = patches
+            .patches
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut rows, mut texels, mut used) = (Vec::new(), 0, 0);
+                for p in chunk {
+                    if p.flags & Patch::NEAR_GEOMETRY == 0 {
+                        continue;
                     }
-                    p.flags & Patch::MOVED != 0
-                        && !own_footprint(p, (layout, patches, &surface, rays), &mut used)
-                            .any(|sp| patches.sees(p, &sp, rays))
-                })
-                .collect();
-            (free, used)
-        })
-        .collect();
-    let mut stats = ContactStats::default();
-    let mut free = Vec::with_capacity(patches.patches.len());
-    for (f, used) in moved_out {
-        stats.rays += used;
-        free.extend(f);
-    }
-    stats.moved_out = patches
-        .patches
-        .iter()
-        .zip(&free)
-        .filter(|(p, f)| **f && p.is_valid())
-        .count();
-    // 2. Samples of the footprints of texels near geometry that read a free texel (only those
-    // kept, chunk by chunk: most samples read none).
-    let per_chunk: Vec<(Vec<Row>, usize, u64)> = patches
-        .patches
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let (mut rows, mut texels, mut used) = (Vec::new(), 0, 0);
-            for p in chunk {
-                if p.flags & Patch::NEAR_GEOMETRY == 0 {
-                    continue;
+                    let before = rows.len();
+                    rows.extend(
+                        sample_rows(p, (layout, patches, &surface, rays), &free, &mut used)
+                            .into_iter()
+                            .filter(Row::is_cut),
+                    );
+                    texels += usize::from(rows.len() > before);
                 }
-                let before = rows.len();
-                rows.extend(
-                    sample_rows(p, (layout, patches, &surface, rays), &free, &mut used)
-                        .into_iter()
-                        .filter(Row::is_cut),
-                );
-                texels += usize::from(rows.len() > before);
-            }
-            (rows, texels, used)
-        })
-        .collect();
-    let mut rows = Vec::new();
-    for (r, texels, used) in per_chunk {
-        stats.rays += used;
-        stats.texels += texels;
-        stats.cut_samples += r.len();
-        rows.extend(r);
-    }
+                (rows, texels, used)
+            })
+            .collect();
+        let mut rows = Vec::new();
+        for (r, texels, used) in per_chunk {
+            stats.rays += used;
+            stats.texels += texels;
+            stats.cut_samples += r.len();
+            rows.extend(r);
+        }
         ContactRows { rows, stats }
     }
 

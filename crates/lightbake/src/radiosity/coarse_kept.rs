@@ -73,6 +73,11 @@ pub struct KeptCoarse {
     pub missed_detail: f64,
     /// Rays the kept coarse level traced (its rows and oracle over every round).
     pub rays: u64,
+    /// The power of the changes shot into its first bounce since it was built
+    /// (Σ A·|Δs| over the colour channels, summed over the bakes that updated it): each
+    /// shot adds its own noise, so the level is built again once they add up to
+    /// [`CHANGE_SHARE`] of the light's power.
+    pub shot: f64,
 }
 
 /// What `nodes` and their coarse level are made from, hashed: the geometry and layout the
@@ -118,6 +123,7 @@ impl KeptCoarse {
             rounds: coarse.report.rounds,
             missed_detail: coarse.report.missed_detail,
             rays: coarse.report.rays,
+            shot: 0.0,
         })
     }
 
@@ -149,6 +155,7 @@ impl KeptCoarse {
         w.u32(self.rounds);
         w.u64(self.missed_detail.to_bits());
         w.u64(self.rays);
+        w.u64(self.shot.to_bits());
         w.into_bytes()
     }
 
@@ -186,7 +193,9 @@ impl KeptCoarse {
             && members.iter().all(|&i| (i as usize) < n)
             && (0..m).all(|c| {
                 let range = start[c] as usize..start[c + 1] as usize;
-                members[range].iter().all(|&i| of_node[i as usize] == c as u32)
+                members[range]
+                    .iter()
+                    .all(|&i| of_node[i as usize] == c as u32)
             })
             && area.len() == m;
         if !cut_fits {
@@ -201,7 +210,11 @@ impl KeptCoarse {
         let rounds = r.u32()?;
         let missed_detail = f64::from_bits(r.u64()?);
         let rays = r.u64()?;
+        let shot = f64::from_bits(r.u64()?);
         r.end()?;
+        if !(shot.is_finite() && shot >= 0.0) {
+            return Err("its shot power is not a power".into());
+        }
         let mut clusters = Clusters {
             cells,
             of_node,
@@ -219,6 +232,7 @@ impl KeptCoarse {
             rounds,
             missed_detail,
             rays,
+            shot,
         })
     }
 }
@@ -244,8 +258,8 @@ fn shoot_rays(clusters: &Clusters, c: usize, cell_rays: u32) -> u32 {
 ///
 /// # Errors
 /// Why the level is to be built again instead, in words: the shooting would take more than
-/// [`SHOOT_SHARE`] of the rays the kept level traced, or the change would carry more than
-/// [`CHANGE_SHARE`] of the new light's power.
+/// [`SHOOT_SHARE`] of the rays the kept level traced, or the change, with those shot since
+/// the level was built, would carry more than [`CHANGE_SHARE`] of the new light's power.
 pub fn update(
     ctx: &BakeContext<'_>,
     mapper: &HitMapper<'_>,
@@ -263,6 +277,7 @@ pub fn update(
         rounds,
         missed_detail,
         rays: kept_rays,
+        shot: shot_before,
     } = kept;
     let new = source(nodes, direct);
     let changed: Vec<u32> = (0..nodes.len() as u32)
@@ -290,10 +305,11 @@ pub fn update(
     let total: f64 = (0..nodes.len())
         .map(|j| f64::from(nodes.area[j]) * power(new[j]))
         .sum();
-    if moved > CHANGE_SHARE * total {
+    if shot_before + moved > CHANGE_SHARE * total {
         return Err(format!(
-            "the change carries {:.0}% of the reflected direct light's power, more than the {:.0}% a shot change is taken for",
+            "the change carries {:.0}% of the reflected direct light's power ({:.0}% with the changes shot since it was built), more than the {:.0}% a shot change is taken for",
             100.0 * moved / total.max(f64::MIN_POSITIVE),
+            100.0 * (shot_before + moved) / total.max(f64::MIN_POSITIVE),
             100.0 * CHANGE_SHARE
         ));
     }
@@ -363,6 +379,7 @@ pub fn update(
         rounds,
         missed_detail,
         rays: kept_rays,
+        shot: shot_before + moved,
     };
     Ok((coarse, kept))
 }

@@ -188,7 +188,8 @@ pub(super) fn coarse_stage_fields<'p>(
                     let (c, rows) = hierarchical::coarse_solve_fields(
                         ctx, mapper, nodes, directs, &options, progress,
                     );
-                    if let (Some(first), Some(direct), Some(_)) = (c.first(), directs.first(), key) {
+                    if let (Some(first), Some(direct), Some(_)) = (c.first(), directs.first(), key)
+                    {
                         keep = KeptCoarse::new(first, rows, coarse_kept::source(nodes, direct));
                     }
                     c
