@@ -93,8 +93,8 @@ pub trait WorkScope: Copy {
     fn earlier_state(self, stage: Stage, key: u64) -> Option<Vec<u8>>;
 
     /// Keeps `bytes()` as whole stage `stage`'s state under `key` (the pass's hash of what
-    /// they were made from) for a later bake; called only where a later bake can follow this
-    /// one.
+    /// they were made from) for a later bake, in place of any it kept before; nothing where
+    /// no later bake follows this one's values (`bytes` is then not called).
     fn keep_state(self, stage: Stage, key: u64, bytes: impl FnOnce() -> Vec<u8>);
 
     /// Ends this process here when the rest of the bake is another process's (nothing for a

@@ -80,11 +80,13 @@ pub struct KeptCoarse {
     pub shot: f64,
 }
 
-/// What `nodes` and their coarse level are made from, hashed: the geometry and layout the
-/// texel patches come from, the nodes (their patches and basis areas) and the coarse level's
-/// options. A kept coarse level is taken only under the same key.
-pub fn key(ctx: &BakeContext<'_>, nodes: &Nodes, options: &HierarchyOptions) -> u64 {
+/// What `nodes` and their coarse level in round `round` of the hierarchical solve are made
+/// from, hashed: the geometry and layout the texel patches come from, the nodes (their
+/// patches and basis areas), the coarse level's options and the round. A kept coarse level
+/// is taken only under the same key.
+pub fn key(ctx: &BakeContext<'_>, nodes: &Nodes, options: &HierarchyOptions, round: u32) -> u64 {
     let mut h = Hasher::default();
+    h.u32(round);
     h.u64(patch_geometry(ctx.scene, ctx.layout));
     h.u64(nodes.len() as u64);
     for (&p, &a) in nodes.patch.iter().zip(&nodes.area) {

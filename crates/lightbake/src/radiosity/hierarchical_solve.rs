@@ -158,9 +158,9 @@ pub(super) fn coarse_stage_fields<'p>(
     // The plan admitted the coarse matrix at its per-node cap.
     let options = hierarchy_options(ctx, nodes, u64::MAX);
     // One field's coarse level is kept for a later bake, and taken from an earlier one over
-    // the same nodes ([`coarse_kept`]).
+    // the same nodes in the same round ([`coarse_kept`]).
     let scope = stages.scope();
-    let key = (directs.len() == 1).then(|| coarse_kept::key(ctx, nodes, &options));
+    let key = (directs.len() == 1).then(|| coarse_kept::key(ctx, nodes, &options, round));
     let earlier = key
         .and_then(|k| scope.earlier_state(Stage::CoarseSolve, k))
         .and_then(|b| KeptCoarse::read(&b, nodes).ok());
