@@ -167,6 +167,28 @@ fn refinement_splits_cells_until_the_missed_detail_is_within_the_tolerance() {
     );
 }
 
+/// A direct field per patch: `inside` on the patches within `share` of the scene's extent
+/// along x from its low end, `outside` on the rest (lux).
+fn one_end(
+    patches: &[lightbake::raster::Patch],
+    share: f32,
+    inside: Vec3,
+    outside: Vec3,
+) -> Vec<Vec3> {
+    let (lo, hi) = (patches.iter()).fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+        (lo.min(p.position.x), hi.max(p.position.x))
+    });
+    (patches.iter())
+        .map(|p| {
+            if p.position.x < lo + share * (hi - lo) {
+                inside
+            } else {
+                outside
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn fields_share_one_cut_refined_until_each_ones_detail_is_within_the_tolerance() {
     // Light groups' coarse level: one cut for every group's field, its rows and oracle traced
@@ -183,19 +205,8 @@ fn fields_share_one_cut_refined_until_each_ones_detail_is_within_the_tolerance()
     let mapper = HitMapper::new(ctx, &nodes, s.radiosity.basis);
     let options = hierarchy_options(&ctx, &nodes, u64::MAX);
     let patches = &prep.patches.patches;
-    let (lo, hi) = (patches.iter()).fold((f32::MAX, f32::MIN), |(lo, hi), p| {
-        (lo.min(p.position.x), hi.max(p.position.x))
-    });
     let even = vec![Vec3::splat(100.0); patches.len()];
-    let end: Vec<Vec3> = (patches.iter())
-        .map(|p| {
-            Vec3::splat(if p.position.x < lo + 0.3 * (hi - lo) {
-                2000.0
-            } else {
-                0.0
-            })
-        })
-        .collect();
+    let end = one_end(patches, 0.3, Vec3::splat(2000.0), Vec3::ZERO);
     let sum: Vec<Vec3> = even.iter().zip(&end).map(|(a, b)| *a + *b).collect();
     let solve = |fields: &[&[Vec3]]| {
         coarse_solve_fields(&ctx, &mapper, &nodes, fields, &options, &Progress::new()).0
@@ -409,19 +420,13 @@ fn a_kept_coarse_level_updated_by_shooting_agrees_with_gathering_again() {
     let mapper = HitMapper::new(ctx, &nodes, s.radiosity.basis);
     let options = hierarchy_options(&ctx, &nodes, u64::MAX);
     let patches = &prep.patches.patches;
-    let (lo, hi) = (patches.iter()).fold((f32::MAX, f32::MIN), |(lo, hi), p| {
-        (lo.min(p.position.x), hi.max(p.position.x))
-    });
     let before = vec![Vec3::splat(100.0); patches.len()];
-    let after: Vec<Vec3> = (patches.iter())
-        .map(|p| {
-            if p.position.x < lo + 0.2 * (hi - lo) {
-                Vec3::new(160.0, 140.0, 120.0)
-            } else {
-                Vec3::splat(100.0)
-            }
-        })
-        .collect();
+    let after = one_end(
+        patches,
+        0.2,
+        Vec3::new(160.0, 140.0, 120.0),
+        Vec3::splat(100.0),
+    );
     let progress = Progress::new();
     let (levels, rows) =
         coarse_solve_fields(&ctx, &mapper, &nodes, &[&before], &options, &progress);
