@@ -531,3 +531,61 @@ fn light_groups_from_the_command_line() {
         "{line}"
     );
 }
+
+#[test]
+fn a_bake_with_light_groups_whose_sky_changed_is_relit_from_the_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let scene = asset("sunlit_room.gltf");
+    let run = |sky: &str, extra: &[&str]| {
+        let mut a = vec![
+            scene.to_str().unwrap(),
+            "-o",
+            out_dir.to_str().unwrap(),
+            "--quality",
+            "preview",
+            "--group",
+            "day=sun",
+            "--sky",
+            sky,
+        ];
+        a.extend(extra);
+        let out = bake(&a);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let first = run("1000,1000,1000", &[]);
+    assert!(first.contains("incremental: full bake"), "{first}");
+    let files = common::outputs(&out_dir);
+    let page = |group: &str| PathBuf::from(format!("lightmaps/groups/{group}/lightmap_0.exr"));
+    // The sky twice as bright: the ungrouped group (the sky) weighted, the day group kept.
+    let relit = run("2000,2000,2000", &[]);
+    assert!(
+        relit.contains("incremental: relit") && relit.contains("group ungrouped × (2.0000"),
+        "{relit}"
+    );
+    assert!(relit.contains("relight"), "{relit}");
+    let now = common::outputs(&out_dir);
+    assert_eq!(now[&page("day")], files[&page("day")]);
+    assert_ne!(now[&page("ungrouped")], files[&page("ungrouped")]);
+    // Back to the first sky: the first bake's pages again, byte for byte.
+    run("1000,1000,1000", &[]);
+    let back = common::outputs(&out_dir);
+    for f in [
+        page("day"),
+        page("ungrouped"),
+        PathBuf::from("lightmaps/lightmap_0.exr"),
+    ] {
+        assert_eq!(back[&f], files[&f], "{}", f.display());
+    }
+    // A volume is not kept: a full bake that says so.
+    let full = run(
+        "1000,1000,1000",
+        &["--irradiance-volume", "--probe-rays", "32"],
+    );
+    assert!(full.contains("incremental: full bake"), "{full}");
+}

@@ -7,6 +7,11 @@
 //! cargo run --release -p lightbake --features internals,testscenes --example incremental_check -- SCENE.gltf --checkpoint-overhead RUNS
 //! ```
 //!
+//! `--group-each-light` bakes each light into a light group of its own (at most 15), and
+//! `--group-light NAME` the lights of that name into one (the other emitters in `ungrouped`),
+//! so that an edit of their colour or intensity is relit from the cached groups
+//! (`lightbake::incremental::relight`).
+//!
 //! Prints a Markdown table: per edit, the full bake's and the incremental bake's seconds and
 //! their ratio, the split stages' items computed again, the RMS difference of the two bakes
 //! at the points (relative to the RMS value) against the full bake's own estimate, and
@@ -17,6 +22,8 @@ use std::time::Instant;
 use lightbake::analysis::agreement::{agreement, moved_instances};
 use lightbake::analysis::edit_cases::EditCase;
 use lightbake::incremental::{BakeCache, Plan, plan};
+use lightbake::settings::LightGroup;
+use lightbake::settings::groups::MAX_GROUPS;
 use lightbake::{BakeBuilder, BakeOutput, BakeSettings, LightConvention, Quality, Scene};
 
 fn arg(name: &str) -> Option<String> {
@@ -48,7 +55,7 @@ fn main() {
         _ => Quality::Medium,
     };
     let points: usize = arg("--points").map_or(4096, |p| p.parse().expect("--points N"));
-    let settings = BakeSettings::preset(quality);
+    let mut settings = BakeSettings::preset(quality);
     // `--verify N [--verify-paths P]`: both bakes of each edit checked against the path
     // tracer at N points (as `bake --verify N`).
     let verify: Option<u32> = arg("--verify").map(|v| v.parse().expect("--verify N"));
@@ -57,6 +64,18 @@ fn main() {
     let scene = lightbake::import_gltf(path.as_ref(), LightConvention::GltfSpec)
         .unwrap_or_else(|e| panic!("{e}"))
         .scene;
+    if std::env::args().any(|a| a == "--group-each-light") {
+        // Each light in a light group of its own (the sky and emissive surfaces in the
+        // implicit `ungrouped`): an edit of a light's colour or intensity is relit.
+        settings.groups = each_light_grouped(&scene);
+    }
+    if let Some(light) = arg("--group-light") {
+        // That light in a group of its own, every other emitter in `ungrouped`.
+        settings.groups = vec![LightGroup {
+            name: "tuned".into(),
+            members: vec![light],
+        }];
+    }
     if let Some(runs) = arg("--checkpoint-overhead") {
         checkpoint_overhead(
             &scene,
@@ -144,6 +163,30 @@ fn main() {
             }
         }
     }
+}
+
+/// One light group per light name (at most `MAX_GROUPS`), named after it.
+fn each_light_grouped(scene: &Scene) -> Vec<LightGroup> {
+    let mut groups: Vec<LightGroup> = Vec::new();
+    for l in &scene.lights {
+        let name: String = (l.name.chars())
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .take(64)
+            .collect();
+        if groups.len() < MAX_GROUPS && !groups.iter().any(|g| g.members[0] == l.name) {
+            groups.push(LightGroup {
+                name: format!("{name}_{}", groups.len()),
+                members: vec![l.name.clone()],
+            });
+        }
+    }
+    groups
 }
 
 /// What checkpoints cost a full bake: `runs` pairs of bakes, alternating without and with

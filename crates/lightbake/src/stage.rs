@@ -89,6 +89,9 @@ stages! {
     Stitch = "stitch",
     /// The irradiance volume for dynamic objects.
     Volume = "volume",
+    /// A bake with light groups relit from the cache: each group's cached pages weighted by
+    /// the change of its emitters' light ([`crate::incremental::relight`]).
+    Relight = "relight",
     /// Lightmaps, baked glTF, manifest and report written.
     Write = "write",
 }
@@ -196,6 +199,7 @@ impl Stage {
             Stage::Dilate => (&[Layout], &[Stage::ContactFit], Kept::Again),
             Stage::Stitch => (&[Layout], &[Stage::Dilate], Kept::Again),
             Stage::Volume => (&[Geometry], &[Stage::Stitch], Kept::Again),
+            Stage::Relight => (&[Lights, Sky], &[Stage::Stitch], Kept::Again),
             Stage::Write => (&[], &[Stage::Stitch, Stage::Volume], Kept::Again),
         };
         Reads {

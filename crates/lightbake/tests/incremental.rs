@@ -202,6 +202,7 @@ fn a_damaged_truncated_or_foreign_cache_gives_a_full_bake_with_a_warning() {
                 "another scene's values were kept: {inc:?}"
             );
         }
+        Plan::Relight(_) => panic!("a bake without light groups was relit"),
     }
 }
 

@@ -30,7 +30,7 @@ use super::stages::Scope;
 use super::subset::{Checkpoint, TexelRun};
 use super::{BakeOutput, bake_split, bake_texels, bake_with};
 use crate::error::Result;
-use crate::incremental::Plan;
+use crate::incremental::{BakeCache, KeptGroup, KeptGroups, Plan, StageValues};
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -222,7 +222,8 @@ impl BakeBuilder {
     }
 }
 
-/// A bake in one process: whole, or following `plan` over a [`TexelRun`].
+/// A bake in one process: whole, or following `plan` over a [`TexelRun`]; with light groups,
+/// relit from the cache ([`super::relight`]) or whole, keeping the groups' pages for the next.
 fn run_following(
     scene: &Scene,
     settings: &BakeSettings,
@@ -230,11 +231,29 @@ fn run_following(
     previews: &PreviewSlot,
     (plan, checkpoint): (Option<Plan>, Option<(Sink, Duration)>),
 ) -> Result<BakeOutput> {
-    // Light groups and a target error's rounds take every texel: no cache is kept for them
-    // (the plan says why a later bake is full).
-    let whole = !settings.groups.is_empty() || settings.target_error.is_some();
+    // A target error's rounds take every texel: no cache is kept for them (the plan says why
+    // a later bake is full).
+    if settings.target_error.is_some() {
+        return bake_with(scene, settings, progress, previews, Scope::All);
+    }
     match plan {
-        Some(plan) if !whole => {
+        Some(Plan::Relight(r)) => super::relight::relit(scene, settings, progress, *r),
+        Some(plan) if !settings.groups.is_empty() => {
+            // Light groups are lit over every texel; the groups' pages are kept for a later
+            // bake to relight.
+            let why = match plan {
+                Plan::Full(why) => why,
+                _ => "light groups are baked over every texel".into(),
+            };
+            let mut out = bake_with(scene, settings, progress, previews, Scope::All)?;
+            out.cache = Some(group_cache(scene, settings, &out));
+            out.report.incremental = Some(crate::incremental::IncrementalReport {
+                full: Some(why),
+                ..Default::default()
+            });
+            Ok(out)
+        }
+        Some(plan) => {
             let mut run = TexelRun::following(plan);
             if let Some((Sink(sink), interval)) = checkpoint {
                 run = run
@@ -243,6 +262,31 @@ fn run_following(
             }
             bake_with(scene, settings, progress, previews, Scope::Subset(&run))
         }
-        _ => bake_with(scene, settings, progress, previews, Scope::All),
+        None => bake_with(scene, settings, progress, previews, Scope::All),
     }
+}
+
+/// What a bake with light groups keeps for the next: its layout and its groups' finished
+/// pages and estimates (no split stage's values: they are lit over every texel).
+fn group_cache(scene: &Scene, settings: &BakeSettings, out: &BakeOutput) -> BakeCache {
+    let error = out.report.error.as_ref();
+    let groups = KeptGroups {
+        groups: (out.groups.iter())
+            .map(|g| KeptGroup {
+                name: g.name.clone(),
+                pages: g.pages.clone(),
+                error: g.report.error.clone(),
+            })
+            .collect(),
+        value_rms: error.map_or(0.0, |e| e.value_rms),
+    };
+    BakeCache::new(
+        scene,
+        settings,
+        out.report.plan.texel_density,
+        &out.layout,
+        StageValues::default(),
+        error.map_or(0.0, |e| e.relative_rms as f32),
+    )
+    .with_groups(groups)
 }

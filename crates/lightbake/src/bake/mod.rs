@@ -25,6 +25,7 @@ mod groups;
 mod handle;
 mod passes;
 pub mod preview;
+mod relight;
 pub mod shard;
 mod stages;
 mod subset;

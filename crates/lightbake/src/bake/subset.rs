@@ -187,6 +187,14 @@ impl TexelRun {
                 Mode::Follow(Box::new(Following { edit: Err(why) })),
                 StageValues::default(),
             ),
+            // Relit from the groups' pages by the builder, never over texels: here, a full
+            // bake.
+            Plan::Relight(_) => Self::with(
+                Mode::Follow(Box::new(Following {
+                    edit: Err("a relit bake takes no subset of the texels".into()),
+                })),
+                StageValues::default(),
+            ),
             Plan::Edit(edit) => {
                 let (edits, mut cache) = *edit;
                 let values = std::mem::take(&mut cache.values);

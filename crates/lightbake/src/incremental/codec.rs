@@ -7,7 +7,7 @@
 pub(super) const MAGIC: &[u8; 8] = b"LBCACHE\0";
 
 /// The payload's layout. A cache of another format version is not read.
-pub(super) const FORMAT: u32 = 5;
+pub(super) const FORMAT: u32 = 6;
 
 /// The checksum of the payload: FNV-1a's step (xor, then multiply by its 64-bit prime)
 /// taken a little-endian 64-bit word at a time, the last word padded with zeros, then the

@@ -114,6 +114,32 @@ pub fn instance_boxes(scene: &Scene) -> Vec<Emitter> {
 /// The reason for a full bake: settings that change every texel (or light groups, a target
 /// error), a cache of another scene.
 pub fn edits(cache: &BakeCache, scene: &Scene, settings: &BakeSettings) -> Result<Edits, String> {
+    same_settings(cache, settings)?;
+    if !settings.groups.is_empty() {
+        return Err("light groups are baked over every texel".into());
+    }
+    if settings.target_error.is_some() {
+        return Err("a target error's rounds take every texel's estimate".into());
+    }
+    changed_parts(cache, scene)
+}
+
+/// What changed from `cache` to `scene` baked with `settings`, whatever the settings' light
+/// groups and target error: what a bake with light groups relights from (`super::relight`).
+///
+/// # Errors
+/// Settings that change every texel, a cache of another scene.
+pub(super) fn changes(
+    cache: &BakeCache,
+    scene: &Scene,
+    settings: &BakeSettings,
+) -> Result<Edits, String> {
+    same_settings(cache, settings)?;
+    changed_parts(cache, scene)
+}
+
+/// Whether `settings` decide the texels as the cached bake's did.
+fn same_settings(cache: &BakeCache, settings: &BakeSettings) -> Result<(), String> {
     let (before, now) = (
         deciding_settings(&cache.settings),
         deciding_settings(settings),
@@ -124,12 +150,11 @@ pub fn edits(cache: &BakeCache, scene: &Scene, settings: &BakeSettings) -> Resul
             changed_groups(&before, &now).join(", ")
         ));
     }
-    if !settings.groups.is_empty() {
-        return Err("light groups are baked over every texel".into());
-    }
-    if settings.target_error.is_some() {
-        return Err("a target error's rounds take every texel's estimate".into());
-    }
+    Ok(())
+}
+
+/// The parts of `scene` that differ from the cached bake's.
+fn changed_parts(cache: &BakeCache, scene: &Scene) -> Result<Edits, String> {
     let hashes = SceneHashes::of(scene);
     let old = &cache.scene;
     let mut edits = Edits::default();

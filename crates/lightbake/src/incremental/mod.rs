@@ -10,7 +10,11 @@
 //!
 //! * **full**, with the reason, when there is no usable cache (none, damaged, truncated, from
 //!   another baker version or another scene), when the settings that decide the texels
-//!   changed, with light groups or a target error, or when asked (`--full`);
+//!   changed, with a target error, or when asked (`--full`); with light groups, for every edit
+//!   but a change of their lights' colour or intensity;
+//! * **relit** ([`Relighting`]), with light groups, when the edit changes only the colour or
+//!   intensity of lights or the sky, by one factor per channel within each group: the
+//!   weighted sum of the cached groups' pages ([`relight`], [`KeptGroups`]), nothing lit;
 //! * else an **edit** ([`Edits`]): the layout of the meshes that did not change is kept
 //!   (`unwrap::stable`), and each split stage recomputes only the items whose inputs moved,
 //!   relative to their earlier level, by more than [`SHARE`] of the earlier bake's estimated
@@ -46,6 +50,7 @@
 mod bounds;
 pub(crate) mod codec;
 mod edits;
+mod relight;
 mod values;
 
 use std::path::Path;
@@ -56,6 +61,7 @@ use serde::Serialize;
 pub(crate) use bounds::direct_bounds;
 use codec::{Bad, Reader, Writer};
 pub use edits::{Aabb, Edits, Emitter, deciding_settings, edits, instance_boxes};
+pub use relight::{KeptGroup, KeptGroups, Relit, relight};
 pub use values::{KeptStage, KeptState, StageValues};
 pub(crate) use values::{patch_geometry, patch_keys};
 
@@ -99,6 +105,9 @@ pub struct BakeCache {
     /// The bake's estimated error, relative RMS (0 when it had none): an item whose inputs
     /// move by less than [`SHARE`] of it keeps its value.
     pub error: f32,
+    /// With light groups: each group's finished pages and estimate, which a later bake
+    /// relights ([`relight`]). Empty without groups.
+    pub groups: KeptGroups,
 }
 
 impl BakeCache {
@@ -128,7 +137,14 @@ impl BakeCache {
             } else {
                 0.0
             },
+            groups: KeptGroups::default(),
         }
+    }
+
+    /// The cache with the light groups' pages and estimates a later bake relights.
+    pub fn with_groups(mut self, groups: KeptGroups) -> Self {
+        self.groups = groups;
+        self
     }
 
     /// The cache file's bytes.
@@ -148,6 +164,7 @@ impl BakeCache {
         w.f32s(&self.requests);
         self.values.write(&mut w);
         w.f32(self.error);
+        self.groups.write(&mut w);
         w.finish(env!("CARGO_PKG_VERSION"))
     }
 
@@ -183,7 +200,13 @@ impl BakeCache {
         let requests = r.f32s()?;
         let values = StageValues::read(&mut r)?;
         let error = r.f32()?;
+        let groups = KeptGroups::read(&mut r)?;
         r.end()?;
+        let pages_fit = (groups.groups.iter()).all(|g| {
+            g.pages.len() == layout.pages.len()
+                && (g.pages.iter().zip(&layout.pages))
+                    .all(|(p, s)| p.width == s.width && p.height == s.height)
+        });
         let consistent = scene.instances.len() == n
             && scene.lights.len() == lights.len()
             && layout.instances.len() == n
@@ -191,7 +214,8 @@ impl BakeCache {
             && requests.len() == scene.meshes.len()
             && layout.validate().is_ok()
             && error.is_finite()
-            && error >= 0.0;
+            && error >= 0.0
+            && pages_fit;
         if !consistent {
             return Err("its parts do not agree with each other".into());
         }
@@ -207,6 +231,7 @@ impl BakeCache {
             requests,
             values,
             error,
+            groups,
         })
     }
 }
@@ -430,6 +455,20 @@ pub enum Plan {
     Full(String),
     /// An edit of the cached bake.
     Edit(Box<(Edits, BakeCache)>),
+    /// A bake with light groups whose edit only scales each group's light: the weighted sum
+    /// of the cached groups' pages.
+    Relight(Box<Relighting>),
+}
+
+/// A bake relit from the cache ([`relight`]).
+#[derive(Clone, Debug)]
+pub struct Relighting {
+    /// The changes, one line each.
+    pub lines: Vec<String>,
+    /// Per group of the cache ([`KeptGroups::groups`]), the factor per channel of its light.
+    pub weights: Vec<Vec3>,
+    /// The cache relit, kept as it is for the next bake (the weights stay relative to it).
+    pub cache: BakeCache,
 }
 
 /// How a bake of `scene` with `settings` follows the cache `previous` read from its output
@@ -444,6 +483,14 @@ pub fn plan(
         _ if full => Plan::Full("a full bake was asked for".into()),
         Ok(None) => Plan::Full("no earlier bake to follow (no cache)".into()),
         Err(why) => Plan::Full(why),
+        Ok(Some(cache)) if !settings.groups.is_empty() => match relight(&cache, scene, settings) {
+            Ok((lines, weights)) => Plan::Relight(Box::new(Relighting {
+                lines,
+                weights,
+                cache,
+            })),
+            Err(why) => Plan::Full(why),
+        },
         Ok(Some(cache)) => match edits(&cache, scene, settings) {
             Ok(edits) => Plan::Edit(Box::new((edits, cache))),
             Err(why) => Plan::Full(why),
@@ -456,6 +503,23 @@ impl Plan {
     pub fn describe(&self) -> String {
         match self {
             Plan::Full(why) => format!("incremental: full bake: {why}\n"),
+            Plan::Relight(r) => {
+                let mut s = String::from(
+                    "incremental: relit from the cached bake's light groups (nothing lit)\n",
+                );
+                for l in &r.lines {
+                    s.push_str(&format!("  changed   {l}\n"));
+                }
+                for (g, w) in r.cache.groups.groups.iter().zip(&r.weights) {
+                    if *w != Vec3::ONE {
+                        s.push_str(&format!(
+                            "  weighted  group {} × ({:.4}, {:.4}, {:.4})\n",
+                            g.name, w.x, w.y, w.z
+                        ));
+                    }
+                }
+                s
+            }
             Plan::Edit(e) if e.0.is_empty() => {
                 "incremental: nothing changed since the cached bake: its layout and every value it kept are kept\n".into()
             }
@@ -519,7 +583,12 @@ fn runs(stage: Stage, settings: &BakeSettings) -> bool {
         SolverChoice::Auto | SolverChoice::Hierarchical
     );
     match stage {
-        Stage::Plan | Stage::Indirect | Stage::Patches | Stage::Calibrate | Stage::Write => false,
+        Stage::Plan
+        | Stage::Indirect
+        | Stage::Patches
+        | Stage::Calibrate
+        | Stage::Relight
+        | Stage::Write => false,
         Stage::Vpl => settings.method != Method::Radiosity,
         Stage::Transport | Stage::Solve => matrix,
         Stage::CoarseSolve

@@ -331,7 +331,9 @@ fn stage_pages(
     files: &[PageFiles],
     measure: bool,
 ) -> Result<Vec<bc6h::Bc6hError>> {
-    let mut compressed = Vec::new();
+    use rayon::prelude::*;
+    // One file of one page: its path, the page and its format.
+    let mut jobs: Vec<(PathBuf, &LightmapPage, &str)> = Vec::new();
     for (page, files) in pages.iter().zip(files) {
         // A lightmap never holds a NaN or an infinity (every stage checks its output; this is
         // the last line).
@@ -344,32 +346,41 @@ fn stage_pages(
                 page.texels[k]
             )));
         }
-        if let Some(f) = &files.exr {
-            let path = dir.join(f);
-            let bytes = images::encode_exr(page).map_err(encode_err(&path))?;
-            staged.stage(&path, &bytes)?;
-        }
-        if let Some(f) = &files.hdr {
-            let path = dir.join(f);
-            let bytes = images::encode_hdr(page).map_err(encode_err(&path))?;
-            staged.stage(&path, &bytes)?;
-        }
-        if let Some(f) = &files.ktx2 {
-            staged.stage(&dir.join(f), &images::encode_ktx2(page))?;
-        }
-        if let Some(f) = &files.ktx2_bc6h {
-            let path = dir.join(f);
-            let bytes = bc6h::encode_ktx2_bc6h(page).map_err(encode_err(&path))?;
-            if measure {
-                compressed.push(bc6h::measure(page, &bytes).map_err(encode_err(&path))?);
+        let formats = [
+            (&files.exr, "exr"),
+            (&files.hdr, "hdr"),
+            (&files.ktx2, "ktx2"),
+            (&files.ktx2_bc6h, "bc6h"),
+            (&files.preview, "png"),
+        ];
+        for (file, format) in formats {
+            if let Some(f) = file {
+                jobs.push((dir.join(f), page, format));
             }
-            staged.stage(&path, &bytes)?;
         }
-        if let Some(f) = &files.preview {
-            let path = dir.join(f);
-            let bytes = images::encode_preview_png(page).map_err(encode_err(&path))?;
-            staged.stage(&path, &bytes)?;
-        }
+    }
+    // A set of pages' files encoded in parallel (the bake's own, or one light group's: the
+    // encoded bytes held at once are one set's), then staged in order.
+    let encoded: Vec<(Vec<u8>, Option<bc6h::Bc6hError>)> = (jobs.par_iter())
+        .map(|(path, page, format)| {
+            let bytes = match *format {
+                "exr" => images::encode_exr(page),
+                "hdr" => images::encode_hdr(page),
+                "ktx2" => Ok(images::encode_ktx2(page)),
+                "bc6h" => bc6h::encode_ktx2_bc6h(page),
+                _ => images::encode_preview_png(page),
+            }
+            .map_err(encode_err(path))?;
+            let measured = (measure && *format == "bc6h")
+                .then(|| bc6h::measure(page, &bytes).map_err(encode_err(path)))
+                .transpose()?;
+            Ok((bytes, measured))
+        })
+        .collect::<Result<_>>()?;
+    let mut compressed = Vec::new();
+    for ((path, _, _), (bytes, measured)) in jobs.iter().zip(encoded) {
+        staged.stage(path, &bytes)?;
+        compressed.extend(measured);
     }
     Ok(compressed)
 }
