@@ -30,7 +30,7 @@ use super::stages::Scope;
 use super::subset::{Checkpoint, TexelRun};
 use super::{BakeOutput, bake_split, bake_texels, bake_with};
 use crate::error::Result;
-use crate::incremental::{BakeCache, KeptGroup, KeptGroups, Plan, StageValues};
+use crate::incremental::{BakeCache, KeptGroup, KeptGroups, KeptPage, Plan, StageValues};
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -274,7 +274,14 @@ fn group_cache(scene: &Scene, settings: &BakeSettings, out: &BakeOutput) -> Bake
         groups: (out.groups.iter())
             .map(|g| KeptGroup {
                 name: g.name.clone(),
-                pages: g.pages.clone(),
+                pages: (g.pages.iter())
+                    .map(|p| KeptPage {
+                        width: p.width,
+                        height: p.height,
+                        texels: p.texels.clone(),
+                        covered: p.covered.clone(),
+                    })
+                    .collect(),
                 error: g.report.error.clone(),
             })
             .collect(),

@@ -8,7 +8,8 @@ use glam::Vec3;
 
 use super::{BakeOutput, GroupPages, half_float_warning};
 use crate::error::{BakeError, Result};
-use crate::incremental::{IncrementalReport, Relighting};
+use crate::incremental::{IncrementalReport, KeptPage, Relighting};
+use crate::lightmap::LightmapPage;
 use crate::memory::{self, MemoryEstimate};
 use crate::plan::BakePlan;
 use crate::progress::{Progress, StageStats};
@@ -68,14 +69,15 @@ pub(super) fn relit(
                 error: g.error,
             },
             name: g.name,
-            pages: g.pages,
+            pages: g.pages.into_iter().map(page).collect(),
             irradiance_volumes: Vec::new(),
         })
         .collect();
     let mut plan = BakePlan::new(scene, settings);
     plan.texel_density = cache.density;
     plan.texel_density_source = "the cached bake's layout".into();
-    let covered: usize = (relit.pages.iter())
+    let pages: Vec<LightmapPage> = relit.pages.into_iter().map(page).collect();
+    let covered: usize = (pages.iter())
         .map(|p| p.covered.iter().filter(|&&c| c).count())
         .sum();
     let seconds = start.elapsed().as_secs_f64();
@@ -101,7 +103,7 @@ pub(super) fn relit(
     progress.advance(1);
     progress.record_stage(0, &stage);
     let mut warnings = scene.warnings.clone();
-    warnings.extend(half_float_warning(&relit.pages));
+    warnings.extend(half_float_warning(&pages));
     let report = BakeReport {
         lightbake_version: env!("CARGO_PKG_VERSION"),
         scene: scene.name.clone(),
@@ -147,10 +149,20 @@ pub(super) fn relit(
     Ok(BakeOutput {
         layout,
         baked_scene,
-        pages: relit.pages,
+        pages,
         irradiance_volumes: Vec::new(),
         groups,
         report,
         cache: Some(cache),
     })
+}
+
+/// A cached page as the bake's page.
+fn page(p: KeptPage) -> LightmapPage {
+    LightmapPage {
+        width: p.width,
+        height: p.height,
+        texels: p.texels,
+        covered: p.covered,
+    }
 }

@@ -61,7 +61,7 @@ use serde::Serialize;
 pub(crate) use bounds::direct_bounds;
 use codec::{Bad, Reader, Writer};
 pub use edits::{Aabb, Edits, Emitter, deciding_settings, edits, instance_boxes};
-pub use relight::{KeptGroup, KeptGroups, Relit, relight};
+pub use relight::{KeptGroup, KeptGroups, KeptPage, Relit, relight};
 pub use values::{KeptStage, KeptState, StageValues};
 pub(crate) use values::{patch_geometry, patch_keys};
 

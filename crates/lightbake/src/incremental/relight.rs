@@ -24,7 +24,6 @@ use super::BakeCache;
 use super::codec::{Bad, Reader, Writer};
 use super::edits::changes;
 use crate::error_estimate::{ErrorEstimate, rms_luminance};
-use crate::lightmap::LightmapPage;
 use crate::scene::Scene;
 use crate::scene::groups::resolve;
 use crate::scene::hashes::SceneHashes;
@@ -34,13 +33,27 @@ use crate::settings::BakeSettings;
 /// the same factor (a colour written with a few digits, an intensity scaled in `f32`).
 const SAME_FACTOR: f32 = 1e-5;
 
+/// A lightmap page as the cache keeps it (the bake's `KeptPage`, whose module lies above
+/// this one).
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeptPage {
+    /// Texels across.
+    pub width: u32,
+    /// Texels down.
+    pub height: u32,
+    /// E/π per texel, row-major from the top, linear RGB.
+    pub texels: Vec<Vec3>,
+    /// Texels that belong to a surface.
+    pub covered: Vec<bool>,
+}
+
 /// One light group's finished pages and error estimate, as the bake lit it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KeptGroup {
     /// The group's name.
     pub name: String,
     /// Its pages (E/π, linear RGB), in the order and sizes of the bake's layout.
-    pub pages: Vec<LightmapPage>,
+    pub pages: Vec<KeptPage>,
     /// Its estimated error (absolute RMS and 95th percentile, lux; none when nothing was
     /// sampled).
     pub error: Option<ErrorEstimate>,
@@ -63,7 +76,7 @@ pub struct Relit {
     /// Each group's name, pages and estimate, in the cache's order.
     pub groups: Vec<KeptGroup>,
     /// The sum of the groups' pages.
-    pub pages: Vec<LightmapPage>,
+    pub pages: Vec<KeptPage>,
     /// The estimate of the sum: the groups' absolute errors, each scaled with its light,
     /// added in quadrature, relative to the sum's RMS scaled alike.
     pub error: Option<ErrorEstimate>,
@@ -116,7 +129,7 @@ impl KeptGroups {
                 if flat.iter().any(|v| !v.is_finite()) {
                     return Err("a light group's page holds a value that is not finite".into());
                 }
-                pages.push(LightmapPage {
+                pages.push(KeptPage {
                     width,
                     height,
                     texels: flat.chunks_exact(3).map(Vec3::from_slice).collect(),
@@ -172,8 +185,8 @@ impl KeptGroups {
                 if w == Vec3::ONE {
                     return g.clone();
                 }
-                let pages: Vec<LightmapPage> = (g.pages.iter())
-                    .map(|p| LightmapPage {
+                let pages: Vec<KeptPage> = (g.pages.iter())
+                    .map(|p| KeptPage {
                         width: p.width,
                         height: p.height,
                         texels: p.texels.iter().map(|&t| t * w).collect(),
@@ -223,7 +236,7 @@ impl KeptGroups {
 }
 
 /// The covered texels of `pages`.
-fn covered<'a>(pages: impl Iterator<Item = &'a LightmapPage>) -> impl Iterator<Item = &'a Vec3> {
+fn covered<'a>(pages: impl Iterator<Item = &'a KeptPage>) -> impl Iterator<Item = &'a Vec3> {
     pages.flat_map(|p| {
         p.texels
             .iter()
@@ -235,12 +248,12 @@ fn covered<'a>(pages: impl Iterator<Item = &'a LightmapPage>) -> impl Iterator<I
 
 /// The texel-wise sum of each group's pages, added in order onto black (as the bake sums
 /// its groups, so that weights of 1 give its pages bit for bit).
-fn sum<'a>(mut groups: impl Iterator<Item = &'a [LightmapPage]>) -> Vec<LightmapPage> {
+fn sum<'a>(mut groups: impl Iterator<Item = &'a [KeptPage]>) -> Vec<KeptPage> {
     let Some(first) = groups.next() else {
         return Vec::new();
     };
-    let mut out: Vec<LightmapPage> = (first.iter())
-        .map(|p| LightmapPage {
+    let mut out: Vec<KeptPage> = (first.iter())
+        .map(|p| KeptPage {
             width: p.width,
             height: p.height,
             texels: vec![Vec3::ZERO; p.texels.len()],
