@@ -10,7 +10,7 @@ pub use crate::error_estimate::ErrorEstimate;
 pub use crate::lightmap::contacts::ContactStats;
 pub use crate::lightmap::denoise::DenoiseStats;
 pub use crate::lightmap::seams::SeamJumps;
-pub use crate::lightmap::stitch::StitchStats;
+pub use crate::lightmap::stitch::{OpenSeam, OpenWhy, StitchStats};
 pub use crate::memory::MemoryEstimate;
 pub use crate::plan::{BakePlan, DirectSource, LightReach, PlannedSource, PlannedStage};
 pub use crate::progress::{RayKind, StageStats};
@@ -578,13 +578,40 @@ impl BakeReport {
         }
         if let Some(st) = &self.seams {
             s.push_str(&format!(
-                "seams: {} edge(s), jump across them {:.2}% mean, {:.2}% max before the stitch; {:.2}% mean, {:.2}% max after\n",
+                "seams: {} edge(s) stitched, jump across them {:.2}% mean, {:.2}% max before the stitch; {:.2}% mean, {:.2}% max after\n",
                 st.before.seams,
                 100.0 * st.before.mean,
                 100.0 * st.before.max,
                 100.0 * st.after.mean,
                 100.0 * st.after.max
             ));
+            if st.closed > 0 {
+                s.push_str(&format!(
+                    "  {} seam sample(s) where geometry stands on the seam (two rooms) left apart: {:.2}% mean, {:.2}% max\n",
+                    st.closed,
+                    100.0 * st.apart.mean,
+                    100.0 * st.apart.max
+                ));
+            }
+            if st.open_count > 0 {
+                s.push_str(&format!(
+                    "  {} seam(s) above {:.0}% after the stitch; the worst:\n",
+                    st.open_count,
+                    100.0 * crate::lightmap::stitch::OPEN_JUMP
+                ));
+                for o in st.open.iter().take(8) {
+                    s.push_str(&format!(
+                        "    {:.0}% at ({:.2}, {:.2}, {:.2}) m, instances {} and {}: {}\n",
+                        100.0 * o.jump,
+                        o.at[0],
+                        o.at[1],
+                        o.at[2],
+                        o.instances[0],
+                        o.instances[1],
+                        o.why.words()
+                    ));
+                }
+            }
         }
         for (k, v) in self.irradiance_volumes.iter().enumerate() {
             s.push_str(&format!(

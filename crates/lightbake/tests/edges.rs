@@ -100,3 +100,65 @@ fn seams_are_the_smooth_edges_between_charts() {
     let prep = Prepared::new(&boxed, &BakeSettings::preview()).unwrap();
     assert!(find_seams(&prep.scene, &prep.layout).is_empty());
 }
+
+#[test]
+fn a_seam_under_a_wall_is_left_apart_and_named() {
+    // Two floor planes meeting at x = 0 (a seam between two meshes' charts), a wall standing
+    // on that line and a lamp on its west side: the stitch must not make the lit and the
+    // dark room agree there. Its samples are left apart, counted apart from the jumps the
+    // stitch closes, and the seam is listed with why when it stays above 10%.
+    use glam::{Affine3A, Vec3};
+    use lightbake::report::OpenWhy;
+    use lightbake::scene::testscenes::plane;
+    use lightbake::scene::{Instance, Light, LightBake, LightKind, Material, Mesh};
+    let mut scene = Scene {
+        name: "wall_on_a_seam".into(),
+        texel_density_hint: Some(24.0),
+        ..Scene::default()
+    };
+    let grey = scene.add_material(Material::diffuse("grey", Vec3::splat(0.6)));
+    let floor = scene.add_mesh(Mesh {
+        material: Some(grey),
+        ..plane("floor", 2.0)
+    });
+    for (name, x) in [("west floor", -1.0), ("east floor", 1.0)] {
+        let at = Affine3A::from_translation(Vec3::new(x, 0.0, 0.0));
+        scene.instances.push(Instance::new(name, floor, at));
+    }
+    let (lo, hi) = (Vec3::new(-0.05, 0.0, -1.2), Vec3::new(0.05, 1.5, 1.2));
+    let wall = scene.add_mesh(Mesh {
+        material: Some(grey),
+        ..cuboid("wall", lo, hi, false)
+    });
+    scene
+        .instances
+        .push(Instance::new("wall", wall, Affine3A::IDENTITY));
+    scene.lights.push(Light {
+        name: "lamp".into(),
+        kind: LightKind::Point,
+        color: Vec3::ONE,
+        intensity: 50.0,
+        range: None,
+        position: Vec3::new(-0.8, 1.2, 0.0),
+        direction: Vec3::NEG_Y,
+        bake: LightBake::Full,
+    });
+    let out = bake(&scene, &BakeSettings::preset(Quality::Preview));
+    println!("{}", out.report.table());
+    let st = out.report.seams.expect("the stitch ran");
+    let seams = find_seams(&out.baked_scene, &out.layout);
+    let under: Vec<_> = (seams.iter())
+        .filter(|s| s.world.iter().all(|p| p.x.abs() < 1e-4))
+        .collect();
+    assert!(!under.is_empty(), "the planes' shared edge is a seam");
+    let all: usize = seams.iter().map(|s| s.samples().count()).sum();
+    let beneath: usize = under.iter().map(|s| s.samples().count()).sum();
+    assert!(st.closed >= beneath * 9 / 10, "{st:?}");
+    assert_eq!(st.apart.samples, st.closed);
+    assert_eq!(st.after.samples + st.closed, all, "{st:?}");
+    assert!(st.after.max <= 0.10, "the open seams close: {st:?}");
+    for o in &st.open {
+        assert_eq!(o.why, OpenWhy::GeometryOnIt, "{o:?}");
+        assert!(o.at[0].abs() < 1e-3, "{o:?}");
+    }
+}

@@ -260,15 +260,7 @@ pub(super) fn stitch_pages(
             "no seams: no smooth surface is split between charts (chart borders lie on hard edges)"
                 .to_string()
         } else {
-            format!(
-                "{} seam edges, jump {:.2}% mean / {:.2}% max before, {:.2}% / {:.2}% after ({} values capped)",
-                st.before.seams,
-                100.0 * st.before.mean,
-                100.0 * st.before.max,
-                100.0 * st.after.mean,
-                100.0 * st.after.max,
-                st.capped
-            )
+            st.summary(seams.len())
         };
         Ok((st, 0, note))
     })?;

@@ -29,7 +29,7 @@ pub(crate) use assembly::{Assembly, TexelState, assemble};
 pub use contacts::ContactStats;
 pub use denoise::DenoiseStats;
 pub use seams::SeamJumps;
-pub use stitch::StitchStats;
+pub use stitch::{OpenSeam, OpenWhy, StitchStats};
 
 use glam::{Vec2, Vec3};
 

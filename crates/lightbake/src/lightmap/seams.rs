@@ -1,7 +1,7 @@
 //! Seams: mesh edges whose two sides lie in different charts (of one mesh, or of two meshes
 //! that share the edge) while the surface goes on smoothly across them. The lightmap shows
 //! each side through its own texels, so after bilinear filtering the two sides of a seam can
-//! differ at the same world point; [`seam_jumps`] measures by how much, and
+//! differ at the same world point; [`seam_jumps_where`] measures by how much, and
 //! [`super::stitch`] makes them agree.
 //!
 //! An edge is a seam when it is an open edge of its chart on both sides (the two triangles
@@ -213,7 +213,7 @@ fn seam(scene: &Scene, layout: &Layout, a: &OpenEdge, b: &OpenEdge) -> Option<Se
 /// count as agreeing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SeamJumps {
-    /// Seam edges.
+    /// Seam edges with a sample counted.
     pub seams: usize,
     /// Samples along them.
     pub samples: usize,
@@ -236,8 +236,40 @@ pub fn sample_at(page: &LightmapPage, q: Vec2) -> Vec3 {
     .sum()
 }
 
-/// Measures the jumps across `seams` on `pages` (see [`SeamJumps`]).
-pub fn seam_jumps(seams: &[Seam], pages: &[LightmapPage]) -> SeamJumps {
+/// Measures the jumps across `seams` on `pages` (see [`SeamJumps`]) over the samples `keep(seam, sample)` selects (indices into `seams` and into the seam's
+/// [`Seam::samples`]).
+pub fn seam_jumps_where(
+    seams: &[Seam],
+    pages: &[LightmapPage],
+    keep: impl Fn(usize, usize) -> bool,
+) -> SeamJumps {
+    let floor = jump_floor(pages);
+    let mut out = SeamJumps {
+        seams: 0,
+        ..SeamJumps::default()
+    };
+    let mut total = 0.0f64;
+    for (i, s) in seams.iter().enumerate() {
+        let mut counted = false;
+        for (k, t) in s.samples().enumerate() {
+            if !keep(i, k) {
+                continue;
+            }
+            let jump = sample_jump(s, t, pages, floor);
+            total += jump;
+            out.max = out.max.max(jump);
+            out.samples += 1;
+            counted = true;
+        }
+        out.seams += usize::from(counted);
+    }
+    out.mean = total / out.samples.max(1) as f64;
+    out
+}
+
+/// The least mean luminance a seam sample's jump is taken relative to: 1% of the mean
+/// luminance of the pages' covered texels.
+pub fn jump_floor(pages: &[LightmapPage]) -> f64 {
     let (mut sum, mut count) = (0.0f64, 0.0f64);
     for p in pages {
         for (t, &c) in p.texels.iter().zip(&p.covered) {
@@ -247,22 +279,17 @@ pub fn seam_jumps(seams: &[Seam], pages: &[LightmapPage]) -> SeamJumps {
             }
         }
     }
-    let floor = 0.01 * sum / count.max(1.0);
-    let mut out = SeamJumps {
-        seams: seams.len(),
-        ..SeamJumps::default()
-    };
-    let mut total = 0.0f64;
-    for s in seams {
-        for t in s.samples() {
-            let l = [0, 1]
-                .map(|k| luminance(sample_at(&pages[s.sides[k].page as usize], s.at(k, t))) as f64);
-            let jump = (l[0] - l[1]).abs() / (0.5 * (l[0] + l[1])).max(floor).max(1e-30);
-            total += jump;
-            out.max = out.max.max(jump);
-            out.samples += 1;
-        }
-    }
-    out.mean = total / out.samples.max(1) as f64;
-    out
+    0.01 * sum / count.max(1.0)
+}
+
+/// The relative jump across `seam` at parameter `t` on `pages` ([`SeamJumps`]), its mean
+/// taken as at least `floor`.
+pub fn sample_jump(seam: &Seam, t: f32, pages: &[LightmapPage], floor: f64) -> f64 {
+    let l = [0, 1].map(|k| {
+        luminance(sample_at(
+            &pages[seam.sides[k].page as usize],
+            seam.at(k, t),
+        )) as f64
+    });
+    (l[0] - l[1]).abs() / (0.5 * (l[0] + l[1])).max(floor).max(1e-30)
 }
