@@ -52,6 +52,13 @@ pub(crate) fn summary(report: &BakeReport) -> Option<String> {
             "incremental: full bake ({why}); a cache for the next bake into the folder is kept"
         ));
     }
+    if inc.stages.is_empty() {
+        // Relit from the cached light groups: no split stage ran.
+        return Some(format!(
+            "incremental: nothing lit again; {}",
+            inc.layout.join("; ")
+        ));
+    }
     let stages: Vec<String> = (inc.stages.iter())
         .map(|s| {
             let share = s.computed as f64 / (s.items.max(1)) as f64;
