@@ -30,7 +30,7 @@ use super::stages::Scope;
 use super::subset::{Checkpoint, TexelRun};
 use super::{BakeOutput, bake_split, bake_texels, bake_with};
 use crate::error::Result;
-use crate::incremental::{BakeCache, KeptGroup, KeptGroups, KeptPage, Plan, StageValues};
+use crate::incremental::Plan;
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::settings::BakeSettings;
@@ -246,7 +246,7 @@ fn run_following(
                 _ => "light groups are baked over every texel".into(),
             };
             let mut out = bake_with(scene, settings, progress, previews, Scope::All)?;
-            out.cache = Some(group_cache(scene, settings, &out));
+            out.cache = Some(super::relight::group_cache(scene, settings, &out));
             out.report.incremental = Some(crate::incremental::IncrementalReport {
                 full: Some(why),
                 ..Default::default()
@@ -264,36 +264,4 @@ fn run_following(
         }
         None => bake_with(scene, settings, progress, previews, Scope::All),
     }
-}
-
-/// What a bake with light groups keeps for the next: its layout and its groups' finished
-/// pages and estimates (no split stage's values: they are lit over every texel).
-fn group_cache(scene: &Scene, settings: &BakeSettings, out: &BakeOutput) -> BakeCache {
-    let error = out.report.error.as_ref();
-    let groups = KeptGroups {
-        groups: (out.groups.iter())
-            .map(|g| KeptGroup {
-                name: g.name.clone(),
-                pages: (g.pages.iter())
-                    .map(|p| KeptPage {
-                        width: p.width,
-                        height: p.height,
-                        texels: p.texels.clone(),
-                        covered: p.covered.clone(),
-                    })
-                    .collect(),
-                error: g.report.error.clone(),
-            })
-            .collect(),
-        value_rms: error.map_or(0.0, |e| e.value_rms),
-    };
-    BakeCache::new(
-        scene,
-        settings,
-        out.report.plan.texel_density,
-        &out.layout,
-        StageValues::default(),
-        error.map_or(0.0, |e| e.relative_rms as f32),
-    )
-    .with_groups(groups)
 }

@@ -1,6 +1,7 @@
 //! A bake with light groups relit from its cache ([`crate::incremental::relight`]): the
 //! layout kept, each group's cached pages weighted by the change of its light, their sum
-//! the bake's pages. Nothing is lit; the report's one stage says what was weighted.
+//! the bake's pages. Nothing is lit; the report's one stage says what was weighted. And what
+//! a bake with light groups keeps for it ([`group_cache`]).
 
 use std::time::Instant;
 
@@ -8,7 +9,9 @@ use glam::Vec3;
 
 use super::{BakeOutput, GroupPages, half_float_warning};
 use crate::error::{BakeError, Result};
-use crate::incremental::{IncrementalReport, KeptPage, Relighting};
+use crate::incremental::{
+    BakeCache, IncrementalReport, KeptGroup, KeptGroups, KeptPage, Relighting, StageValues,
+};
 use crate::lightmap::LightmapPage;
 use crate::memory::{self, MemoryEstimate};
 use crate::plan::BakePlan;
@@ -155,6 +158,41 @@ pub(super) fn relit(
         report,
         cache: Some(cache),
     })
+}
+
+/// What a bake with light groups keeps for the next: its layout and its groups' finished
+/// pages and estimates (no split stage's values: they are lit over every texel).
+pub(super) fn group_cache(scene: &Scene, settings: &BakeSettings, out: &BakeOutput) -> BakeCache {
+    let error = out.report.error.as_ref();
+    let groups = KeptGroups {
+        groups: (out.groups.iter())
+            .map(|g| KeptGroup {
+                name: g.name.clone(),
+                pages: g.pages.iter().map(kept).collect(),
+                error: g.report.error.clone(),
+            })
+            .collect(),
+        value_rms: error.map_or(0.0, |e| e.value_rms),
+    };
+    BakeCache::new(
+        scene,
+        settings,
+        out.report.plan.texel_density,
+        &out.layout,
+        StageValues::default(),
+        error.map_or(0.0, |e| e.relative_rms as f32),
+    )
+    .with_groups(groups)
+}
+
+/// The bake's page as the cache keeps it.
+fn kept(p: &LightmapPage) -> KeptPage {
+    KeptPage {
+        width: p.width,
+        height: p.height,
+        texels: p.texels.clone(),
+        covered: p.covered.clone(),
+    }
 }
 
 /// A cached page as the bake's page.
