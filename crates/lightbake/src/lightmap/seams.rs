@@ -236,14 +236,16 @@ pub fn sample_at(page: &LightmapPage, q: Vec2) -> Vec3 {
     .sum()
 }
 
-/// Measures the jumps across `seams` on `pages` (see [`SeamJumps`]) over the samples `keep(seam, sample)` selects (indices into `seams` and into the seam's
-/// [`Seam::samples`]).
+/// Measures the jumps across `seams` on `pages` (see [`SeamJumps`]) over the samples
+/// `keep(seam, sample)` selects (indices into `seams` and into the seam's
+/// [`Seam::samples`]), each relative to a mean of at least `floor` ([`jump_floor`] of
+/// `pages`).
 pub fn seam_jumps_where(
     seams: &[Seam],
     pages: &[LightmapPage],
+    floor: f64,
     keep: impl Fn(usize, usize) -> bool,
 ) -> SeamJumps {
-    let floor = jump_floor(pages);
     let mut out = SeamJumps {
         seams: 0,
         ..SeamJumps::default()

@@ -214,11 +214,15 @@ pub fn stitch(
         .map(|s| s.samples().map(|t| open_at(s, t, rays)).collect())
         .collect();
     let stitched = |i: usize, k: usize| open[i][k];
-    let before = seam_jumps_where(seams, &assembly.pages, stitched);
+    let before = seam_jumps_where(
+        seams,
+        &assembly.pages,
+        jump_floor(&assembly.pages),
+        stitched,
+    );
     let mut stats = StitchStats {
         before,
         after: before,
-        apart: seam_jumps_where(seams, &assembly.pages, |i, k| !open[i][k]),
         ..StitchStats::default()
     };
     if seams.is_empty() {
@@ -307,25 +311,26 @@ pub fn stitch(
     let solved = x.clone();
     stats.capped = unknowns.cap(assembly, &mut x, &ceiling);
     unknowns.write(assembly, &x);
-    stats.after = seam_jumps_where(seams, &assembly.pages, stitched);
-    stats.apart = seam_jumps_where(seams, &assembly.pages, |i, k| !open[i][k]);
+    let floor = jump_floor(&assembly.pages);
+    stats.after = seam_jumps_where(seams, &assembly.pages, floor, stitched);
+    stats.apart = seam_jumps_where(seams, &assembly.pages, floor, |i, k| !open[i][k]);
     let capped: Vec<bool> = solved.iter().zip(&x).map(|(a, b)| a != b).collect();
-    stats.open = open_seams(assembly, patches, seams, &open, (&unknowns, &capped));
+    stats.open = open_seams(assembly, patches, seams, &open, floor, (&unknowns, &capped));
     stats.open_count = stats.open.len();
     stats
 }
 
 /// The seams whose jump after the stitch is above [`OPEN_JUMP`], the worst first, each with
-/// why (`open`: per seam and sample, whether the stitch closed it; `capped`: per unknown,
-/// whether its value was capped).
+/// why (`open`: per seam and sample, whether the stitch closed it; `floor`: the pages'
+/// [`jump_floor`]; `capped`: per unknown, whether its value was capped).
 fn open_seams(
     assembly: &Assembly,
     patches: &Patches,
     seams: &[Seam],
     open: &[Vec<bool>],
+    floor: f64,
     (unknowns, capped): (&Unknowns, &[bool]),
 ) -> Vec<OpenSeam> {
-    let floor = jump_floor(&assembly.pages);
     let mut left = Vec::new();
     for (i, s) in seams.iter().enumerate() {
         // The worst sample, and whether it is one the stitch closes.
